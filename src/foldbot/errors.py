@@ -1,0 +1,33 @@
+"""The errors foldbot raises on purpose: each names the bad value and what is allowed."""
+
+from __future__ import annotations
+
+
+class FoldbotError(Exception):
+    """Base class of every error foldbot raises deliberately."""
+
+
+class ConfigError(FoldbotError, ValueError):
+    """A configuration or argument value is out of its allowed range."""
+
+
+class UnreachableTargetError(FoldbotError):
+    """Inverse kinematics found no joint configuration for a target pose within tolerance."""
+
+
+class SimulationDivergedError(FoldbotError):
+    """The physics blew up (NaN or cloth vertices far outside the workspace); never scored."""
+
+
+class OutputError(FoldbotError):
+    """An output folder cannot be created or written."""
+
+
+class PerceptionError(FoldbotError, ValueError):
+    """Malformed input to perception (wrong shapes, dtypes, empty images, bad intrinsics)."""
+
+
+def require(condition: bool, message: str) -> None:
+    """Raise ConfigError with `message` unless `condition` holds."""
+    if not condition:
+        raise ConfigError(message)

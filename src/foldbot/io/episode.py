@@ -1,0 +1,377 @@
+"""Episode folders (notes/metrics.md contract): result.json, cloth.npz, video.mp4, overlays.
+
+`EpisodeWriter` stages everything in a hidden sibling folder and renames it into place on
+`commit()`, so a folder named DIR is either a complete episode or absent, never half-written.
+`rescore(DIR)` recomputes every metric from cloth.npz and result.json["fold_lines"] alone.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import json
+import math
+import os
+import shutil
+import weakref
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+import numpy as np
+
+from foldbot.errors import ConfigError, OutputError
+from foldbot.io.video import VideoWriter
+from foldbot.metrics import FoldLine, FoldScore, as_fold_lines, score_episode
+
+RESULT_FILE = "result.json"
+CLOTH_FILE = "cloth.npz"
+VIDEO_FILE = "video.mp4"
+CLOTH_KEYS = ("faces", "initial", "final", "thickness")
+REQUIRED_RESULT_KEYS: tuple[str, ...] = (
+    "success",
+    "fold_error_mm",
+    "normalized_performance",
+    "coverage",
+    "fold_lines",
+    "garment",
+    "recipe",
+    "seed",
+    "actions",
+    "sim_seconds",
+    "wall_seconds",
+)
+"""Keys result.json must contain (notes/metrics.md, episode output contract)."""
+
+
+def is_episode_dir(path: str | Path) -> bool:
+    """True when `path` is a folder holding a committed episode (result.json and cloth.npz)."""
+    p = Path(path)
+    return p.is_dir() and (p / RESULT_FILE).is_file() and (p / CLOTH_FILE).is_file()
+
+
+def to_jsonable(value: Any) -> Any:
+    """Convert numpy scalars/arrays, paths, dataclasses and FoldLines to plain JSON values.
+
+    Non-finite floats become None (JSON has no NaN/inf).
+    """
+    if isinstance(value, FoldLine):
+        return value.as_list()
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return to_jsonable(dataclasses.asdict(value))
+    if isinstance(value, Mapping):
+        return {str(k): to_jsonable(v) for k, v in value.items()}
+    if isinstance(value, np.ndarray):
+        return to_jsonable(value.tolist())
+    if isinstance(value, list | tuple | set | frozenset):
+        return [to_jsonable(v) for v in value]
+    if isinstance(value, bool | np.bool_):
+        return bool(value)
+    if isinstance(value, int | np.integer):
+        return int(value)
+    if isinstance(value, float | np.floating):
+        f = float(value)
+        return f if math.isfinite(f) else None
+    if isinstance(value, Path):
+        return str(value)
+    if value is None or isinstance(value, str):
+        return value
+    raise ConfigError(f"result value {value!r} of type {type(value).__name__} is not JSON-able")
+
+
+def _validate_cloth(
+    faces: Any, initial: Any, final: Any, thickness: Any
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Check the cloth arrays against the cloth.npz contract and return them normalised."""
+    init = np.asarray(initial, dtype=np.float64)
+    fin = np.asarray(final, dtype=np.float64)
+    for name, arr in (("initial", init), ("final", fin)):
+        if arr.ndim != 2 or arr.shape[1] != 3 or arr.shape[0] == 0:
+            raise ConfigError(f"{name} must be a non-empty V×3 array (m), got shape {arr.shape}")
+    if init.shape != fin.shape:
+        raise ConfigError(f"final shape {fin.shape} differs from initial shape {init.shape}")
+    tri = np.asarray(faces)
+    if tri.ndim != 2 or tri.shape[1] != 3 or not np.issubdtype(tri.dtype, np.integer):
+        raise ConfigError(f"faces must be an F×3 integer array, got {tri.dtype} {tri.shape}")
+    tri = tri.astype(np.int64)
+    if tri.size and (tri.min() < 0 or tri.max() >= init.shape[0]):
+        raise ConfigError(
+            f"faces index range [{tri.min()}, {tri.max()}] is outside [0, {init.shape[0] - 1}]"
+        )
+    try:
+        t = float(thickness)
+    except (TypeError, ValueError):
+        raise ConfigError(f"thickness = {thickness!r} must be a finite number ≥ 0 (m)") from None
+    if not math.isfinite(t) or t < 0:
+        raise ConfigError(f"thickness = {thickness!r} must be a finite number ≥ 0 (m)")
+    return tri, init, fin, t
+
+
+def _discard_staging(staging_dir: Path, videos: list[VideoWriter]) -> None:
+    """Close any open video (ending its ffmpeg process) and delete the staging folder."""
+    for video in videos:
+        with contextlib.suppress(Exception):  # the folder is removed anyway
+            video.close()
+    shutil.rmtree(staging_dir, ignore_errors=True)
+
+
+class EpisodeWriter:
+    """Write one episode folder atomically: stage in `.DIR.partial-<pid>`, rename on commit.
+
+    Use as a context manager: an exception inside the `with` removes the staging folder (DIR is
+    untouched); a clean exit commits if `commit()` was not called. DIR may be a new path, an empty
+    folder, or (with overwrite=True) a previous episode folder.
+    """
+
+    def __init__(self, out_dir: str | Path, *, overwrite: bool = False, fps: float = 30.0) -> None:
+        """Validate the target and create the staging folder now, so bad paths fail early."""
+        self.out_dir = Path(out_dir).expanduser().absolute()
+        self.overwrite = bool(overwrite)
+        self.fps = fps
+        self._check_target()
+        parent = self.out_dir.parent
+        try:
+            parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise OutputError(
+                f"cannot create the parent folder of episode output {str(self.out_dir)!r}: "
+                f"{exc}; allowed: a path whose parent is (or can be made) a writable folder"
+            ) from exc
+        if not os.access(parent, os.W_OK | os.X_OK):
+            raise OutputError(
+                f"episode output parent folder {str(parent)!r} is not writable; "
+                "allowed: a path inside a writable folder"
+            )
+        self.staging_dir = parent / f".{self.out_dir.name}.partial-{os.getpid()}"
+        if self.staging_dir.exists():
+            shutil.rmtree(self.staging_dir, ignore_errors=True)
+        try:
+            self.staging_dir.mkdir()
+        except OSError as exc:
+            raise OutputError(
+                f"cannot create staging folder {str(self.staging_dir)!r} for episode output "
+                f"{str(self.out_dir)!r}: {exc}"
+            ) from exc
+        self._videos: list[VideoWriter] = []  # shared with the finalizer, which must close it
+        self._cleanup = weakref.finalize(self, _discard_staging, self.staging_dir, self._videos)
+        self._committed: Path | None = None
+        self._aborted = False
+
+    def _check_target(self) -> None:
+        """Raise OutputError unless DIR may be written (new, empty, or episode + overwrite)."""
+        d = self.out_dir
+        allowed = (
+            "allowed: a new path, an empty folder, or a previous episode folder with overwrite=True"
+        )
+        if d.exists() and not d.is_dir():
+            raise OutputError(f"episode output {str(d)!r} exists and is not a folder; {allowed}")
+        if d.is_dir():
+            try:
+                empty = not any(d.iterdir())
+            except OSError as exc:
+                raise OutputError(f"cannot read episode output folder {str(d)!r}: {exc}") from exc
+            if empty:
+                return
+            if not is_episode_dir(d):
+                raise OutputError(
+                    f"episode output {str(d)!r} is a non-empty folder that is not a foldbot "
+                    f"episode; {allowed}"
+                )
+            if not self.overwrite:
+                raise OutputError(
+                    f"episode output {str(d)!r} already holds an episode; pass overwrite=True "
+                    f"to replace it ({allowed})"
+                )
+
+    def _require_open(self) -> None:
+        """Raise OutputError once the writer has been committed or aborted."""
+        if self._committed is not None or self._aborted:
+            state = "committed" if self._committed is not None else "aborted"
+            raise OutputError(f"episode writer for {str(self.out_dir)!r} is already {state}")
+
+    def add_frame(self, rgb: np.ndarray) -> None:
+        """Append one camera frame (H×W×3 uint8) to video.mp4."""
+        self._require_open()
+        if not self._videos:
+            self._videos.append(VideoWriter(self.staging_dir / VIDEO_FILE, fps=self.fps))
+        self._videos[0].add(rgb)
+
+    @property
+    def frame_count(self) -> int:
+        """Frames written to video.mp4 so far."""
+        return self._videos[0].frame_count if self._videos else 0
+
+    def write_cloth(
+        self, faces: np.ndarray, initial: np.ndarray, final: np.ndarray, thickness: float
+    ) -> Path:
+        """Write cloth.npz: faces (F×3 int), initial/final (V×3 m, world), thickness (m)."""
+        self._require_open()
+        tri, init, fin, t = _validate_cloth(faces, initial, final, thickness)
+        path = self.staging_dir / CLOTH_FILE
+        try:
+            with path.open("wb") as fh:
+                np.savez_compressed(fh, faces=tri, initial=init, final=fin, thickness=np.float64(t))
+        except OSError as exc:
+            raise OutputError(f"cannot write {str(path)!r}: {exc}") from exc
+        return path
+
+    def write_result(self, result: Mapping[str, Any]) -> Path:
+        """Write result.json (pretty); every key of REQUIRED_RESULT_KEYS must be present."""
+        self._require_open()
+        if not isinstance(result, Mapping):
+            raise ConfigError(f"result must be a dict, got {type(result).__name__}")
+        missing = [k for k in REQUIRED_RESULT_KEYS if k not in result]
+        if missing:
+            raise OutputError(
+                f"result.json for {str(self.out_dir)!r} is missing required keys {missing}; "
+                f"required: {list(REQUIRED_RESULT_KEYS)}"
+            )
+        data = to_jsonable(dict(result))
+        data["fold_lines"] = [line.as_list() for line in as_fold_lines(result["fold_lines"])]
+        path = self.staging_dir / RESULT_FILE
+        try:
+            path.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+        except OSError as exc:
+            raise OutputError(f"cannot write {str(path)!r}: {exc}") from exc
+        return path
+
+    def write_image(self, name: str, rgb: np.ndarray) -> Path:
+        """Write an extra RGB PNG (e.g. a debug overlay) named `name` (.png added if missing)."""
+        self._require_open()
+        if not isinstance(name, str) or not name or Path(name).name != name or name[0] == ".":
+            raise ConfigError(f"image name {name!r} must be a plain file name (no folders)")
+        if Path(name).suffix == "":
+            name = f"{name}.png"
+        if Path(name).suffix.lower() != ".png":
+            raise ConfigError(f"image name {name!r} must end in .png")
+        if (
+            not isinstance(rgb, np.ndarray)
+            or rgb.dtype != np.uint8
+            or rgb.ndim != 3
+            or rgb.shape[2] != 3
+        ):
+            shape = getattr(rgb, "shape", None)
+            dtype = getattr(rgb, "dtype", type(rgb).__name__)
+            raise ConfigError(f"image {name!r} must be H×W×3 uint8 RGB, got {dtype} {shape}")
+        import imageio.v3 as iio
+
+        path = self.staging_dir / name
+        try:
+            iio.imwrite(path, rgb)
+        except OSError as exc:
+            raise OutputError(f"cannot write {str(path)!r}: {exc}") from exc
+        return path
+
+    def commit(self) -> Path:
+        """Close the video, check result.json and cloth.npz exist, and rename into DIR."""
+        self._require_open()
+        for video in self._videos:
+            video.close()
+        missing = [f for f in (RESULT_FILE, CLOTH_FILE) if not (self.staging_dir / f).is_file()]
+        if missing:
+            raise OutputError(
+                f"episode {str(self.out_dir)!r} cannot be committed: {missing} not written "
+                "(call write_result and write_cloth first)"
+            )
+        self._check_target()  # the target may have changed since __init__
+        old: Path | None = None
+        try:
+            if self.out_dir.is_dir() and any(self.out_dir.iterdir()):
+                old = self.out_dir.parent / f".{self.out_dir.name}.old-{os.getpid()}"
+                if old.exists():
+                    shutil.rmtree(old)
+                os.replace(self.out_dir, old)
+            os.replace(self.staging_dir, self.out_dir)  # replaces an empty DIR atomically
+        except OSError as exc:
+            if old is not None and old.exists() and not self.out_dir.exists():
+                os.replace(old, self.out_dir)
+            raise OutputError(
+                f"cannot move episode into place at {str(self.out_dir)!r}: {exc}"
+            ) from exc
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+        self._cleanup.detach()
+        self._committed = self.out_dir
+        return self.out_dir
+
+    def abort(self) -> None:
+        """Drop everything staged; DIR is left as it was (idempotent)."""
+        if self._committed is not None or self._aborted:
+            return
+        self._aborted = True
+        self._cleanup()
+
+    def __enter__(self) -> EpisodeWriter:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        if exc_type is not None:
+            self.abort()
+            return
+        if self._committed is None and not self._aborted:
+            try:
+                self.commit()
+            except BaseException:
+                self.abort()
+                raise
+
+
+@dataclass(frozen=True)
+class Episode:
+    """A committed episode folder read back: result.json and the cloth.npz arrays."""
+
+    path: Path
+    result: dict[str, Any]
+    faces: np.ndarray  # F×3 int
+    initial: np.ndarray  # V×3, m
+    final: np.ndarray  # V×3, m
+    thickness: float  # m
+
+    @property
+    def fold_lines(self) -> tuple[FoldLine, ...]:
+        """The fold lines of result.json, in folding order."""
+        return as_fold_lines(self.result["fold_lines"])
+
+
+def load_episode(path: str | Path) -> Episode:
+    """Read result.json and cloth.npz of an episode folder (ConfigError if malformed)."""
+    d = Path(path)
+    if not is_episode_dir(d):
+        raise ConfigError(
+            f"{str(d)!r} is not an episode folder; it must contain {RESULT_FILE} and {CLOTH_FILE}"
+        )
+    try:
+        result = json.loads((d / RESULT_FILE).read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"cannot read {str(d / RESULT_FILE)!r}: {exc}") from exc
+    if not isinstance(result, dict):
+        raise ConfigError(f"{str(d / RESULT_FILE)!r} must hold a JSON object")
+    try:
+        with np.load(d / CLOTH_FILE, allow_pickle=False) as npz:
+            missing = [k for k in CLOTH_KEYS if k not in npz.files]
+            if missing:
+                raise ConfigError(f"{str(d / CLOTH_FILE)!r} lacks keys {missing}")
+            arrays = {k: npz[k] for k in CLOTH_KEYS}
+    except (OSError, ValueError) as exc:
+        if isinstance(exc, ConfigError):
+            raise
+        raise ConfigError(f"cannot read {str(d / CLOTH_FILE)!r}: {exc}") from exc
+    faces, initial, final, thickness = _validate_cloth(
+        arrays["faces"], arrays["initial"], arrays["final"], arrays["thickness"]
+    )
+    return Episode(d, result, faces, initial, final, thickness)
+
+
+def rescore(path: str | Path) -> FoldScore:
+    """Recompute every metric of an episode from cloth.npz and result.json["fold_lines"] alone."""
+    ep = load_episode(path)
+    if "fold_lines" not in ep.result:
+        raise ConfigError(f"{str(Path(path) / RESULT_FILE)!r} has no 'fold_lines'")
+    return score_episode(ep.initial, ep.final, ep.faces, ep.fold_lines, ep.thickness)

@@ -1,0 +1,1 @@
+"""The simulated cell: PyBullet world, table, robots, soft-body cloth, RGB-D camera, ground-truth oracle."""

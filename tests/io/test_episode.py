@@ -1,0 +1,188 @@
+"""Tests for foldbot.io.episode: atomic episode folders, result.json contract, rescoring."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from foldbot.errors import ConfigError, OutputError
+from foldbot.io.episode import (
+    REQUIRED_RESULT_KEYS,
+    EpisodeWriter,
+    is_episode_dir,
+    load_episode,
+    rescore,
+)
+from foldbot.metrics import fold_goal, score_episode
+
+LINES = [[0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 1.0, 0.0]]
+THICKNESS = 0.002
+
+
+def cloth(n: int = 11, size: float = 0.3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Faces, flat start and an imperfectly quarter-folded final state of an n×n grid."""
+    xs = np.linspace(-size / 2, size / 2, n)
+    gx, gy = np.meshgrid(xs, xs)
+    initial = np.stack([gx.ravel(), gy.ravel(), np.full(n * n, 0.76)], axis=1)
+    faces = np.array(
+        [
+            tri
+            for i in range(n - 1)
+            for j in range(n - 1)
+            for tri in (
+                [i * n + j, i * n + j + 1, (i + 1) * n + j + 1],
+                [i * n + j, (i + 1) * n + j + 1, (i + 1) * n + j],
+            )
+        ],
+        dtype=np.int32,
+    )
+    goal, _ = fold_goal(initial, LINES, THICKNESS)
+    final = goal + np.random.default_rng(0).normal(0, 0.004, goal.shape)
+    return faces, initial, final
+
+
+def result_for(faces: np.ndarray, initial: np.ndarray, final: np.ndarray) -> dict[str, Any]:
+    """A complete result dict with numpy-typed values, as the pipeline would produce it."""
+    score = score_episode(initial, final, faces, LINES, THICKNESS)
+    return {
+        "success": np.bool_(score.success),
+        "fold_error_mm": np.float64(score.fold_error_mm),
+        "normalized_performance": score.normalized_performance,
+        "coverage": np.float32(score.coverage),
+        "fold_lines": np.array(LINES),
+        "garment": "towel",
+        "recipe": "quarter",
+        "seed": np.int64(3),
+        "actions": [{"kind": "fold", "grasp": np.zeros(3), "retries": 0}],
+        "sim_seconds": 12.5,
+        "wall_seconds": 30.0,
+    }
+
+
+def write_episode(out: Path, **kwargs: Any) -> Path:
+    """Write a full episode into `out` and return the committed folder."""
+    faces, initial, final = cloth()
+    with EpisodeWriter(out, fps=5, **kwargs) as w:
+        for k in range(3):
+            w.add_frame(np.full((48, 64, 3), 40 * k, np.uint8))
+        w.write_cloth(faces, initial, final, THICKNESS)
+        w.write_result(result_for(faces, initial, final))
+        w.write_image("overlay", np.zeros((8, 8, 3), np.uint8))
+        return w.commit()
+
+
+def test_roundtrip_and_rescore_equals_written(tmp_path: Path) -> None:
+    out = write_episode(tmp_path / "ep")
+    assert out == (tmp_path / "ep").absolute()
+    assert sorted(p.name for p in out.iterdir()) == [
+        "cloth.npz",
+        "overlay.png",
+        "result.json",
+        "video.mp4",
+    ]
+    assert [p.name for p in tmp_path.iterdir()] == ["ep"]  # no staging folder left
+    with np.load(out / "cloth.npz") as npz:
+        assert sorted(npz.files) == ["faces", "final", "initial", "thickness"]
+        assert npz["faces"].dtype.kind == "i" and npz["faces"].shape[1] == 3
+    result = json.loads((out / "result.json").read_text())
+    assert set(REQUIRED_RESULT_KEYS) <= set(result)
+    assert result["success"] is True or result["success"] is False
+    assert result["seed"] == 3 and result["fold_lines"] == LINES
+    score = rescore(out)
+    assert score.fold_error_mm == result["fold_error_mm"]
+    assert score.normalized_performance == result["normalized_performance"]
+    assert score.success == result["success"]
+    assert score.coverage == pytest.approx(result["coverage"], rel=1e-6)  # written as float32
+    assert 0.0 < score.fold_error_mm < 15.0
+    ep = load_episode(out)
+    assert ep.thickness == THICKNESS and ep.initial.shape == ep.final.shape == (121, 3)
+
+
+def test_exception_inside_with_leaves_nothing(tmp_path: Path) -> None:
+    faces, initial, final = cloth()
+    target = tmp_path / "ep"
+    with pytest.raises(RuntimeError, match="boom"), EpisodeWriter(target) as w:
+        w.add_frame(np.zeros((32, 32, 3), np.uint8))
+        w.write_cloth(faces, initial, final, THICKNESS)
+        w.write_result(result_for(faces, initial, final))
+        raise RuntimeError("boom")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_clean_exit_commits(tmp_path: Path) -> None:
+    faces, initial, final = cloth()
+    with EpisodeWriter(tmp_path / "ep") as w:
+        w.write_cloth(faces, initial, final, THICKNESS)
+        w.write_result(result_for(faces, initial, final))
+    assert is_episode_dir(tmp_path / "ep")
+
+
+def test_commit_without_result_fails_and_cleans_up(tmp_path: Path) -> None:
+    faces, initial, final = cloth()
+    with pytest.raises(OutputError, match=r"result\.json"), EpisodeWriter(tmp_path / "ep") as w:
+        w.write_cloth(faces, initial, final, THICKNESS)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_missing_result_keys_named(tmp_path: Path) -> None:
+    faces, initial, final = cloth()
+    result = result_for(faces, initial, final)
+    del result["seed"], result["actions"]
+    w = EpisodeWriter(tmp_path / "ep")
+    with pytest.raises(OutputError, match="'seed', 'actions'"):
+        w.write_result(result)
+    assert not (w.staging_dir / "result.json").exists()
+    w.abort()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_target_validation(tmp_path: Path) -> None:
+    a_file = tmp_path / "file.txt"
+    a_file.write_text("x")
+    with pytest.raises(OutputError, match="not a folder"):
+        EpisodeWriter(a_file)
+    with pytest.raises(OutputError, match="parent folder"):
+        EpisodeWriter(a_file / "ep")  # parent is a regular file
+    busy = tmp_path / "busy"
+    busy.mkdir()
+    (busy / "notes.txt").write_text("keep me")
+    with pytest.raises(OutputError, match="not a foldbot episode"):
+        EpisodeWriter(busy)
+    assert (busy / "notes.txt").read_text() == "keep me"
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert is_episode_dir(write_episode(empty))
+
+
+def test_overwrite_only_when_asked(tmp_path: Path) -> None:
+    out = write_episode(tmp_path / "ep")
+    with pytest.raises(OutputError, match="overwrite=True"):
+        EpisodeWriter(out)
+    (out / "stale.png").write_bytes(b"old")
+    write_episode(out, overwrite=True)
+    assert not (out / "stale.png").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ep"]
+
+
+def test_bad_cloth_and_image_args(tmp_path: Path) -> None:
+    faces, initial, final = cloth()
+    w = EpisodeWriter(tmp_path / "ep")
+    with pytest.raises(ConfigError, match="differs"):
+        w.write_cloth(faces, initial, final[:-1], THICKNESS)
+    with pytest.raises(ConfigError, match="integer"):
+        w.write_cloth(faces.astype(float), initial, final, THICKNESS)
+    with pytest.raises(ConfigError, match="plain file name"):
+        w.write_image("../x.png", np.zeros((4, 4, 3), np.uint8))
+    with pytest.raises(ConfigError, match="uint8"):
+        w.write_image("x", np.zeros((4, 4, 3), np.float32))
+    w.abort()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_load_rejects_non_episode(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="not an episode folder"):
+        rescore(tmp_path)
