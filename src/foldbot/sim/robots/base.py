@@ -102,6 +102,12 @@ class Robot(abc.ABC):
     FINGER_MAX_VELOCITY: ClassVar[float]
     """Speed limit of each finger (m/s)."""
     FINGER_LATERAL_FRICTION: ClassVar[float] = 1.5
+    JAW_WIDTH: ClassVar[float]
+    """Extent of the finger pads across the closing axis, along TCP x (m)."""
+    JAW_DEPTH: ClassVar[float]
+    """Length of the finger pads along the approach axis (TCP z) (m)."""
+    TIP_BELOW_TCP: ClassVar[float]
+    """Fingertips lie this far beyond the TCP along the approach axis (TCP z) (m)."""
     POSITION_GAIN: ClassVar[float] = 0.3
     """PyBullet position-motor gain (dimensionless, per step) of the arm joints."""
     VELOCITY_GAIN: ClassVar[float] = 1.0

@@ -30,6 +30,9 @@ class Panda(Robot):
     FINGER_JOINT_NAMES = ("panda_finger_joint1", "panda_finger_joint2")
     FINGER_LINK_NAMES = ("panda_leftfinger", "panda_rightfinger")
     TCP_LINK_NAME = "panda_grasptarget"
+    JAW_WIDTH = 0.02
+    JAW_DEPTH = 0.05
+    TIP_BELOW_TCP = 0.007
     # Franka's documented joint-space limits (FCI "Robot and interface specifications"); the
     # position limits are the URDF's soft (safety controller) limits, inside its hard limits.
     LOWER_LIMITS = (-2.8973, -1.7628, -2.8973, -3.0718, -2.8973, -0.0175, -2.8973)

@@ -47,6 +47,9 @@ class UR5(Robot):
     FINGER_JOINT_NAMES = ("left_finger_joint", "right_finger_joint")
     FINGER_LINK_NAMES = ("left_finger_link", "right_finger_link")
     TCP_LINK_NAME = "tcp"
+    JAW_WIDTH = 0.02
+    JAW_DEPTH = 0.05
+    TIP_BELOW_TCP = 0.005
     FLANGE_LINK_NAME = "flange"
     # ur_description (limited elbow variant); velocities and torques from UR's UR5 data sheet.
     LOWER_LIMITS = (-2 * math.pi, -2 * math.pi, -math.pi, -2 * math.pi, -2 * math.pi, -2 * math.pi)

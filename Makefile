@@ -1,0 +1,33 @@
+# Set-up and the two jobs a new user runs (see README.md). Python 3.11, Debian, no GPU needed.
+PYTHON ?= python3
+VENV ?= .venv
+PY := $(VENV)/bin/python
+OUT ?= runs/demo
+
+.PHONY: demo test lint install install-test clean
+
+$(VENV)/bin/activate:
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+
+install: $(VENV)/bin/activate
+	$(PY) -m pip install --quiet -e .
+
+install-test: $(VENV)/bin/activate
+	$(PY) -m pip install --quiet -e ".[test]"
+
+## demo: install, then fold a 30 cm towel headless and write the episode folder to $(OUT)
+demo: install
+	$(VENV)/bin/foldbot fold --garment towel --out $(OUT) --overwrite
+
+## test: install the test dependencies, lint, and run the whole suite
+test: install-test
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/ruff format --check .
+	$(PY) -m pytest -q
+
+lint: install-test
+	$(VENV)/bin/ruff check . && $(VENV)/bin/ruff format --check .
+
+clean:
+	rm -rf $(VENV) runs .pytest_cache .ruff_cache src/*.egg-info

@@ -1,0 +1,50 @@
+"""The `foldbot` command: subcommands over the library (fold, eval-perception, score)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from foldbot import __version__
+from foldbot.errors import FoldbotError
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser with every subcommand."""
+    from foldbot.commands import eval_perception, fold, score
+
+    parser = argparse.ArgumentParser(
+        prog="foldbot",
+        description="foldbot: a cloth-folding robot stack on a simulated UR5 cell (PyBullet).",
+    )
+    parser.add_argument("--version", action="version", version=f"foldbot {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    commands = {
+        "fold": (fold, "fold a garment once and write the episode folder"),
+        "eval-perception": (eval_perception, "measure perception accuracy on randomised scenes"),
+        "score": (score, "recompute an episode's metrics from cloth.npz and result.json"),
+    }
+    for name, (module, help_text) in commands.items():
+        p = sub.add_parser(name, help=help_text, description=module.__doc__)
+        module.add_arguments(p)
+        p.set_defaults(run=module.run)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point: parse, run, and turn foldbot's deliberate errors into one clear line."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.run(args) or 0)
+    except FoldbotError as exc:
+        print(f"foldbot {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"foldbot {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Command-line subcommands of foldbot: one module per command (add_arguments + run)."""

@@ -1,0 +1,565 @@
+"""`foldbot eval-perception`: score the vision estimator against simulator ground truth.
+
+Renders N randomised scenes and compares `VisionEstimator` with the `GroundTruthOracle`:
+- Randomised per scene: towel size (0.2–0.45 m per side, independent, so the aspect varies),
+  position within the workspace, rotation over the full circle, cloth and table colour (a quarter
+  of the scenes with a cloth colour close to the table's, where depth alone must find it),
+  lighting (direction, colour, ambient/diffuse/specular, shadows), camera pose jitter (±3 cm
+  eye and target, ±3° roll), depth noise (σ = a·z², a ≤ 0.0015 /m), depth dropouts, RGB noise,
+  flat or folded in half (a mesh whose one half is already reflected onto the other, settled), and
+  an arm over the workspace in some scenes (otherwise parked out of view, pan turned by π).
+- Corner error (mm): 3-D distance between each vision corner and the oracle's corner of the same
+  label. Flat scenes are compared with the mesh's corner vertices; folded scenes with the corners
+  of the cloth's top-view outline (`GroundTruthOracle.outline_corners`), since two of a folded
+  towel's four outline corners are fold-line ends, not mesh corners. The headline
+  `corner_error_mm` is over flat scenes (the targets are for flat towels); `by_state` has both.
+- `mask_iou`: vision mask vs the cloth pixels of the simulator's segmentation buffer (undetected
+  scenes count 0). `ms_per_frame`: `VisionEstimator.estimate` only (no rendering, no physics).
+- `label_agreement`: share of detected scenes whose label matching is also the best cyclic
+  matching (a flip near the rule's 45° ties shows up here and as a large corner error).
+- Scenes whose physics diverges are reported in `sim_failures` and left out of every figure.
+"""
+
+from __future__ import annotations
+
+import argparse
+import heapq
+import json
+import math
+import os
+import shutil
+import sys
+import tempfile
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import imageio.v3 as iio
+import numpy as np
+
+from foldbot.errors import ConfigError, FoldbotError, OutputError, SimulationDivergedError
+from foldbot.garments.mesh import ClothMesh
+from foldbot.garments.towel import TowelSpec, make_towel
+from foldbot.perception.estimator import VisionEstimator
+from foldbot.perception.keypoints import CORNER_LABELS
+from foldbot.perception.overlay import draw_overlay
+from foldbot.perception.state import ClothState, mask_iou
+from foldbot.sim.camera import (
+    DEFAULT_EYE,
+    DEFAULT_TARGET,
+    DEFAULT_UP,
+    CameraConfig,
+    Lighting,
+    RGBDCamera,
+)
+from foldbot.sim.cloth import ClothConfig, SoftCloth, settle
+from foldbot.sim.layout import DEFAULT_LAYOUT
+from foldbot.sim.oracle import GroundTruthOracle
+from foldbot.sim.robots import make_robot
+from foldbot.sim.world import SimConfig, SimWorld
+from foldbot.types import Observation
+
+GARMENTS = ("towel",)
+"""Garments eval-perception can render."""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Declare eval-perception's command-line options on `parser`."""
+    parser.add_argument("--scenes", type=int, default=100, help="number of scenes (default 100)")
+    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument(
+        "--save-overlays",
+        type=int,
+        default=0,
+        metavar="K",
+        help="write overlays of the K worst scenes to OUT/overlays (default 0)",
+    )
+    parser.add_argument("--garment", choices=GARMENTS, default="towel", help="garment kind")
+    parser.add_argument("--width", type=int, default=640, help="image width (px)")
+    parser.add_argument("--height", type=int, default=480, help="image height (px)")
+    parser.add_argument(
+        "--folded-fraction",
+        type=float,
+        default=0.3,
+        help="share of scenes with the towel folded in half (default 0.3)",
+    )
+    parser.add_argument(
+        "--arm-fraction",
+        type=float,
+        default=0.4,
+        help="share of scenes with the arm over the workspace (default 0.4)",
+    )
+    parser.add_argument(
+        "--resolution", type=int, default=16, help="towel mesh vertices per long side (default 16)"
+    )
+
+
+@dataclass(frozen=True)
+class Scene:
+    """The randomised parameters of one evaluation scene (SI units, colours RGB 0..1)."""
+
+    index: int
+    state: str
+    towel_width: float
+    towel_height: float
+    fold_axis: str
+    yaw: float
+    x: float
+    y: float
+    cloth_rgb: tuple[float, float, float]
+    table_rgb: tuple[float, float, float]
+    similar_colour: bool
+    arm_target: tuple[float, float, float] | None
+    eye: tuple[float, float, float]
+    target: tuple[float, float, float]
+    roll: float
+    depth_noise: float
+    depth_dropout: float
+    rgb_noise: float
+    lighting: Lighting
+
+
+def folded_towel(spec: TowelSpec, axis: str = "x", lift: float = 0.01) -> ClothMesh:
+    """A towel mesh already folded in half across its mesh `axis` ("x": the +x half onto −x).
+
+    The moving half is mirrored onto the other and raised by `lift` (m), then the mesh is
+    re-centred; settling it in the simulator gives a folded towel without a robot.
+    """
+    if axis not in ("x", "y"):
+        raise ConfigError(f"fold axis must be 'x' or 'y', got {axis!r}")
+    mesh = make_towel(spec)
+    v = mesh.vertices.copy()
+    k = 0 if axis == "x" else 1
+    moving = v[:, k] > 1e-9
+    v[moving, k] = -v[moving, k]
+    v[moving, 2] += lift
+    v[:, k] -= 0.5 * (v[:, k].max() + v[:, k].min())
+    return ClothMesh(v, mesh.faces, dict(mesh.keypoints), mesh.grid_shape)
+
+
+def _rot_z(v: np.ndarray, angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]])
+
+
+def sample_scene(
+    rng: np.random.Generator, index: int, folded_fraction: float, arm_fraction: float
+) -> Scene:
+    """Draw one scene's randomisation (see the module docstring)."""
+    lay = DEFAULT_LAYOUT
+    state = "folded" if rng.random() < folded_fraction else "flat"
+    w, h = rng.uniform(0.2, 0.45, size=2)
+    fold_axis = "x" if rng.random() < 0.5 else "y"
+    yaw = float(rng.uniform(-math.pi, math.pi))
+    # Footprint of the (possibly folded) towel once rotated, to keep it inside the workspace.
+    fw = w / 2 if state == "folded" and fold_axis == "x" else w
+    fh = h / 2 if state == "folded" and fold_axis == "y" else h
+    ex = 0.5 * (abs(fw * math.cos(yaw)) + abs(fh * math.sin(yaw)))
+    ey = 0.5 * (abs(fw * math.sin(yaw)) + abs(fh * math.cos(yaw)))
+    x0, x1, y0, y1 = lay.workspace_bounds
+    cx, cy = lay.workspace_center_xy
+    x = cx + rng.uniform(-1, 1) * max(0.0, (x1 - x0) / 2 - ex)
+    y = cy + rng.uniform(-1, 1) * max(0.0, (y1 - y0) / 2 - ey)
+    table = rng.uniform(0.15, 0.85, size=3)
+    similar = bool(rng.random() < 0.25)
+    cloth = np.clip(table + rng.normal(0.0, 0.03, 3), 0, 1) if similar else rng.uniform(0, 1, 3)
+    arm_target = None
+    if rng.random() < arm_fraction:
+        arm_target = (
+            float(rng.uniform(x0, x1)),
+            float(rng.uniform(y0, y1)),
+            float(lay.table_height + rng.uniform(0.12, 0.35)),
+        )
+    eye = np.array(DEFAULT_EYE) + rng.uniform(-0.03, 0.03, 3)
+    target = np.array(DEFAULT_TARGET) + rng.uniform(-0.03, 0.03, 3)
+    direction = rng.normal(size=3)
+    direction[2] = abs(direction[2]) + 0.5
+    lighting = Lighting(
+        direction=tuple(float(v) for v in direction),
+        color=tuple(float(v) for v in rng.uniform(0.8, 1.0, 3)),
+        distance=2.0,
+        ambient=float(rng.uniform(0.4, 0.8)),
+        diffuse=float(rng.uniform(0.2, 0.6)),
+        specular=float(rng.uniform(0.0, 0.1)),
+        shadow=bool(rng.random() < 0.3),
+    )
+    return Scene(
+        index=index,
+        state=state,
+        towel_width=float(w),
+        towel_height=float(h),
+        fold_axis=fold_axis,
+        yaw=yaw,
+        x=float(x),
+        y=float(y),
+        cloth_rgb=tuple(float(v) for v in cloth),
+        table_rgb=tuple(float(v) for v in table),
+        similar_colour=similar,
+        arm_target=arm_target,
+        eye=tuple(float(v) for v in eye),
+        target=tuple(float(v) for v in target),
+        roll=float(rng.uniform(-math.radians(3), math.radians(3))),
+        depth_noise=float(rng.uniform(0.0, 0.0015)),
+        depth_dropout=float(rng.uniform(0.0, 0.01)),
+        rgb_noise=float(rng.uniform(0.0, 4.0)),
+        lighting=lighting,
+    )
+
+
+def _camera_config(scene: Scene, width: int, height: int, seed: int) -> CameraConfig:
+    view = np.array(scene.target) - np.array(scene.eye)
+    view /= np.linalg.norm(view)
+    up = np.array(DEFAULT_UP, dtype=float)
+    # roll: turn the up vector about the optical axis (Rodrigues)
+    c, s = math.cos(scene.roll), math.sin(scene.roll)
+    up = up * c + np.cross(view, up) * s + view * (view @ up) * (1 - c)
+    return CameraConfig(
+        width=width,
+        height=height,
+        eye=scene.eye,
+        target=scene.target,
+        up=tuple(float(v) for v in up),
+        depth_noise=scene.depth_noise,
+        depth_dropout=scene.depth_dropout,
+        rgb_noise=scene.rgb_noise,
+        seed=seed,
+        lighting=scene.lighting,
+    )
+
+
+def default_scene(**overrides: Any) -> Scene:
+    """A plain scene (flat 0.3 m towel at the workspace centre, default camera and lighting, no
+    noise, arm parked); keyword arguments replace fields. Handy for tests and examples."""
+    fields: dict[str, Any] = {
+        "index": 0,
+        "state": "flat",
+        "towel_width": 0.3,
+        "towel_height": 0.3,
+        "fold_axis": "x",
+        "yaw": 0.0,
+        "x": DEFAULT_LAYOUT.workspace_center_xy[0],
+        "y": DEFAULT_LAYOUT.workspace_center_xy[1],
+        "cloth_rgb": (0.2, 0.4, 0.85),
+        "table_rgb": (0.55, 0.45, 0.35),
+        "similar_colour": False,
+        "arm_target": None,
+        "eye": DEFAULT_EYE,
+        "target": DEFAULT_TARGET,
+        "roll": 0.0,
+        "depth_noise": 0.0,
+        "depth_dropout": 0.0,
+        "rgb_noise": 0.0,
+        "lighting": Lighting(),
+    }
+    fields.update(overrides)
+    return Scene(**fields)
+
+
+def render_scene(
+    scene: Scene,
+    width: int = 640,
+    height: int = 480,
+    resolution: int = 16,
+    seed: int = 0,
+    settle_time: float | None = None,
+) -> tuple[Observation, dict[str, np.ndarray], np.ndarray]:
+    """Build, settle and render `scene`: (observation, oracle corners by label, true cloth mask).
+
+    The corners are the mesh corners for a flat towel and the top-view outline corners for a
+    folded one. `settle_time` (s) defaults to 1.0 flat / 1.5 folded; 0 renders the towel as
+    spawned (flat, 5 mm above the table), which is fast and exact enough for unit tests.
+    """
+    lay = DEFAULT_LAYOUT
+    rgba = (*scene.table_rgb, 1.0)
+    with SimWorld(SimConfig(table_rgba=rgba)) as world:
+        robot = make_robot("ur5", world.client, world.layout)
+        if scene.arm_target is not None:
+            try:
+                q = robot.solve_ik(list(scene.arm_target), q_seed=robot.home_q)
+            except FoldbotError:
+                q = robot.home_q
+        else:
+            q = np.array(robot.home_q)
+            q[0] += math.pi  # parked: the arm turned away from the table, out of view
+        robot.reset_joints(q)
+        spec = TowelSpec(scene.towel_width, scene.towel_height, resolution)
+        mesh = folded_towel(spec, scene.fold_axis) if scene.state == "folded" else make_towel(spec)
+        cloth = SoftCloth(
+            world.client,
+            mesh,
+            ClothConfig(rgba=(*scene.cloth_rgb, 1.0)),
+            lay.table_height,
+            (scene.x, scene.y),
+            scene.yaw,
+        )
+        if settle_time is None:
+            settle_time = 1.5 if scene.state == "folded" else 1.0
+        if settle_time > 0:
+            settle(world, cloth, max_time=settle_time)
+        cloth.check_finite_and_bounded(lay.workspace_center_xy, 1.0)
+        camera = RGBDCamera(world.client, _camera_config(scene, width, height, seed))
+        obs = camera.observe(joint_positions=robot.joint_positions(), stamp=world.sim_time)
+        oracle = GroundTruthOracle(cloth, camera)
+        corners = oracle.labelled_corners() if scene.state == "flat" else oracle.outline_corners()
+        return obs, corners, oracle.cloth_mask()
+
+
+def _stats(values: list[float]) -> dict[str, float | int | None]:
+    if not values:
+        return {"median": None, "p95": None, "max": None, "n": 0}
+    a = np.asarray(values, dtype=float)
+    return {
+        "median": float(np.median(a)),
+        "p95": float(np.percentile(a, 95)),
+        "max": float(a.max()),
+        "n": len(values),
+    }
+
+
+def _label_ok(state: ClothState, truth: dict[str, np.ndarray]) -> bool:
+    est = np.array([state.keypoints[n][0] for n in CORNER_LABELS])
+    gt = np.array([truth[n] for n in CORNER_LABELS])
+    costs = [np.linalg.norm(est - np.roll(gt, s, axis=0), axis=1).sum() for s in range(4)]
+    return int(np.argmin(costs)) == 0
+
+
+def _group(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    detected = [r for r in rows if r["detected"]]
+    errors = [e for r in detected for e in r["corner_error_mm"].values()]
+    ms = [r["ms"] for r in rows]
+    return {
+        "scenes": len(rows),
+        "corner_error_mm": _stats(errors),
+        "detection_rate": len(detected) / len(rows) if rows else None,
+        "mask_iou": float(np.mean([r["mask_iou"] for r in rows])) if rows else None,
+        "ms_per_frame": float(np.mean(ms)) if ms else None,
+        "ms_per_frame_p95": float(np.percentile(ms, 95)) if ms else None,
+        "label_agreement": (
+            float(np.mean([r["label_ok"] for r in detected])) if detected else None
+        ),
+    }
+
+
+def _prepare_output(out: Path) -> Path:
+    """Check `out` can be written; return a fresh staging folder beside it (OutputError if not)."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"--out {out} exists and is not a folder")
+    parent = out.parent if str(out.parent) else Path(".")
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=parent))
+    except OSError as exc:
+        raise OutputError(f"cannot write to --out {out}: {exc.strerror or exc}") from None
+    if out.exists() and not os.access(out, os.W_OK | os.X_OK):
+        shutil.rmtree(stage, ignore_errors=True)
+        raise OutputError(f"cannot write to --out {out}: permission denied")
+    return stage
+
+
+def _commit_output(stage: Path, out: Path) -> None:
+    """Move the staged results into `out` (atomic rename when `out` does not exist yet)."""
+    if not out.exists():
+        os.replace(stage, out)
+        return
+    for item in stage.iterdir():
+        dest = out / item.name
+        if dest.is_dir() and not dest.is_symlink():
+            shutil.rmtree(dest)
+        os.replace(item, dest)
+    stage.rmdir()
+
+
+def _print_table(summary: dict[str, Any], worst: list[dict[str, Any]]) -> None:
+    def fmt(v: Any, spec: str) -> str:
+        return "—" if v is None else format(v, spec)
+
+    print(
+        f"eval-perception: {summary['scenes']} scenes, seed {summary['seed']}, "
+        f"{summary['width']}×{summary['height']}"
+    )
+    header = (
+        f"{'state':<8}{'scenes':>7}{'detect':>8}{'median mm':>11}{'p95 mm':>9}{'max mm':>9}"
+        f"{'IoU':>7}{'labels':>8}{'ms/frame':>10}"
+    )
+    print(header)
+    print("-" * len(header))
+    for name, g in summary["by_state"].items():
+        ce = g["corner_error_mm"]
+        print(
+            f"{name:<8}{g['scenes']:>7}{fmt(g['detection_rate'], '>8.1%')}"
+            f"{fmt(ce['median'], '>11.2f')}{fmt(ce['p95'], '>9.2f')}{fmt(ce['max'], '>9.2f')}"
+            f"{fmt(g['mask_iou'], '>7.3f')}{fmt(g['label_agreement'], '>8.1%')}"
+            f"{fmt(g['ms_per_frame'], '>10.1f')}"
+        )
+    ce = summary["corner_error_mm"]
+    print(
+        f"headline (flat towels): corner error median {fmt(ce['median'], '.2f')} mm, "
+        f"p95 {fmt(ce['p95'], '.2f')} mm, max {fmt(ce['max'], '.2f')} mm; "
+        f"detection {fmt(summary['detection_rate'], '.1%')}; "
+        f"{fmt(summary['ms_per_frame'], '.1f')} ms/frame"
+    )
+    if worst:
+        items = [
+            f"#{r['index']} ("
+            + ("not detected" if r["score"] is None else f"{r['score']:.1f} mm")
+            + ")"
+            for r in worst
+        ]
+        print("worst scenes: " + ", ".join(items))
+    if summary["sim_failures"]:
+        print(f"left out (physics diverged): {summary['sim_failures']}")
+
+
+def _validate(args: argparse.Namespace) -> None:
+    checks = [
+        (
+            isinstance(args.scenes, int) and args.scenes > 0,
+            f"--scenes must be > 0, got {args.scenes}",
+        ),
+        (
+            isinstance(args.save_overlays, int) and args.save_overlays >= 0,
+            f"--save-overlays must be ≥ 0, got {args.save_overlays}",
+        ),
+        (args.garment in GARMENTS, f"--garment must be one of {GARMENTS}, got {args.garment!r}"),
+        (
+            0.0 <= args.folded_fraction <= 1.0,
+            f"--folded-fraction must be in [0, 1], got {args.folded_fraction}",
+        ),
+        (
+            0.0 <= args.arm_fraction <= 1.0,
+            f"--arm-fraction must be in [0, 1], got {args.arm_fraction}",
+        ),
+    ]
+    for ok, message in checks:
+        if not ok:
+            raise ConfigError(message)
+    CameraConfig(width=args.width, height=args.height)  # ConfigError names a bad size
+    TowelSpec(resolution=args.resolution)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the evaluation: 0 on success, 2 (message on stderr) for bad arguments or --out."""
+    try:
+        _validate(args)
+        out = Path(args.out)
+        stage = _prepare_output(out)
+    except FoldbotError as exc:
+        print(f"foldbot eval-perception: error: {exc}", file=sys.stderr)
+        return 2
+    try:
+        summary = _evaluate(args, stage)
+        _commit_output(stage, out)
+    except OSError as exc:
+        shutil.rmtree(stage, ignore_errors=True)
+        print(f"foldbot eval-perception: error: cannot write {out}: {exc}", file=sys.stderr)
+        return 2
+    except BaseException:
+        shutil.rmtree(stage, ignore_errors=True)
+        raise
+    del summary
+    return 0
+
+
+def _evaluate(args: argparse.Namespace, stage: Path) -> dict[str, Any]:
+    from tqdm import tqdm
+
+    estimator = VisionEstimator()
+    rows: list[dict[str, Any]] = []
+    failures: list[int] = []
+    keep = int(args.save_overlays)
+    worst_heap: list[tuple[float, int, Observation, ClothState, dict[str, np.ndarray]]] = []
+    for i in tqdm(range(args.scenes), desc="eval-perception", unit="scene", file=sys.stderr):
+        rng = np.random.default_rng([args.seed, i])
+        scene = sample_scene(rng, i, args.folded_fraction, args.arm_fraction)
+        try:
+            obs, truth, true_mask = render_scene(
+                scene, args.width, args.height, args.resolution, seed=args.seed * 100003 + i
+            )
+        except SimulationDivergedError:
+            failures.append(i)
+            continue
+        t0 = time.perf_counter()
+        state = estimator.estimate(obs)
+        ms = 1000.0 * (time.perf_counter() - t0)
+        row: dict[str, Any] = {
+            "index": i,
+            "state": scene.state,
+            "detected": state.detected,
+            "reason": state.reason,
+            "ms": ms,
+            "mask_iou": mask_iou(state.mask, true_mask) if state.detected else 0.0,
+            "corner_error_mm": {},
+            "confidence": {},
+            "label_ok": False,
+            "scene": {
+                k: v for k, v in asdict(scene).items() if k not in ("index", "state", "lighting")
+            }
+            | {"lighting": asdict(scene.lighting)},
+        }
+        if state.detected:
+            for name in CORNER_LABELS:
+                xyz, conf = state.keypoints[name]
+                row["corner_error_mm"][name] = 1000.0 * float(np.linalg.norm(xyz - truth[name]))
+                row["confidence"][name] = conf
+            row["label_ok"] = _label_ok(state, truth)
+        score = max(row["corner_error_mm"].values()) if state.detected else math.inf
+        row["score"] = score if math.isfinite(score) else None  # None: not detected
+        rows.append(row)
+        if keep:
+            item = (score, i, obs, state, truth)
+            if len(worst_heap) < keep:
+                heapq.heappush(worst_heap, item)
+            elif score > worst_heap[0][0]:
+                heapq.heapreplace(worst_heap, item)
+
+    if not rows:
+        raise ConfigError("every scene's physics diverged; nothing to score")
+    flat = [r for r in rows if r["state"] == "flat"]
+    folded = [r for r in rows if r["state"] == "folded"]
+    everything = _group(rows)
+    headline = _group(flat) if flat else everything
+    summary: dict[str, Any] = {
+        "scenes": len(rows),
+        "seed": args.seed,
+        "garment": args.garment,
+        "width": args.width,
+        "height": args.height,
+        "corner_error_mm": headline["corner_error_mm"],
+        "corner_error_scope": "flat scenes, vs mesh corners" if flat else "all scenes",
+        "detection_rate": everything["detection_rate"],
+        "mask_iou": everything["mask_iou"],
+        "ms_per_frame": everything["ms_per_frame"],
+        "ms_per_frame_p95": everything["ms_per_frame_p95"],
+        "label_agreement": everything["label_agreement"],
+        "by_state": {"all": everything, "flat": _group(flat), "folded": _group(folded)},
+        "sim_failures": failures,
+        "rows": rows,
+    }
+    (stage / "summary.json").write_text(
+        json.dumps(summary, indent=2, default=_json_default, allow_nan=False) + "\n"
+    )
+    worst = sorted(worst_heap, key=lambda t: (-t[0], t[1]))
+    if worst:
+        odir = stage / "overlays"
+        odir.mkdir()
+        for score, i, obs, state, truth in worst:
+            del score
+            img = draw_overlay(obs, state, reference=truth)
+            iio.imwrite(odir / f"scene_{i:04d}.png", img)
+    _print_table(summary, sorted(rows, key=_badness, reverse=True)[:5])
+    return summary
+
+
+def _badness(row: dict[str, Any]) -> float:
+    return math.inf if row["score"] is None else row["score"]
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")

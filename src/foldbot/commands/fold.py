@@ -1,0 +1,76 @@
+"""`foldbot fold`: run one fold episode on the simulated cell and write its episode folder."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+from pathlib import Path
+
+from foldbot.garments.towel import TowelSpec
+from foldbot.pipeline import GARMENTS, PERCEPTION_MODES, EpisodeConfig, run_episode
+from foldbot.planning.recipes import RECIPES
+from foldbot.sim.robots import ROBOT_NAMES
+from foldbot.sim.world import SimConfig
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of `foldbot fold`."""
+    parser.add_argument("--garment", default="towel", choices=GARMENTS, help="garment to fold")
+    parser.add_argument("--recipe", default="half", choices=RECIPES, help="fold recipe")
+    parser.add_argument("--robot", default="ur5", choices=ROBOT_NAMES, help="arm to use")
+    parser.add_argument(
+        "--perception",
+        default="oracle",
+        choices=PERCEPTION_MODES,
+        help="keypoints from the RGB-D image (vision) or from simulator ground truth (oracle)",
+    )
+    parser.add_argument("--seed", type=int, default=0, help="randomisation seed (default 0)")
+    parser.add_argument("--width", type=float, default=0.30, help="towel width in m (0.05–1.0)")
+    parser.add_argument("--height", type=float, default=0.30, help="towel height in m (0.05–1.0)")
+    parser.add_argument(
+        "--resolution",
+        type=int,
+        default=16,
+        help="cloth vertices along the towel's longer side (4–40, default 16)",
+    )
+    parser.add_argument("--mass", type=float, default=None, help="cloth mass in kg (default 0.1)")
+    parser.add_argument(
+        "--video-fps", type=float, default=10.0, help="video frames per simulated second (0 = off)"
+    )
+    parser.add_argument("--out", type=Path, required=True, help="episode output folder")
+    parser.add_argument(
+        "--overwrite", action="store_true", help="replace DIR if it holds an earlier episode"
+    )
+    parser.add_argument("--gui", action="store_true", help="open the PyBullet GUI")
+
+
+def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
+    """Build the episode config (validated) from parsed options."""
+    base = EpisodeConfig()
+    cloth = base.cloth if args.mass is None else dataclasses.replace(base.cloth, mass=args.mass)
+    return EpisodeConfig(
+        garment=args.garment,
+        recipe=args.recipe,
+        robot=args.robot,
+        perception=args.perception,
+        seed=args.seed,
+        towel=TowelSpec(width=args.width, height=args.height, resolution=args.resolution),
+        cloth=cloth,
+        sim=SimConfig(gui=args.gui),
+        video_fps=args.video_fps,
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the episode and print where its outputs are."""
+    cfg = config_from_args(args)
+    result = run_episode(cfg, args.out, overwrite=args.overwrite)
+    print(
+        f"fold {'succeeded' if result['success'] else 'FAILED'}: "
+        f"fold error {result['fold_error_mm']:.1f} mm, "
+        f"normalized performance {result['normalized_performance']:.3f}, "
+        f"coverage {result['coverage']:.2f}, "
+        f"{result['sim_seconds']:.1f} s simulated in {result['wall_seconds']:.1f} s"
+    )
+    print(f"episode written to {result['out_dir']}")
+    return 0

@@ -1,0 +1,1 @@
+"""Control: IK along Cartesian paths, time parametrisation, joint and gripper execution, monitors."""

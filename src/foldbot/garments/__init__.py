@@ -1,0 +1,1 @@
+"""Garments: parametric outlines turned into cloth meshes with named keypoints."""

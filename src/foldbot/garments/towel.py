@@ -1,0 +1,80 @@
+"""Rectangular towels: a regular triangulated grid with its four corners as keypoints."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from foldbot.errors import require
+from foldbot.garments.mesh import ClothMesh
+
+MIN_RESOLUTION = 4
+MAX_RESOLUTION = 40
+TOWEL_CORNERS = ("corner_00", "corner_10", "corner_11", "corner_01")
+"""Mesh-frame corner names: corner_ij at (i ? +w/2 : −w/2, j ? +h/2 : −h/2)."""
+
+
+@dataclass(frozen=True)
+class TowelSpec:
+    """A rectangular towel of `width` (x) × `height` (y) metres."""
+
+    width: float = 0.30
+    """Side along the mesh x axis (m)."""
+    height: float = 0.30
+    """Side along the mesh y axis (m)."""
+    resolution: int = 16
+    """Vertices along the longer side (the shorter side gets proportionally fewer, at least 4)."""
+
+    def __post_init__(self) -> None:
+        for name in ("width", "height"):
+            value = getattr(self, name)
+            require(
+                np.isfinite(value) and 0.05 <= value <= 1.0,
+                f"towel {name} must be in [0.05, 1.0] m, got {value!r}",
+            )
+        require(
+            isinstance(self.resolution, int | np.integer)
+            and MIN_RESOLUTION <= self.resolution <= MAX_RESOLUTION,
+            f"towel resolution must be an integer in [{MIN_RESOLUTION}, {MAX_RESOLUTION}] "
+            f"vertices per long side, got {self.resolution!r}",
+        )
+
+    @property
+    def grid_shape(self) -> tuple[int, int]:
+        """(rows along y, cols along x) of the vertex grid, spacing as square as possible."""
+        long_side = max(self.width, self.height)
+        nx = max(MIN_RESOLUTION, round((self.resolution - 1) * self.width / long_side) + 1)
+        ny = max(MIN_RESOLUTION, round((self.resolution - 1) * self.height / long_side) + 1)
+        return ny, nx
+
+
+def make_towel(spec: TowelSpec) -> ClothMesh:
+    """Generate the towel's flat grid mesh, centred at the origin, corners named."""
+    ny, nx = spec.grid_shape
+    xs = np.linspace(-spec.width / 2, spec.width / 2, nx)
+    ys = np.linspace(-spec.height / 2, spec.height / 2, ny)
+    gx, gy = np.meshgrid(xs, ys)  # row-major: index = j * nx + i
+    vertices = np.stack([gx.ravel(), gy.ravel(), np.zeros(nx * ny)], axis=1)
+    faces = []
+    for j in range(ny - 1):
+        for i in range(nx - 1):
+            a = j * nx + i
+            b, c, d = a + 1, a + nx, a + nx + 1
+            # Alternate the diagonal so the mesh has no preferred shear direction.
+            if (i + j) % 2 == 0:
+                faces += [(a, b, d), (a, d, c)]
+            else:
+                faces += [(a, b, c), (b, d, c)]
+    keypoints = {
+        "corner_00": 0,
+        "corner_10": nx - 1,
+        "corner_11": nx * ny - 1,
+        "corner_01": nx * (ny - 1),
+    }
+    return ClothMesh(
+        vertices=vertices,
+        faces=np.asarray(faces, dtype=np.int64),
+        keypoints=keypoints,
+        grid_shape=(ny, nx),
+    )

@@ -1,0 +1,97 @@
+"""Overlays for people: estimated outline and corners, planned grasp/place points, fold line."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import cv2
+import numpy as np
+
+from foldbot.perception.geometry import check_observation, project_points
+from foldbot.perception.state import ClothState
+from foldbot.types import Observation
+
+OUTLINE_RGB = (40, 230, 40)
+KEYPOINT_RGB = (255, 220, 0)
+GRASP_RGB = (255, 40, 40)
+PLACE_RGB = (40, 200, 255)
+FOLD_LINE_RGB = (255, 255, 255)
+REFERENCE_RGB = (255, 0, 255)
+
+
+def _points(value: np.ndarray | Sequence[Sequence[float]] | None) -> np.ndarray:
+    if value is None:
+        return np.zeros((0, 3))
+    return np.asarray(value, dtype=float).reshape(-1, 3)
+
+
+def _px(uv: np.ndarray) -> tuple[int, int]:
+    """Nearest integer pixel of a sub-pixel position (u, v)."""
+    return int(np.rint(uv[0])), int(np.rint(uv[1]))
+
+
+def _text(img: np.ndarray, text: str, org: tuple[int, int], color: tuple[int, int, int]) -> None:
+    cv2.putText(img, text, org, cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 3, cv2.LINE_AA)
+    cv2.putText(img, text, org, cv2.FONT_HERSHEY_SIMPLEX, 0.4, color, 1, cv2.LINE_AA)
+
+
+def draw_overlay(
+    obs: Observation,
+    state: ClothState,
+    grasp_points: np.ndarray | Sequence[Sequence[float]] | None = None,
+    place_points: np.ndarray | Sequence[Sequence[float]] | None = None,
+    fold_line: np.ndarray | Sequence[Sequence[float]] | None = None,
+    reference: dict[str, np.ndarray] | None = None,
+) -> np.ndarray:
+    """RGB image (H×W×3 uint8) of `obs` with the state's outline and labelled corners drawn on.
+
+    Optional world points (N×3, m) are projected with the observation's camera: planned grasp
+    points (red crosses), place points (blue circles, joined to their grasp point), a fold line
+    given by two points (white), and `reference` corners (e.g. the oracle's, magenta) by label.
+    """
+    check_observation(obs)
+    img = np.ascontiguousarray(obs.rgb.copy())
+    intr, T = obs.intrinsics, obs.T_world_camera
+
+    def proj(points: np.ndarray) -> np.ndarray:
+        if len(points) == 0:
+            return np.zeros((0, 2))
+        uv, _ = project_points(points, intr, T)
+        return uv
+
+    if state.detected and len(state.outline_world) >= 3:
+        uv = proj(state.outline_world)
+        cv2.polylines(img, [np.round(uv).astype(np.int32)], True, OUTLINE_RGB, 1, cv2.LINE_AA)
+    if reference:
+        for name, xyz in reference.items():
+            del name
+            cv2.drawMarker(
+                img, _px(proj(_points(xyz))[0]), REFERENCE_RGB, cv2.MARKER_TILTED_CROSS, 9
+            )
+    for name, (xyz, conf) in state.keypoints.items():
+        c = _px(proj(_points(xyz))[0])
+        cv2.circle(img, c, 4, KEYPOINT_RGB, 1, cv2.LINE_AA)
+        _text(img, f"{name} {conf:.2f}", (c[0] + 6, c[1] - 6), KEYPOINT_RGB)
+    grasp, place = _points(grasp_points), _points(place_points)
+    g_uv, p_uv = proj(grasp), proj(place)
+    for k, uv in enumerate(g_uv):
+        c = _px(uv)
+        cv2.drawMarker(img, c, GRASP_RGB, cv2.MARKER_CROSS, 12, 2)
+        if k < len(p_uv):
+            cv2.arrowedLine(img, c, _px(p_uv[k]), GRASP_RGB, 1, cv2.LINE_AA, tipLength=0.05)
+    for uv in p_uv:
+        cv2.circle(img, _px(uv), 6, PLACE_RGB, 2, cv2.LINE_AA)
+    line = _points(fold_line)
+    if len(line) >= 2:
+        a, b = proj(line[:2])
+        cv2.line(
+            img,
+            _px(a),
+            _px(b),
+            FOLD_LINE_RGB,
+            1,
+            cv2.LINE_AA,
+        )
+    status = state.reason if state.reason else ("cloth" if state.detected else "no cloth")
+    _text(img, status, (8, 16), (255, 255, 255))
+    return img

@@ -1,0 +1,1 @@
+"""Planning: fold recipes → fold actions → end-effector waypoints. Never imports the simulator."""

@@ -1,0 +1,35 @@
+"""Typed fold actions and plans, computed from perceived keypoints (world frame, metres)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class FoldAction:
+    """One pick-and-place: grasp at `grasp`, carry over the fold line, release at `place`."""
+
+    grasp: np.ndarray  # (3,) world xyz of the cloth point to pick
+    place: np.ndarray  # (3,) world xyz where that point is released
+    fold_line: tuple[float, float, float, float]  # [x, y, dx, dy] the fold this action serves
+    label: str = ""
+    """What is picked (e.g. the keypoint name)."""
+
+    def as_dict(self) -> dict:
+        return {
+            "label": self.label,
+            "grasp": [float(v) for v in self.grasp],
+            "place": [float(v) for v in self.place],
+            "fold_line": [float(v) for v in self.fold_line],
+        }
+
+
+@dataclass(frozen=True)
+class FoldPlan:
+    """A recipe instantiated on one cloth: its fold lines (in order) and the actions that do them."""
+
+    recipe: str
+    fold_lines: tuple[tuple[float, float, float, float], ...]
+    actions: tuple[FoldAction, ...]

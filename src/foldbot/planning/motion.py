@@ -1,0 +1,78 @@
+"""Fold actions → end-effector waypoint segments: approach, descend, close, arc over the fold line,
+lower, open, retreat. Pure geometry (world frame, metres); IK and timing happen in control."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from foldbot.planning.actions import FoldAction
+
+
+@dataclass(frozen=True)
+class MotionConfig:
+    """Shape and speed of the pick-and-place motion."""
+
+    approach_height: float = 0.08
+    """Height above the grasp point the gripper descends from (m)."""
+    grasp_depth: float = 0.004
+    """TCP height above the perceived grasp point at closing (m); the pads straddle the cloth."""
+    arc_height_ratio: float = 0.6
+    """Peak height of the carry arc above the straight line, per metre of carried distance."""
+    min_arc_height: float = 0.05
+    """Lowest carry-arc peak (m)."""
+    place_height: float = 0.01
+    """Height above the place point at which the arc ends before the final lowering (m)."""
+    retreat_height: float = 0.08
+    """Rise after releasing (m)."""
+    cartesian_speed: float = 0.15
+    """Nominal TCP speed along carry paths (m/s)."""
+    free_speed: float = 0.3
+    """Nominal TCP speed for moves without cloth (m/s)."""
+    arc_points: int = 40
+    """Waypoints along the carry arc."""
+
+
+@dataclass(frozen=True)
+class Segment:
+    """A Cartesian TCP path with its speed; `gripper` is applied when the segment has finished."""
+
+    name: str
+    points: np.ndarray  # N×3
+    speed: float
+    gripper: str | None = None  # "close" | "open" | None
+
+
+def line_path(a: np.ndarray, b: np.ndarray, step: float = 0.01) -> np.ndarray:
+    """Straight TCP path from a to b with waypoints every `step` metres."""
+    n = max(2, int(np.ceil(np.linalg.norm(b - a) / step)) + 1)
+    return a + (b - a) * np.linspace(0.0, 1.0, n)[:, None]
+
+
+def carry_arc(start: np.ndarray, end: np.ndarray, cfg: MotionConfig) -> np.ndarray:
+    """A half-sine arc from start to end, high enough that the carried cloth hangs clear."""
+    dist = float(np.linalg.norm(end[:2] - start[:2]))
+    height = max(cfg.min_arc_height, cfg.arc_height_ratio * dist)
+    t = np.linspace(0.0, 1.0, cfg.arc_points)
+    pts = start + (end - start) * t[:, None]
+    pts[:, 2] += height * np.sin(np.pi * t)
+    return pts
+
+
+def action_segments(action: FoldAction, current: np.ndarray, cfg: MotionConfig) -> list[Segment]:
+    """The segments that execute one fold action, starting from TCP position `current`."""
+    up = np.array([0.0, 0.0, 1.0])
+    grasp_tcp = action.grasp + up * cfg.grasp_depth
+    pre_grasp = action.grasp + up * cfg.approach_height
+    place_tcp = action.place + up * cfg.grasp_depth
+    pre_place = action.place + up * cfg.place_height
+    return [
+        Segment("approach", line_path(current, pre_grasp), cfg.free_speed),
+        Segment("descend", line_path(pre_grasp, grasp_tcp, 0.005), cfg.free_speed / 3, "close"),
+        Segment("carry", carry_arc(grasp_tcp, pre_place, cfg), cfg.cartesian_speed),
+        Segment("lower", line_path(pre_place, place_tcp, 0.003), cfg.cartesian_speed / 3, "open"),
+        Segment(
+            "retreat", line_path(place_tcp, place_tcp + up * cfg.retreat_height), cfg.free_speed
+        ),
+    ]

@@ -1,0 +1,124 @@
+"""The PyBullet world of the cell: deformable-world client, gravity, time step, floor and table."""
+
+from __future__ import annotations
+
+import contextlib
+
+from dataclasses import dataclass, field
+
+import pybullet as p
+
+from foldbot.errors import require
+from foldbot.sim.layout import DEFAULT_LAYOUT, CellLayout
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Physics settings of the world."""
+
+    time_step: float = 1.0 / 240.0
+    """Physics step (s). Cloth stability needs ≤ 1/240 s at 16×16 vertices (see notes)."""
+    gravity: float = 9.81
+    """Gravitational acceleration (m/s²), pointing down −z."""
+    table_friction: float = 1.0
+    """Lateral friction coefficient of the table top."""
+    table_rgba: tuple[float, float, float, float] = (0.55, 0.45, 0.35, 1.0)
+    """Table colour (RGBA 0..1)."""
+    gui: bool = False
+    """Open the PyBullet GUI instead of running headless (DIRECT)."""
+    layout: CellLayout = field(default_factory=lambda: DEFAULT_LAYOUT)
+    """Geometry of the cell."""
+
+    def __post_init__(self) -> None:
+        require(
+            0.0 < self.time_step <= 0.02,
+            f"time_step must be in (0, 0.02] s, got {self.time_step!r}",
+        )
+        require(self.gravity >= 0.0, f"gravity must be ≥ 0 m/s², got {self.gravity!r}")
+        require(
+            self.table_friction >= 0.0,
+            f"table_friction must be ≥ 0, got {self.table_friction!r}",
+        )
+
+
+class SimWorld:
+    """A PyBullet client set up as PyBullet's deformable world, with floor and table; owns sim time."""
+
+    def __init__(self, config: SimConfig | None = None) -> None:
+        self.config = config or SimConfig()
+        self.layout = self.config.layout
+        mode = p.GUI if self.config.gui else p.DIRECT
+        self.client = p.connect(mode)
+        if self.client < 0:
+            raise RuntimeError("could not connect to PyBullet (is another GUI already open?)")
+        # The deformable world is required: the legacy soft-body world ignores spring parameters
+        # and anchors to moving bodies do not move the cloth.
+        p.resetSimulation(p.RESET_USE_DEFORMABLE_WORLD, physicsClientId=self.client)
+        p.setGravity(0, 0, -self.config.gravity, physicsClientId=self.client)
+        p.setTimeStep(self.config.time_step, physicsClientId=self.client)
+        if self.config.gui:
+            p.configureDebugVisualizer(p.COV_ENABLE_GUI, 0, physicsClientId=self.client)
+            cx, cy = self.layout.workspace_center_xy
+            p.resetDebugVisualizerCamera(
+                1.3, 60, -40, [cx, cy, self.layout.table_height], physicsClientId=self.client
+            )
+        self.table_id = self._make_table()
+        self.sim_time = 0.0
+        self.steps = 0
+        self._step_hooks: list = []
+
+    def _make_table(self) -> int:
+        lay = self.layout
+        half = [lay.table_size[0] / 2, lay.table_size[1] / 2, lay.table_height / 2]
+        col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=self.client)
+        vis = p.createVisualShape(
+            p.GEOM_BOX,
+            halfExtents=half,
+            rgbaColor=list(self.config.table_rgba),
+            physicsClientId=self.client,
+        )
+        body = p.createMultiBody(
+            0,
+            col,
+            vis,
+            basePosition=[lay.table_center_xy[0], lay.table_center_xy[1], lay.table_height / 2],
+            physicsClientId=self.client,
+        )
+        p.changeDynamics(
+            body, -1, lateralFriction=self.config.table_friction, physicsClientId=self.client
+        )
+        return body
+
+    @property
+    def time_step(self) -> float:
+        return self.config.time_step
+
+    def set_table_color(self, rgba: tuple[float, float, float, float]) -> None:
+        """Recolour the table top (used by scene randomisation)."""
+        p.changeVisualShape(self.table_id, -1, rgbaColor=list(rgba), physicsClientId=self.client)
+
+    def add_step_hook(self, hook) -> None:
+        """Call `hook(world)` after every `check_every`-th step (divergence monitors)."""
+        self._step_hooks.append(hook)
+
+    def step(self, n: int = 1) -> None:
+        """Advance the physics by n steps and run the monitors."""
+        for _ in range(n):
+            p.stepSimulation(physicsClientId=self.client)
+            self.steps += 1
+            self.sim_time += self.config.time_step
+            for hook in self._step_hooks:
+                hook(self)
+
+    def close(self) -> None:
+        """Disconnect the client (idempotent)."""
+        if self.client >= 0:
+            with contextlib.suppress(p.error):
+                p.disconnect(physicsClientId=self.client)
+            self.client = -1
+
+    def __enter__(self) -> SimWorld:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
