@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from foldbot.control.executor import ArmExecutor
-from foldbot.errors import ConfigError, FoldbotError, UnreachableTargetError, require
+from foldbot.errors import FoldbotError, UnreachableTargetError, require
 from foldbot.garments.towel import TowelSpec, make_towel
 from foldbot.io.episode import EpisodeWriter
 from foldbot.metrics import score_episode
@@ -249,17 +249,22 @@ def _line_points(line: tuple[float, float, float, float], z: float) -> np.ndarra
 
 
 def _execute_action(executor: ArmExecutor, robot, action: FoldAction, motion: MotionConfig) -> dict:
+    """Plan the whole pick-and-place (IK on every waypoint), then run it; stop after a failed grasp."""
+    try:
+        planned = executor.plan(action_segments(action, robot.tcp_pose()[0], motion))
+    except UnreachableTargetError as exc:
+        raise UnreachableTargetError(
+            f"action '{action.label}' is infeasible (nothing moved): {exc}"
+        ) from exc
     grasp_result, max_err = None, 0.0
-    for seg in action_segments(action, robot.tcp_pose()[0], motion):
+    for seg in planned:
         seg_log = executor.run(seg)
         max_err = max(max_err, seg_log.max_tracking_error)
         if seg_log.grasp is not None:
             grasp_result = seg_log.grasp
             if not grasp_result.success:
                 executor.grasp.open()
-                _move_to(
-                    executor, robot, robot.tcp_pose()[0] + [0, 0, motion.retreat_height], motion
-                )
+                _move_to(executor, robot, robot.tcp_pose()[0] + [0, 0, motion.retreat_height], motion)
                 break
     ok = bool(grasp_result and grasp_result.success)
     return {
@@ -275,4 +280,4 @@ def _move_to(executor: ArmExecutor, robot, target: np.ndarray, motion: MotionCon
     try:
         executor.run(Segment("move", path, motion.free_speed))
     except UnreachableTargetError as exc:
-        raise ConfigError(f"cannot move to {np.round(target, 3).tolist()}: {exc}") from exc
+        raise UnreachableTargetError(f"cannot move to {np.round(target, 3).tolist()}: {exc}") from exc

@@ -13,8 +13,12 @@ Renders N randomised scenes and compares `VisionEstimator` with the `GroundTruth
   of the cloth's top-view outline (`GroundTruthOracle.outline_corners`), since two of a folded
   towel's four outline corners are fold-line ends, not mesh corners. The headline
   `corner_error_mm` is over flat scenes (the targets are for flat towels); `by_state` has both.
-- `mask_iou`: vision mask vs the cloth pixels of the simulator's segmentation buffer (undetected
-  scenes count 0). `ms_per_frame`: `VisionEstimator.estimate` only (no rendering, no physics).
+- `mask_iou`: vision mask vs the cloth pixels of the simulator's segmentation buffer, over the
+  pixels the robot does not cover (the vision mask includes cloth hidden under the arm;
+  undetected scenes count 0).
+- `ms_per_frame`: wall time of `VisionEstimator.estimate` only (no rendering, no physics), mean
+  over scenes after one warm-up call; `ms_per_frame_best`: the mean of each frame's fastest of
+  3 runs, less sensitive to other work on the machine.
 - `label_agreement`: share of detected scenes whose label matching is also the best cyclic
   matching (a flip near the rule's 45° ties shows up here and as a large corner error).
 - Scenes whose physics diverges are reported in `sim_failures` and left out of every figure.
@@ -62,6 +66,8 @@ from foldbot.types import Observation
 
 GARMENTS = ("towel",)
 """Garments eval-perception can render."""
+TIMING_REPEATS = 3
+"""Each frame is estimated this many times: `ms` is the first run, `ms_best` the fastest."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -121,15 +127,19 @@ class Scene:
     lighting: Lighting
 
 
-def folded_towel(spec: TowelSpec, axis: str = "x", lift: float = 0.01) -> ClothMesh:
+def folded_towel(spec: TowelSpec, axis: str = "x", lift: float | None = None) -> ClothMesh:
     """A towel mesh already folded in half across its mesh `axis` ("x": the +x half onto −x).
 
-    The moving half is mirrored onto the other and raised by `lift` (m), then the mesh is
+    The moving half is mirrored onto the other and raised by `lift` (m; default 0.6 edge
+    lengths, at least 1 cm, which clears both layers' collision margins of edge/5 — a smaller
+    gap starts the layers interpenetrating and can blow the cloth up), then the mesh is
     re-centred; settling it in the simulator gives a folded towel without a robot.
     """
     if axis not in ("x", "y"):
         raise ConfigError(f"fold axis must be 'x' or 'y', got {axis!r}")
     mesh = make_towel(spec)
+    if lift is None:
+        lift = max(0.01, 0.6 * mesh.edge_length)
     v = mesh.vertices.copy()
     k = 0 if axis == "x" else 1
     moving = v[:, k] > 1e-9
@@ -257,6 +267,19 @@ def default_scene(**overrides: Any) -> Scene:
     return Scene(**fields)
 
 
+@dataclass(frozen=True)
+class RenderedScene:
+    """One rendered scene: what the camera saw and the simulator's ground truth."""
+
+    obs: Observation
+    corners: dict[str, np.ndarray]
+    """GROUND TRUTH corners by label: mesh corners (flat) or top-view outline corners (folded)."""
+    cloth_mask: np.ndarray
+    """GROUND TRUTH visible cloth pixels (segmentation buffer)."""
+    robot_mask: np.ndarray
+    """GROUND TRUTH robot pixels (segmentation buffer)."""
+
+
 def render_scene(
     scene: Scene,
     width: int = 640,
@@ -264,12 +287,12 @@ def render_scene(
     resolution: int = 16,
     seed: int = 0,
     settle_time: float | None = None,
-) -> tuple[Observation, dict[str, np.ndarray], np.ndarray]:
-    """Build, settle and render `scene`: (observation, oracle corners by label, true cloth mask).
+) -> RenderedScene:
+    """Build, settle and render `scene` and read its ground truth.
 
     The corners are the mesh corners for a flat towel and the top-view outline corners for a
     folded one. `settle_time` (s) defaults to 1.0 flat / 1.5 folded; 0 renders the towel as
-    spawned (flat, 5 mm above the table), which is fast and exact enough for unit tests.
+    spawned (after one physics step: flat, ~5 mm above the table), fast enough for unit tests.
     """
     lay = DEFAULT_LAYOUT
     rgba = (*scene.table_rgb, 1.0)
@@ -298,12 +321,15 @@ def render_scene(
             settle_time = 1.5 if scene.state == "folded" else 1.0
         if settle_time > 0:
             settle(world, cloth, max_time=settle_time)
+        else:
+            world.step(1)  # PyBullet draws a soft body only once the world has stepped
         cloth.check_finite_and_bounded(lay.workspace_center_xy, 1.0)
         camera = RGBDCamera(world.client, _camera_config(scene, width, height, seed))
         obs = camera.observe(joint_positions=robot.joint_positions(), stamp=world.sim_time)
         oracle = GroundTruthOracle(cloth, camera)
         corners = oracle.labelled_corners() if scene.state == "flat" else oracle.outline_corners()
-        return obs, corners, oracle.cloth_mask()
+        seg = camera.render_segmentation()  # ground truth, read here for the IoU only
+        return RenderedScene(obs, corners, seg == cloth.body_id, seg == robot.body_id)
 
 
 def _stats(values: list[float]) -> dict[str, float | int | None]:
@@ -329,6 +355,7 @@ def _group(rows: list[dict[str, Any]]) -> dict[str, Any]:
     detected = [r for r in rows if r["detected"]]
     errors = [e for r in detected for e in r["corner_error_mm"].values()]
     ms = [r["ms"] for r in rows]
+    best = [r["ms_best"] for r in rows]
     return {
         "scenes": len(rows),
         "corner_error_mm": _stats(errors),
@@ -336,6 +363,7 @@ def _group(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "mask_iou": float(np.mean([r["mask_iou"] for r in rows])) if rows else None,
         "ms_per_frame": float(np.mean(ms)) if ms else None,
         "ms_per_frame_p95": float(np.percentile(ms, 95)) if ms else None,
+        "ms_per_frame_best": float(np.mean(best)) if best else None,
         "label_agreement": (
             float(np.mean([r["label_ok"] for r in detected])) if detected else None
         ),
@@ -374,7 +402,10 @@ def _commit_output(stage: Path, out: Path) -> None:
 
 def _print_table(summary: dict[str, Any], worst: list[dict[str, Any]]) -> None:
     def fmt(v: Any, spec: str) -> str:
-        return "—" if v is None else format(v, spec)
+        if v is None:
+            width = spec.lstrip("<>^").split(".")[0]
+            return format("—", f">{width}") if width.isdigit() else "—"
+        return format(v, spec)
 
     print(
         f"eval-perception: {summary['scenes']} scenes, seed {summary['seed']}, "
@@ -382,7 +413,7 @@ def _print_table(summary: dict[str, Any], worst: list[dict[str, Any]]) -> None:
     )
     header = (
         f"{'state':<8}{'scenes':>7}{'detect':>8}{'median mm':>11}{'p95 mm':>9}{'max mm':>9}"
-        f"{'IoU':>7}{'labels':>8}{'ms/frame':>10}"
+        f"{'IoU':>7}{'labels':>8}{'ms/frame':>10}{'best ms':>9}"
     )
     print(header)
     print("-" * len(header))
@@ -392,14 +423,15 @@ def _print_table(summary: dict[str, Any], worst: list[dict[str, Any]]) -> None:
             f"{name:<8}{g['scenes']:>7}{fmt(g['detection_rate'], '>8.1%')}"
             f"{fmt(ce['median'], '>11.2f')}{fmt(ce['p95'], '>9.2f')}{fmt(ce['max'], '>9.2f')}"
             f"{fmt(g['mask_iou'], '>7.3f')}{fmt(g['label_agreement'], '>8.1%')}"
-            f"{fmt(g['ms_per_frame'], '>10.1f')}"
+            f"{fmt(g['ms_per_frame'], '>10.1f')}{fmt(g['ms_per_frame_best'], '>9.1f')}"
         )
     ce = summary["corner_error_mm"]
     print(
         f"headline (flat towels): corner error median {fmt(ce['median'], '.2f')} mm, "
         f"p95 {fmt(ce['p95'], '.2f')} mm, max {fmt(ce['max'], '.2f')} mm; "
         f"detection {fmt(summary['detection_rate'], '.1%')}; "
-        f"{fmt(summary['ms_per_frame'], '.1f')} ms/frame"
+        f"{fmt(summary['ms_per_frame'], '.1f')} ms/frame "
+        f"(best of {TIMING_REPEATS}: {fmt(summary['ms_per_frame_best'], '.1f')})"
     )
     if worst:
         items = [
@@ -450,7 +482,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"foldbot eval-perception: error: {exc}", file=sys.stderr)
         return 2
     try:
-        summary = _evaluate(args, stage)
+        _evaluate(args, stage)
         _commit_output(stage, out)
     except OSError as exc:
         shutil.rmtree(stage, ignore_errors=True)
@@ -459,7 +491,6 @@ def run(args: argparse.Namespace) -> int:
     except BaseException:
         shutil.rmtree(stage, ignore_errors=True)
         raise
-    del summary
     return 0
 
 
@@ -475,29 +506,35 @@ def _evaluate(args: argparse.Namespace, stage: Path) -> dict[str, Any]:
         rng = np.random.default_rng([args.seed, i])
         scene = sample_scene(rng, i, args.folded_fraction, args.arm_fraction)
         try:
-            obs, truth, true_mask = render_scene(
+            rendered = render_scene(
                 scene, args.width, args.height, args.resolution, seed=args.seed * 100003 + i
             )
         except SimulationDivergedError:
             failures.append(i)
             continue
-        t0 = time.perf_counter()
-        state = estimator.estimate(obs)
-        ms = 1000.0 * (time.perf_counter() - t0)
+        obs, truth = rendered.obs, rendered.corners
+        # The vision mask includes cloth hidden under the arm; score the pixels the arm leaves
+        # visible, where the segmentation buffer knows the answer.
+        seen = ~rendered.robot_mask
+        if not rows:
+            estimator.estimate(obs)  # warm-up (imports, caches): a running robot is warm
+        times = []
+        for _ in range(TIMING_REPEATS):
+            t0 = time.perf_counter()
+            state = estimator.estimate(obs)
+            times.append(1000.0 * (time.perf_counter() - t0))
         row: dict[str, Any] = {
             "index": i,
             "state": scene.state,
             "detected": state.detected,
             "reason": state.reason,
-            "ms": ms,
-            "mask_iou": mask_iou(state.mask, true_mask) if state.detected else 0.0,
+            "ms": times[0],
+            "ms_best": min(times),
+            "mask_iou": mask_iou(state.mask & seen, rendered.cloth_mask) if state.detected else 0.0,
             "corner_error_mm": {},
             "confidence": {},
             "label_ok": False,
-            "scene": {
-                k: v for k, v in asdict(scene).items() if k not in ("index", "state", "lighting")
-            }
-            | {"lighting": asdict(scene.lighting)},
+            "scene": {k: v for k, v in asdict(scene).items() if k not in ("index", "state")},
         }
         if state.detected:
             for name in CORNER_LABELS:
@@ -533,6 +570,7 @@ def _evaluate(args: argparse.Namespace, stage: Path) -> dict[str, Any]:
         "mask_iou": everything["mask_iou"],
         "ms_per_frame": everything["ms_per_frame"],
         "ms_per_frame_p95": everything["ms_per_frame_p95"],
+        "ms_per_frame_best": everything["ms_per_frame_best"],
         "label_agreement": everything["label_agreement"],
         "by_state": {"all": everything, "flat": _group(flat), "folded": _group(folded)},
         "sim_failures": failures,

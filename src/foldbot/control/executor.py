@@ -3,8 +3,7 @@ the joint velocity limits, joint position control every physics step, tracking m
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -26,9 +25,13 @@ class SegmentLog:
     grasp: GraspResult | None = None
 
 
-@dataclass
-class ExecutionLog:
-    segments: list[SegmentLog] = field(default_factory=list)
+@dataclass(frozen=True)
+class PlannedSegment:
+    """A segment with its IK solved: joint waypoints (N+1 × dof, from the start) and TCP points."""
+
+    segment: Segment
+    joint_path: np.ndarray
+    points: np.ndarray
 
 
 def min_jerk(tau: np.ndarray) -> np.ndarray:
@@ -37,7 +40,7 @@ def min_jerk(tau: np.ndarray) -> np.ndarray:
 
 
 class ArmExecutor:
-    """Drives a robot through segments; calls `on_step(world)` after every physics step."""
+    """Drives a robot through Cartesian segments, gripper down at a fixed yaw."""
 
     def __init__(
         self,
@@ -45,13 +48,11 @@ class ArmExecutor:
         robot: Robot,
         grasp: ClothGrasp,
         yaw: float = 0.0,
-        on_step: Callable[[object], None] | None = None,
     ) -> None:
         self.world = world
         self.robot = robot
         self.grasp = grasp
         self.yaw = yaw
-        self.on_step = on_step
 
     def joint_path(self, points: np.ndarray, q_seed: np.ndarray) -> np.ndarray:
         """IK for every waypoint, each seeded by the previous solution (N × dof)."""
@@ -75,16 +76,34 @@ class ArmExecutor:
         t_joint = float(np.max(1.875 * joint_travel / (0.8 * self.robot.velocity_limits)))
         return max(t_cart, t_joint, 0.2)
 
-    def run(self, segment: Segment) -> SegmentLog:
-        """Move along the segment, then apply its gripper event."""
-        q0 = self.robot.joint_positions()
-        path = self.joint_path(segment.points, q0)
-        path = np.vstack([q0, path])
-        points = np.vstack([self.robot.tcp_pose()[0], segment.points])
+    def plan(self, segments: list[Segment], q_start: np.ndarray | None = None) -> list[PlannedSegment]:
+        """Solve IK for every waypoint of every segment before anything moves; an infeasible
+        waypoint raises UnreachableTargetError naming the segment, the waypoint and the target."""
+        q = self.robot.joint_positions() if q_start is None else np.asarray(q_start, dtype=float)
+        start = self.robot.fk_tcp(q)[0]
+        planned = []
+        for seg in segments:
+            try:
+                path = self.joint_path(seg.points, q)
+            except UnreachableTargetError as exc:
+                raise UnreachableTargetError(f"segment '{seg.name}': {exc}") from exc
+            planned.append(
+                PlannedSegment(seg, np.vstack([q, path]), np.vstack([start, seg.points]))
+            )
+            q, start = path[-1], seg.points[-1]
+        return planned
+
+    def run(self, segment: Segment | PlannedSegment) -> SegmentLog:
+        """Move along the segment (planning it first if needed), then apply its gripper event."""
+        planned = segment if isinstance(segment, PlannedSegment) else self.plan([segment])[0]
+        segment, path, points = planned.segment, planned.joint_path, planned.points
+        # Start from where the arm really is (it may have drifted by the tracking error).
+        path = path.copy()
+        path[0] = self.robot.joint_positions()
         duration = self.duration_for(path, points, segment.speed)
         dt = self.world.time_step
         n = max(1, round(duration / dt))
-        # Path parameter u ∈ [0, N−1] indexes waypoints; piecewise-linear in joint space between.
+        # Path parameter u ∈ [0, 1] by Cartesian arc length; piecewise-linear in joint space.
         seg_len = np.linalg.norm(np.diff(points, axis=0), axis=1)
         cum = np.concatenate([[0.0], np.cumsum(seg_len)])
         cum = cum / cum[-1] if cum[-1] > 0 else np.linspace(0, 1, len(points))
@@ -94,8 +113,6 @@ class ArmExecutor:
             q = np.array([np.interp(s, cum, path[:, j]) for j in range(path.shape[1])])
             self.robot.command_joint_positions(q)
             self.world.step()
-            if self.on_step:
-                self.on_step(self.world)
             if k % 8 == 0 or k == n:
                 target = np.array([np.interp(s, cum, points[:, j]) for j in range(3)])
                 max_err = max(max_err, float(np.linalg.norm(self.robot.tcp_pose()[0] - target)))

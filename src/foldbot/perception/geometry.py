@@ -7,7 +7,6 @@ axes: x right, y down, z forward), never from a simulator.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 
@@ -97,24 +96,6 @@ def check_observation(obs: Observation) -> tuple[np.ndarray, np.ndarray]:
     if not np.any(np.isfinite(depth) & (depth > 0)):
         raise PerceptionError("depth has no valid pixel (all NaN, zero or negative)")
     return K, T
-
-
-@lru_cache(maxsize=8)
-def _normalised_grid(
-    width: int, height: int, fx: float, fy: float, cx: float, cy: float
-) -> tuple[np.ndarray, np.ndarray]:
-    u = ((np.arange(width, dtype=np.float32) - cx) / fx)[None, :]
-    v = ((np.arange(height, dtype=np.float32) - cy) / fy)[:, None]
-    u.setflags(write=False)
-    v.setflags(write=False)
-    return u, v
-
-
-def normalised_grid(K: np.ndarray, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
-    """Broadcastable (1×W, H×1) float32 normalised image coordinates (x/z, y/z), cached."""
-    return _normalised_grid(
-        int(width), int(height), float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2])
-    )
 
 
 def transform(T: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -210,8 +191,9 @@ class Plane:
 def fit_plane_lstsq(points: np.ndarray) -> Plane:
     """Least-squares plane through N ≥ 3 points (normal sign arbitrary)."""
     c = points.mean(axis=0)
-    _, _, vt = np.linalg.svd(points - c, full_matrices=False)
-    n = vt[2]
+    d = points - c
+    _, vecs = np.linalg.eigh(d.T @ d)  # ascending eigenvalues: the normal is the first vector
+    n = vecs[:, 0]
     return Plane(normal=n, offset=float(-n @ c))
 
 

@@ -71,13 +71,15 @@ class KeypointConfig:
     """Ignore outline points within this distance of an occluder or the image border."""
     max_shift_px: float = 12.0
     """A refined corner further than this from the coarse one is rejected (coarse kept)."""
+    max_hidden_shift: float = 0.8
+    """…for a hidden corner (extended sides), up to this fraction of the mean side length."""
     residual_scale_px: float = 1.5
     """Line-fit RMS (px) at which a corner's confidence has dropped to 1/e."""
 
 
 @dataclass(frozen=True)
 class ImageCorners:
-    """Four outline corners in image pixels (counter-clockwise in the image) and their quality."""
+    """Four outline corners in image pixels (in outline order) and their quality."""
 
     uv: np.ndarray
     """4×2 sub-pixel corner positions (u, v)."""
@@ -105,7 +107,7 @@ def _line_distance(pts: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.abs(d[0] * (pts[..., 1] - a[1]) - d[1] * (pts[..., 0] - a[0]))
 
 
-def max_area_quad(points: np.ndarray, max_brute_force: int = 16) -> np.ndarray:
+def max_area_quad(points: np.ndarray, max_brute_force: int = 12) -> np.ndarray:
     """Indices (ascending) of the largest-area quadrilateral on a convex polygon's vertices.
 
     `points` (N×2) are the polygon's vertices in order (e.g. a convex hull). Exhaustive search on
@@ -240,7 +242,7 @@ def find_corners(
             # The corner is hidden (arm, image border): extend its visible sides to meet.
             pa, _ = side_points((k - 1) % 4, near_start=False, fraction=1.0)
             pb, _ = side_points(k, near_start=True, fraction=1.0)
-            max_shift = max(cfg.max_shift_px, 0.4 * side_len)
+            max_shift = max(cfg.max_shift_px, cfg.max_hidden_shift * side_len)
         fa, fb = fit(pa), fit(pb)
         corner = None
         if fa is not None and fb is not None:

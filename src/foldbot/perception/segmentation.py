@@ -1,20 +1,28 @@
 """Cloth segmentation from one RGB-D frame: height above a fitted table plane plus colour.
 
 Method (each step is what makes it robust to one nuisance):
-1. Fit the table plane to the depth image (RANSAC on a pixel subsample, normal within ~25° of world
-   up, then least squares on table pixels only). Every pixel gets a height above the table (m).
+1. Depth work runs on 2×2 means of the valid depths (a quarter of the pixels; the final edges are
+   interpolated back to full resolution). Fit the table plane (RANSAC on a subsample, normal
+   within ~25° of world up, then least squares on table pixels only, so the cloth does not lift
+   the plane). Every pixel gets a height above the table (m).
 2. Arm and gripper: anything higher than `occluder_height` above the table is an occluder, not
    cloth (a flat or folded towel lies within a few cm of the table). Occluders are left out of
    the depth smoothing so they do not bleed into their surroundings.
-3. Depth cue: the height map is smoothed (normalised box filter, which also bridges depth
-   dropouts) and thresholded against a noise-adaptive threshold: this finds the cloth whatever its
-   colour, even on a table of the same colour (a flat cloth lies only ~2 mm above the table here).
-4. Colour cue: the table's colour is the median Lab colour of table pixels, the cloth's the median
-   of the depth-detected cloth. When they differ enough, each pixel is classified by its position
-   along the table→cloth Lab axis (threshold halfway), gated by the depth cue so that shadows and
-   texture on the table are not taken for cloth. Colour gives sharper edges than smoothed depth.
-5. Clean-up: small specks are opened away, the largest component is kept and its holes (e.g. under
-   the arm) are filled.
+3. Depth cue: heights averaged over 4×4 blocks and smoothed give a rough cloth mask against a
+   threshold set from the measured depth noise. This finds the cloth whatever its colour, even on
+   a table of the same colour (a settled flat cloth lies only ~1–2 mm above the table here).
+4. Colour cue: the table's colour is the median RGB of table blocks, the cloth's the median of the
+   depth-detected cloth. When they differ enough, each pixel is classified by its position along
+   the table→cloth colour axis (threshold halfway), gated by the depth cue so that shadows and
+   stains on the table are not taken for cloth; colour gives pixel-sharp edges. Otherwise the
+   edges come from the depth alone: a box-smoothed height map (the box grows with the noise),
+   interpolated to full resolution and thresholded at half the cloth height, where a blurred
+   straight edge stays in place.
+5. Clean-up: specks are opened away; pieces of cloth the arm cuts apart are joined, holes are
+   filled and the cloth hidden under the arm (inside their convex hull) is filled in — an amodal
+   mask.
+
+Measured on `foldbot eval-perception` scenes (640×480): see the command's summary.
 """
 
 from __future__ import annotations
@@ -32,53 +40,61 @@ from foldbot.perception.geometry import (
     check_observation,
     fit_plane_lstsq,
     fit_plane_ransac,
-    normalised_grid,
 )
 from foldbot.types import Observation
 
 
 @dataclass(frozen=True)
 class SegmentationConfig:
-    """Thresholds of the cloth segmentation (metres, pixels, Lab units)."""
+    """Thresholds of the cloth segmentation (metres; sizes in half-resolution pixels)."""
 
-    ransac_stride: int = 12
-    """Pixel stride of the subsample used for the RANSAC table-plane fit."""
-    refit_stride: int = 6
-    """Pixel stride of the subsample used to refit the plane on table pixels only."""
+    ransac_stride: int = 6
+    """Stride (half-res px) of the subsample used for the RANSAC table-plane fit."""
+    refit_stride: int = 3
+    """Stride (half-res px) of the subsample used to refit the plane on table pixels only."""
     plane_threshold: float = 0.006
     """RANSAC inlier distance (m) for the table plane."""
     ransac_iterations: int = 48
     """RANSAC hypotheses for the table plane."""
-    low_res_factor: int = 4
-    """Block size (px) of the averaged height/colour image used for the coarse decisions."""
+    block: int = 2
+    """Block size (half-res px) of the averaged height/colour image for the coarse decisions."""
     occluder_height: float = 0.06
     """Anything higher than this above the table (m) is arm/gripper, never cloth."""
-    smooth_size: int = 7
-    """Side (px) of the box filter smoothing the height map (odd)."""
-    min_height: float = 0.0006
-    """Lower bound (m) of the depth threshold; the actual one adapts to the measured noise."""
+    smooth_size: int = 3
+    """Smallest side (half-res px, odd) of the box filter smoothing heights for depth edges."""
+    max_smooth_size: int = 11
+    """Largest side (half-res px, odd) the box filter grows to when the depth is noisy."""
+    min_height: float = 0.0004
+    """Lower bound (m) of the depth thresholds; the actual ones adapt to the measured noise."""
     noise_factor: float = 4.0
-    """Depth threshold = max(min_height, noise_factor × smoothed-height noise σ)."""
+    """Coarse cloth threshold = max(min_height, noise_factor × σ of the smoothed heights)."""
+    edge_noise_factor: float = 3.0
+    """Depth edges: the filter grows until edge_noise_factor × σ ≤ 45 % of the cloth height."""
     min_colour_separation: float = 30.0
     """RGB distance (0..255 units) between cloth and table from which the colour cue is used."""
     min_area: float = 0.003
     """Smallest cloth area (m², top view) reported as a detection."""
 
     def __post_init__(self) -> None:
+        def odd(v: object, hi: int) -> bool:
+            return isinstance(v, int) and v % 2 == 1 and 1 <= v <= hi
+
+        def integer(v: object, lo: int, hi: int) -> bool:
+            return isinstance(v, int) and lo <= v <= hi
+
         checks = {
-            "ransac_stride": isinstance(self.ransac_stride, int) and 1 <= self.ransac_stride <= 64,
-            "refit_stride": isinstance(self.refit_stride, int) and 1 <= self.refit_stride <= 64,
-            "low_res_factor": isinstance(self.low_res_factor, int)
-            and 1 <= self.low_res_factor <= 16,
+            "ransac_stride": integer(self.ransac_stride, 1, 64),
+            "refit_stride": integer(self.refit_stride, 1, 64),
             "plane_threshold": 0.0 < self.plane_threshold < 0.1,
-            "ransac_iterations": isinstance(self.ransac_iterations, int)
-            and 1 <= self.ransac_iterations <= 10000,
+            "ransac_iterations": integer(self.ransac_iterations, 1, 10000),
+            "block": integer(self.block, 1, 16),
             "occluder_height": 0.0 < self.occluder_height < 1.0,
-            "smooth_size": isinstance(self.smooth_size, int)
-            and self.smooth_size % 2 == 1
-            and 1 <= self.smooth_size <= 31,
+            "smooth_size": odd(self.smooth_size, 31),
+            "max_smooth_size": odd(self.max_smooth_size, 63)
+            and self.max_smooth_size >= self.smooth_size,
             "min_height": 0.0 <= self.min_height < self.occluder_height,
             "noise_factor": 0.0 <= self.noise_factor < 100.0,
+            "edge_noise_factor": 0.0 <= self.edge_noise_factor < 100.0,
             "min_colour_separation": 0.0 < self.min_colour_separation < 400.0,
             "min_area": 0.0 <= self.min_area < 10.0,
         }
@@ -94,11 +110,12 @@ class Segmentation:
     """Result of segmenting one frame; images are H×W, heights in metres above the table plane."""
 
     mask: np.ndarray
-    """bool: the cloth (largest component, holes filled)."""
+    """bool: the cloth, one region, including what the arm hides inside its outline."""
     height: np.ndarray
-    """float32: height of each pixel above the table (m); NaN where depth is unknown."""
+    """float32 (H/2)×(W/2): height above the table (m) of each 2×2 pixel block — pixel (u, v) is
+    in block [v // 2, u // 2]; NaN where unknown or occluded."""
     occluder: np.ndarray
-    """bool: arm/gripper or anything else above `occluder_height` (dilated by one pixel)."""
+    """bool: arm/gripper or anything else above `occluder_height` (slightly dilated)."""
     plane_world: Plane
     """The fitted table plane in the world frame, normal pointing up."""
     plane_camera: Plane
@@ -108,9 +125,9 @@ class Segmentation:
     cloth_height: float
     """Median height of the cloth above the table (m); NaN when none found."""
     depth_threshold: float
-    """Height threshold used by the depth cue (m)."""
+    """Height threshold of the coarse depth cue (m)."""
     colour_separation: float
-    """Lab distance between the cloth's and the table's median colours (NaN if unknown)."""
+    """RGB distance between the cloth's and the table's median colours (NaN if unknown)."""
 
     @property
     def found(self) -> bool:
@@ -118,14 +135,53 @@ class Segmentation:
         return bool(self.mask.any())
 
 
-def largest_blob_filled(mask: np.ndarray) -> np.ndarray:
-    """The largest 8-connected blob of `mask` with all its holes filled."""
-    m = np.ascontiguousarray(mask, dtype=np.uint8)
-    contours, _ = cv2.findContours(m, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-    out = np.zeros(m.shape, np.uint8)
-    if contours:
-        best = max(contours, key=cv2.contourArea)
-        cv2.drawContours(out, [best], -1, 1, thickness=cv2.FILLED)
+def _median_height(contour: np.ndarray, mask: np.ndarray, height: np.ndarray) -> float:
+    """Median height (m) of the mask pixels inside a contour's bounding box (2×2-block map)."""
+    x, y, w, h = cv2.boundingRect(contour)
+    hb = height[y // 2 : (y + h) // 2 + 1, x // 2 : (x + w) // 2 + 1]
+    mb = mask[y : y + h : 2, x : x + w : 2][: hb.shape[0], : hb.shape[1]]
+    vals = hb[: mb.shape[0], : mb.shape[1]][mb]
+    vals = vals[np.isfinite(vals)]
+    return float(np.median(vals)) if vals.size else float("nan")
+
+
+def cloth_region(
+    mask: np.ndarray, occluder: np.ndarray, height: np.ndarray | None = None
+) -> np.ndarray:
+    """The cloth as one region (an amodal mask): its largest blob, plus blobs the arm cuts off
+    from it, plus the occluded pixels inside their convex hull, holes filled.
+
+    A blob next to the arm joins when it is not tiny and, given the 2×2-block `height` map, lies
+    about as high as the largest blob (low parts of the robot, e.g. its base, do not).
+    """
+    contours, _ = cv2.findContours(
+        np.ascontiguousarray(mask, dtype=np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE
+    )
+    out = np.zeros(mask.shape, np.uint8)
+    if not contours:
+        return out.view(bool)
+    areas = np.array([cv2.contourArea(c) for c in contours])
+    best = int(np.argmax(areas))
+    keep = [contours[best]]
+    if occluder.any():
+        near = cv2.dilate(occluder.view(np.uint8), np.ones((5, 5), np.uint8))
+        h_best = _median_height(contours[best], mask, height) if height is not None else 0.0
+        for k, c in enumerate(contours):
+            pts = c.reshape(-1, 2)
+            if k == best or areas[k] < max(50.0, 0.01 * areas[best]):
+                continue
+            if not near[pts[:, 1], pts[:, 0]].any():
+                continue
+            if height is not None:
+                h_k = _median_height(c, mask, height)
+                if not abs(h_k - h_best) <= max(0.005, 0.5 * abs(h_best)):
+                    continue
+            keep.append(c)
+    cv2.drawContours(out, keep, -1, 1, thickness=cv2.FILLED)
+    if occluder.any():
+        hull = np.zeros(mask.shape, np.uint8)
+        cv2.fillConvexPoly(hull, cv2.convexHull(np.concatenate(keep)), 1)
+        out |= occluder.view(np.uint8) & hull
     return out.view(bool)
 
 
@@ -142,18 +198,47 @@ def _block_mean(values: np.ndarray, f: int) -> np.ndarray:
     """Means of f×f pixel blocks (the image cropped to a multiple of f)."""
     h, w = values.shape[:2]
     size = (w // f, h // f)
+    if f == 1:
+        return values
     return cv2.resize(values[: size[1] * f, : size[0] * f], size, interpolation=cv2.INTER_AREA)
+
+
+def _weighted_block_mean(
+    values: np.ndarray, weight: np.ndarray, f: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Weighted means of f×f blocks (NaN where under a quarter is weighted) and block weights.
+
+    `values` must be finite (0 where the weight is 0)."""
+    w = _block_mean(weight, f)
+    out = _block_mean(values * weight, f)
+    out /= np.maximum(w, np.float32(1e-6))
+    out[w < 0.25] = np.nan
+    return out, w
+
+
+def _upsample(img: np.ndarray, shape: tuple[int, int], linear: bool, fill: float) -> np.ndarray:
+    """An image of 2×2 blocks back to full size `shape` (odd last row/column filled)."""
+    up = cv2.resize(
+        img,
+        (img.shape[1] * 2, img.shape[0] * 2),
+        interpolation=cv2.INTER_LINEAR if linear else cv2.INTER_NEAREST,
+    )
+    if up.shape == shape:
+        return up
+    out = np.full(shape, fill, dtype=up.dtype)
+    out[: up.shape[0], : up.shape[1]] = up
+    return out
 
 
 def _robust_sigma(x: np.ndarray) -> float:
     """Standard deviation from the median absolute deviation (0 with < 10 finite values)."""
-    x = x[np.isfinite(x)]
+    x = x[np.isfinite(x)][::2]  # every other value is plenty
     if x.size < 10:
         return 0.0
     return 1.4826 * float(np.median(np.abs(x - np.median(x))))
 
 
-@lru_cache(maxsize=8)
+@lru_cache(maxsize=16)
 def _block_grid(
     width: int, height: int, fx: float, fy: float, cx: float, cy: float, f: int
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -173,76 +258,75 @@ def segment_cloth(obs: Observation, config: SegmentationConfig | None = None) ->
     """Segment the cloth lying on the table in `obs` (PerceptionError on malformed input)."""
     cfg = config or SegmentationConfig()
     K, T = check_observation(obs)
+    h_img, w_img = obs.depth.shape
     depth = np.asarray(obs.depth, dtype=np.float32)
-    h_img, w_img = depth.shape
-    with np.errstate(invalid="ignore"):
-        valid = depth > 0  # NaN compares False
-    depth0 = np.where(valid, depth, np.float32(0.0))
-    xn, yn = normalised_grid(K, w_img, h_img)
-    f = cfg.low_res_factor
-    xl, yl = _block_grid(w_img, h_img, K[0, 0], K[1, 1], K[0, 2], K[1, 2], f)
     up_cam = T[:3, :3].T @ np.array([0.0, 0.0, 1.0])
     kernel = np.ones((3, 3), np.uint8)
+    fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
+
+    # 1. Half resolution: 2×2 means of the valid depths.
+    depth0 = np.fmax(depth, np.float32(0.0))  # NaN and negative → 0 (unknown)
+    z2, wz = _weighted_block_mean(depth0, (depth0 > 0).astype(np.float32), 2)
+    valid2 = wz >= 0.25
+    z2 = np.where(valid2, z2, np.float32(0.0))
+    x2, y2 = _block_grid(w_img, h_img, fx, fy, cx, cy, 2)
+    xl, yl = _block_grid(w_img, h_img, fx, fy, cx, cy, 2 * cfg.block)
 
     def sample(stride: int) -> tuple[np.ndarray, np.ndarray]:
-        zs = depth0[::stride, ::stride]
-        xs = np.broadcast_to(xn[:, ::stride], zs.shape)
-        ys = np.broadcast_to(yn[::stride, :], zs.shape)
-        return np.stack([xs * zs, ys * zs, zs], axis=-1).astype(np.float64), valid[
-            ::stride, ::stride
-        ]
+        zs = z2[::stride, ::stride]
+        xs = np.broadcast_to(x2[:, ::stride], zs.shape)
+        ys = np.broadcast_to(y2[::stride, :], zs.shape)
+        pts = np.stack([xs * zs, ys * zs, zs], axis=-1).astype(np.float64)
+        return pts, valid2[::stride, ::stride]
 
-    # 1. Table plane (camera frame): RANSAC on a coarse subsample.
+    # Table plane (camera frame): RANSAC on a coarse subsample.
     pts, vs = sample(cfg.ransac_stride)
     rng = np.random.default_rng(0)  # deterministic: same frame, same answer
     plane, _ = fit_plane_ransac(
         pts[vs], cfg.plane_threshold, rng, cfg.ransac_iterations, up=up_cam, max_tilt=0.45
     )
-    h = depth0 * _plane_gain(plane, xn, yn) + np.float32(plane.offset)
-    h[~valid] = np.nan
+    h2 = z2 * _plane_gain(plane, x2, y2) + np.float32(plane.offset)
+    h2[~valid2] = 0.0  # heights are used with weight2, which is 0 there
 
     # 2. Occluders, and block means of what is left (smoothing that ignores the arm and holes).
-    with np.errstate(invalid="ignore"):
-        occ = h > cfg.occluder_height
-    weight = (valid & ~occ).astype(np.float32)
-    wl = _block_mean(weight, f)
-    inv_wl = 1.0 / np.maximum(wl, np.float32(1e-6))
-    seen_l = wl >= 0.25
-    hl = _block_mean(np.where(weight > 0, h, np.float32(0.0)), f) * inv_wl
-    zl = _block_mean(depth0 * weight, f) * inv_wl
-    hl[~seen_l] = np.nan
-    occ_l = _block_mean(occ.view(np.uint8), f) > 0
-    w3 = seen_l.astype(np.float32)
+    occ2 = valid2 & (h2 > cfg.occluder_height)
+    weight2 = (valid2 & ~occ2).astype(np.float32)
+    b = cfg.block
+    hl, _ = _weighted_block_mean(h2, weight2, b)
+    zl, _ = _weighted_block_mean(z2, weight2, b)
+    occ_l = _block_mean(occ2.view(np.uint8), b) > 0 if b > 1 else occ2
+    w3 = np.isfinite(hl).astype(np.float32)
 
-    def coarse(hl: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
-        """Smoothed block heights, their noise-adaptive threshold and the rough cloth blocks."""
+    def coarse(hl: np.ndarray) -> tuple[np.ndarray, float, np.ndarray, float]:
+        """Smoothed block heights, their noise-adaptive threshold, the rough cloth blocks and
+        the noise σ (m) of one block."""
         hls = _normalised_blur(np.nan_to_num(hl, nan=0.0), w3, 3)
         with np.errstate(invalid="ignore"):
             sigma = _robust_sigma((hl - hls)[np.abs(hls) < cfg.plane_threshold])
             thr = max(cfg.min_height, cfg.noise_factor * sigma / 3.0)
             rough = ((hls > thr) & ~occ_l).view(np.uint8)
-        return hls, thr, cv2.morphologyEx(rough, cv2.MORPH_OPEN, kernel)
+        return hls, thr, cv2.morphologyEx(rough, cv2.MORPH_OPEN, kernel), sigma
 
-    hls, thr, rough = coarse(hl)
+    hls, thr, rough, sigma_l = coarse(hl)
 
     # 3. Refit the plane on table pixels only (the cloth would lift and tilt it a fraction of a mm),
     # then correct the heights: h changes by depth·Δg + Δoffset.
     near_cloth = cv2.dilate(rough, kernel, iterations=2)
     pts, vs = sample(cfg.refit_stride)
-    ri = np.minimum(np.arange(0, h_img, cfg.refit_stride) // f, hl.shape[0] - 1)
-    ci = np.minimum(np.arange(0, w_img, cfg.refit_stride) // f, hl.shape[1] - 1)
+    ri = np.minimum(np.arange(0, h2.shape[0], cfg.refit_stride) // b, hl.shape[0] - 1)
+    ci = np.minimum(np.arange(0, h2.shape[1], cfg.refit_stride) // b, hl.shape[1] - 1)
     table_sel = vs & (near_cloth[np.ix_(ri, ci)] == 0) & ~occ_l[np.ix_(ri, ci)]
     with np.errstate(invalid="ignore"):
-        table_sel &= np.abs(h[:: cfg.refit_stride, :: cfg.refit_stride]) < cfg.plane_threshold
+        table_sel &= np.abs(h2[:: cfg.refit_stride, :: cfg.refit_stride]) < cfg.plane_threshold
     if table_sel.sum() >= 30:
         refit = fit_plane_lstsq(pts[table_sel])
         if refit.normal @ up_cam < 0:
             refit = Plane(-refit.normal, -refit.offset)
         delta = Plane(refit.normal - plane.normal, refit.offset - plane.offset)
-        h += depth0 * _plane_gain(delta, xn, yn) + np.float32(delta.offset)
+        h2 += z2 * _plane_gain(delta, x2, y2) + np.float32(delta.offset)
         hl += zl * _plane_gain(delta, xl, yl) + np.float32(delta.offset)
         plane = refit
-        hls, thr, rough = coarse(hl)
+        hls, thr, rough, sigma_l = coarse(hl)
 
     core = cv2.erode(rough, kernel).view(bool)
     core_h = hls[core]
@@ -251,15 +335,16 @@ def segment_cloth(obs: Observation, config: SegmentationConfig | None = None) ->
     else:
         cloth_height = low_h = float("nan")
 
-    # 4. Colour cue, from block-averaged colours.
-    rgb = obs.rgb
-    rgb_l = _block_mean(rgb, f).astype(np.float32)
+    # 4. Colour cue, from the colours at the coarse blocks' centres.
+    f = 2 * b  # full-res pixels per coarse block
+    rgb = np.ascontiguousarray(obs.rgb)
+    rgb_l = rgb[f // 2 :: f, f // 2 :: f].astype(np.float32)[: hl.shape[0], : hl.shape[1]]
     with np.errstate(invalid="ignore"):
         table_l = (np.abs(hls) < thr / 2) & ~occ_l & (near_cloth == 0)
-    table_rgb = np.median(rgb_l[table_l], axis=0) if table_l.sum() >= 8 else None
+    table_rgb = np.median(rgb_l[table_l][::4], axis=0) if table_l.sum() >= 32 else None
     cloth_rgb = None
     if core.sum() >= 8:
-        cloth_rgb = np.median(rgb_l[core], axis=0)
+        cloth_rgb = np.median(rgb_l[core][::2], axis=0)
     elif table_rgb is not None:
         # No depth evidence: the cloth is whatever differs strongly from the table's colour.
         far = (np.linalg.norm(rgb_l - table_rgb, axis=-1) > cfg.min_colour_separation) & ~occ_l
@@ -271,49 +356,63 @@ def segment_cloth(obs: Observation, config: SegmentationConfig | None = None) ->
         else float("nan")
     )
 
-    occ_d = cv2.dilate(occ.view(np.uint8), kernel).view(bool)
+    shape = (h_img, w_img)
+    occ = _upsample(cv2.dilate(occ2.view(np.uint8), kernel), shape, False, 0).view(bool)
     if math.isfinite(separation) and separation >= cfg.min_colour_separation:
-        # Position along the table→cloth colour axis, 0 at the table, 1 at the cloth.
-        # Computed on uint8 as 100·t + 100 (saturating), thresholded at t = 0.5.
+        # Position t along the table→cloth colour axis (0 table, 1 cloth), computed on uint8 as
+        # 100·t + 100 (saturating) and thresholded halfway.
         axis = 100.0 * (cloth_rgb - table_rgb) / separation**2
         m = np.array([[*axis, 100.0 - float(axis @ table_rgb)]], dtype=np.float32)
-        t = cv2.transform(np.ascontiguousarray(rgb), m).reshape(h_img, w_img)
-        mask = t > 150
+        mask = np.zeros(shape, bool)
+        roi = (slice(0, h_img), slice(0, w_img))
+        gate = None
         if math.isfinite(cloth_height):
-            # Depth gate: colour edges are sharp, but shadows and stains are not raised.
+            # Depth gate: colour edges are sharp, but shadows and stains are not raised. Only the
+            # gate's bounding box needs classifying.
             with np.errstate(invalid="ignore"):
-                gate = (hls > min(thr, 0.35 * cloth_height)).view(np.uint8)
-            gate = cv2.dilate(gate, kernel, iterations=2)
-            full = np.zeros((h_img, w_img), np.uint8)
-            full[: gate.shape[0] * f, : gate.shape[1] * f] = cv2.resize(
-                gate, (gate.shape[1] * f, gate.shape[0] * f), interpolation=cv2.INTER_NEAREST
-            )
-            mask &= full.view(bool)
+                gate_l = (hls > min(thr, 0.35 * cloth_height)).view(np.uint8)
+            gate_l = cv2.dilate(gate_l, kernel, iterations=2)
+            if gate_l.any():
+                c0, r0, cw, rh = cv2.boundingRect(gate_l)
+                roi = (slice(r0 * f, (r0 + rh) * f), slice(c0 * f, (c0 + cw) * f))
+                gate = cv2.resize(
+                    gate_l[r0 : r0 + rh, c0 : c0 + cw],
+                    (cw * f, rh * f),
+                    interpolation=cv2.INTER_NEAREST,
+                ).view(bool)
+        sub = rgb[roi]
+        cls = cv2.transform(sub, m).reshape(sub.shape[:2]) > 150
+        mask[roi] = cls & gate if gate is not None else cls
         cue = "colour"
     elif math.isfinite(cloth_height):
+        # A half-res pixel's noise is σ_block·block; a k×k box divides it by k. Grow k until the
+        # noise is well below half the cloth height, then threshold there, on the smoothed heights
+        # interpolated to full resolution: a box blur leaves a straight edge's half-height
+        # crossing in place (it only rounds the corners).
+        sigma_px = sigma_l * b
         k = cfg.smooth_size
-        hs = _normalised_blur(np.where(weight > 0, h, np.float32(0.0)), weight, k)
-        # Threshold halfway up the (lowest) cloth layer: an unbiased edge under the box blur;
-        # never below the noise threshold scaled to this filter (σ ∝ 1/side of the window).
-        level = max(thr * 3.0 * f / k, 0.5 * low_h)
+        while k < cfg.max_smooth_size and cfg.edge_noise_factor * sigma_px / k > 0.45 * low_h:
+            k += 2
+        hs = _upsample(_normalised_blur(h2, weight2, k), shape, True, 0)
+        level = max(cfg.min_height, cfg.edge_noise_factor * sigma_px / k, 0.5 * low_h)
         with np.errstate(invalid="ignore"):
             mask = hs > level
         cue = "depth"
     else:
-        mask = np.zeros((h_img, w_img), bool)
+        mask = np.zeros(shape, bool)
         cue = "none"
 
-    mask &= ~occ_d
-    mask = cv2.morphologyEx(mask.view(np.uint8), cv2.MORPH_OPEN, kernel)
-    # Filling after removing occluders: cloth hidden under the arm counts as cloth.
-    mask = largest_blob_filled(mask) if mask.any() else mask.view(bool)
+    mask &= ~occ
+    mask = cv2.morphologyEx(mask.view(np.uint8), cv2.MORPH_OPEN, kernel).view(bool)
+    h2[weight2 == 0] = np.nan
+    mask = cloth_region(mask, occ, h2) if mask.any() else mask
     if not mask.any():
         cue = "none"
 
     return Segmentation(
         mask=mask,
-        height=h,
-        occluder=occ_d,
+        height=h2,
+        occluder=occ,
         plane_world=plane.transformed(T),
         plane_camera=plane,
         cue=cue,

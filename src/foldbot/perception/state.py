@@ -29,7 +29,8 @@ class ClothState:
     reason: str = ""
     keypoints: dict[str, tuple[np.ndarray, float]] = field(default_factory=dict)
     mask: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), bool))
-    """H×W bool cloth mask in the image the state was estimated from (empty for the oracle)."""
+    """H×W bool cloth mask in the estimated-from image; vision's includes cloth hidden under the
+    arm (amodal), the oracle's is the segmentation buffer's visible cloth (empty without camera)."""
     coverage_m2: float = 0.0
     """Top-view area of the cloth (m²)."""
     flatness: float = 0.0

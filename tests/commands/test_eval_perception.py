@@ -1,0 +1,86 @@
+"""`foldbot eval-perception`: a short run writes the summary; bad arguments write nothing."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from foldbot.commands import eval_perception
+from foldbot.commands.eval_perception import folded_towel, sample_scene
+from foldbot.garments.towel import TowelSpec
+
+
+def _args(*argv: str) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog="foldbot eval-perception")
+    eval_perception.add_arguments(parser)
+    return parser.parse_args(list(argv))
+
+
+def test_three_scenes_write_the_summary(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    out = tmp_path / "eval"
+    args = _args(
+        "--scenes", "3", "--seed", "3", "--out", str(out), "--save-overlays", "2",
+        "--width", "320", "--height", "240", "--resolution", "10", "--folded-fraction", "0.5",
+    )  # fmt: skip
+    assert eval_perception.run(args) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    for key in ("corner_error_mm", "detection_rate", "mask_iou", "ms_per_frame", "rows"):
+        assert key in summary
+    assert set(summary["corner_error_mm"]) >= {"median", "p95", "max"}
+    assert set(summary["by_state"]) == {"all", "flat", "folded"}
+    assert len(summary["rows"]) + len(summary["sim_failures"]) == 3
+    assert summary["detection_rate"] == 1.0
+    assert summary["mask_iou"] > 0.8
+    assert len(list((out / "overlays").glob("scene_*.png"))) == 2
+    assert [p.name for p in tmp_path.iterdir()] == ["eval"]  # no staging folder left behind
+    printed = capsys.readouterr().out
+    assert "median mm" in printed and "headline" in printed
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--scenes", "0"], "--scenes must be > 0"),
+        (["--scenes", "-2"], "--scenes must be > 0"),
+        (["--save-overlays", "-1"], "--save-overlays"),
+        (["--width", "8"], "width"),
+    ],
+)
+def test_bad_arguments_write_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture, argv: list[str], message: str
+) -> None:
+    out = tmp_path / "eval"
+    assert eval_perception.run(_args("--out", str(out), *argv)) == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_unwritable_out_is_a_clear_error(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    blocker = tmp_path / "file.txt"
+    blocker.write_text("not a folder")
+    assert eval_perception.run(_args("--scenes", "1", "--out", str(blocker / "eval"))) == 2
+    assert "cannot write" in capsys.readouterr().err
+    assert eval_perception.run(_args("--scenes", "1", "--out", str(blocker))) == 2
+    assert "not a folder" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file.txt"]
+
+
+def test_scene_sampling_is_reproducible_and_in_range() -> None:
+    a = [sample_scene(np.random.default_rng([5, i]), i, 0.3, 0.4) for i in range(30)]
+    b = [sample_scene(np.random.default_rng([5, i]), i, 0.3, 0.4) for i in range(30)]
+    assert a == b
+    for s in a:
+        assert 0.2 <= s.towel_width <= 0.45 and 0.2 <= s.towel_height <= 0.45
+        assert 0.15 <= s.x <= 0.75 and -0.3 <= s.y <= 0.3
+    assert {s.state for s in a} == {"flat", "folded"}
+
+
+def test_folded_towel_mesh() -> None:
+    mesh = folded_towel(TowelSpec(0.3, 0.2, 10), "y", lift=0.01)
+    v = mesh.vertices
+    assert np.ptp(v[:, 0]) == pytest.approx(0.3) and np.ptp(v[:, 1]) == pytest.approx(0.1)
+    assert set(np.round(v[:, 2], 6)) == {0.0, 0.01}

@@ -1,0 +1,92 @@
+"""`foldbot fold` from the command line: help, and clear errors for bad input."""
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+from foldbot.cli import main
+
+
+def test_help_lists_subcommands(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["--help"])
+    assert exc.value.code == 0
+    out = capsys.readouterr().out
+    for cmd in ("fold", "eval-perception", "score"):
+        assert cmd in out
+
+
+@pytest.mark.parametrize("cmd", ["fold", "eval-perception", "score"])
+def test_subcommand_help(cmd, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main([cmd, "--help"])
+    assert exc.value.code == 0
+    assert "usage" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["--robot", "kuka"], "kuka"),
+        (["--garment", "sock"], "sock"),
+        (["--width", "0"], "width"),
+        (["--height", "-0.3"], "height"),
+        (["--mass", "0"], "mass"),
+        (["--mass", "-1"], "mass"),
+        (["--resolution", "2"], "resolution"),
+        (["--resolution", "99"], "resolution"),
+    ],
+)
+def test_bad_arguments_get_a_clear_error(tmp_path, capsys, args, needle):
+    out = tmp_path / "ep"
+    with pytest.raises(SystemExit) as exc:
+        code = main(["fold", "--out", str(out), *args])
+        raise SystemExit(code)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert needle in err
+    assert "Traceback" not in err
+    assert not out.exists()
+
+
+def test_unwritable_output_folder(tmp_path, capsys):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    code = main(["fold", "--out", str(blocker / "ep")])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert str(blocker) in err and "Traceback" not in err
+
+
+def test_unreachable_grasp_is_reported_before_anything_is_written(tmp_path):
+    """A towel far larger than the workspace puts its corners out of the arm's reach."""
+    out = tmp_path / "ep"
+    env = {**os.environ, "PYTHONWARNINGS": "ignore"}
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "foldbot.cli",
+            "fold",
+            "--width",
+            "1.0",
+            "--height",
+            "1.0",
+            "--resolution",
+            "8",
+            "--video-fps",
+            "0",
+            "--out",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
+    assert proc.returncode == 2, proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert "infeasible (nothing moved)" in proc.stderr and "target" in proc.stderr
+    assert not out.exists()

@@ -1,0 +1,77 @@
+import math
+
+import numpy as np
+import pybullet as p
+import pytest
+
+from foldbot.errors import ConfigError, SimulationDivergedError
+from foldbot.garments.towel import TowelSpec, make_towel
+from foldbot.sim.cloth import ClothConfig, DivergenceMonitor, SoftCloth, settle
+
+
+def test_cloth_is_a_soft_body_in_mesh_order(world):
+    mesh = make_towel(TowelSpec(0.2, 0.2, 8))
+    cloth = SoftCloth(world.client, mesh, ClothConfig(), world.layout.table_height, (0.45, 0.0), 0.3)
+    # A real soft body (not a multibody of boxes): PyBullet reports its simulation mesh.
+    assert p.getNumJoints(cloth.body_id, physicsClientId=world.client) == 0
+    v = cloth.sim_vertices()
+    assert v.shape == (64, 3)
+    assert np.allclose(v, cloth.spawn_vertices, atol=1e-5)
+
+
+def test_cloth_settles_flat_without_jitter(cell):
+    world, _robot, cloth = cell
+    v1 = cloth.sim_vertices()
+    heights = v1[:, 2] - world.layout.table_height
+    assert heights.min() > 0.0, "cloth must not sink into the table"
+    assert heights.max() < 0.006, "settled cloth lies flat on the table"
+    assert np.ptp(heights) < 0.002
+    extent = np.ptp(v1[:, :2], axis=0)
+    assert np.allclose(extent, 0.2, atol=0.004), "no shrinking or stretching when settled"
+    world.step(round(0.5 / world.time_step))
+    jitter = np.linalg.norm(cloth.sim_vertices() - v1, axis=1).max()
+    assert jitter < 5e-4
+
+
+def test_divergence_is_detected(world):
+    mesh = make_towel(TowelSpec(0.2, 0.2, 6))
+    cloth = SoftCloth(world.client, mesh, ClothConfig(), world.layout.table_height, (0.45, 0.0))
+    world.add_step_hook(DivergenceMonitor(cloth, (0.45, 0.0), radius=1.0, every=1))
+    # Throw the cloth far away: the monitor must raise instead of letting it be scored.
+    p.resetBasePositionAndOrientation(
+        cloth.body_id, [5.0, 0.0, 3.0], [0, 0, 0, 1], physicsClientId=world.client
+    )
+    with pytest.raises(SimulationDivergedError, match="diverged"):
+        world.step(2)
+
+
+def test_nan_vertices_are_detected(world):
+    mesh = make_towel(TowelSpec(0.2, 0.2, 6))
+    cloth = SoftCloth(world.client, mesh, ClothConfig(), world.layout.table_height, (0.45, 0.0))
+    cloth._raw_vertices = lambda: np.full((36, 3), math.nan)  # what a blown-up solver returns
+    with pytest.raises(SimulationDivergedError, match="non-finite"):
+        cloth.check_finite_and_bounded((0.45, 0.0), 1.0)
+
+
+def test_default_thickness_is_two_margins(world):
+    mesh = make_towel(TowelSpec(0.3, 0.3, 16))
+    cloth = SoftCloth(world.client, mesh, ClothConfig(), world.layout.table_height, (0.45, 0.0))
+    assert cloth.margin == pytest.approx(mesh.edge_length / 5)
+    assert cloth.thickness == pytest.approx(2 * cloth.margin)
+    assert settle(world, cloth) < 2.0
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "needle"),
+    [
+        ({"mass": 0.0}, "mass"),
+        ({"mass": -1.0}, "mass"),
+        ({"elastic_stiffness": 0.0}, "elastic_stiffness"),
+        ({"friction": -0.1}, "friction"),
+        ({"collision_margin": 0.5}, "collision_margin"),
+        ({"thickness": 1.0}, "thickness"),
+    ],
+)
+def test_bad_cloth_config(kwargs, needle):
+    with pytest.raises(ConfigError, match=needle):
+        ClothConfig(**kwargs)

@@ -1,0 +1,63 @@
+import numpy as np
+import pytest
+
+from foldbot.sim.grasp import ClothGrasp
+from foldbot.sim.robots import gripper_down_quaternion
+
+
+def _move(world, robot, target, duration=0.8):
+    """Joint-space interpolation to the IK solution of a gripper-down target."""
+    q0 = robot.joint_positions()
+    q1 = robot.solve_ik(np.asarray(target), gripper_down_quaternion(0.0), q_seed=q0)
+    n = round(duration / world.time_step)
+    for k in range(1, n + 1):
+        robot.command_joint_positions(q0 + (q1 - q0) * k / n)
+        world.step()
+    world.step(20)
+
+
+def test_grasp_lifts_corner_far_edge_stays_down_and_release(cell):
+    world, robot, cloth = cell
+    grasp = ClothGrasp(world, robot, cloth)
+    table = world.layout.table_height
+    corner_id = cloth.mesh.keypoints["corner_00"]
+    far_id = cloth.mesh.keypoints["corner_11"]
+    corner = cloth.sim_vertices()[corner_id]
+    _move(world, robot, corner + [0, 0, 0.06])
+    _move(world, robot, corner + [0, 0, 0.004], 0.5)
+    result = grasp.close()
+    assert result.success, result.reason
+    assert corner_id in result.vertex_ids
+    # Only vertices inside the jaw volume are attached: all within a jaw's reach of the TCP.
+    held = cloth.sim_vertices()[list(result.vertex_ids)]
+    assert np.linalg.norm(held[:, :2] - robot.tcp_pose()[0][:2], axis=1).max() < 0.02
+    _move(world, robot, corner + [0, 0, 0.12])
+    v = cloth.sim_vertices()
+    assert v[corner_id, 2] - table > 0.09, "the grasped corner rises with the gripper"
+    assert v[far_id, 2] - table < 0.01, "the far corner stays on the table"
+    grasp.open()
+    world.step(round(0.8 / world.time_step))
+    assert not grasp.holding
+    assert cloth.sim_vertices()[corner_id, 2] - table < 0.03, "released cloth falls back"
+    assert robot.gripper_opening() > 0.07
+
+
+def test_grasp_over_empty_table_fails_and_attaches_nothing(cell):
+    world, robot, cloth = cell
+    grasp = ClothGrasp(world, robot, cloth)
+    lo_x, _, lo_y, _ = world.layout.workspace_bounds
+    _move(world, robot, [lo_x + 0.03, lo_y + 0.03, world.layout.table_height + 0.005])
+    result = grasp.close()
+    assert not result.success
+    assert result.vertex_ids == ()
+    assert "no cloth" in result.reason
+    assert not grasp.holding
+
+
+@pytest.mark.parametrize("offset", [0.03, 0.05])
+def test_grasp_beside_the_edge_catches_nothing(cell, offset):
+    world, robot, cloth = cell
+    grasp = ClothGrasp(world, robot, cloth)
+    corner = cloth.sim_vertices()[cloth.mesh.keypoints["corner_00"]]
+    _move(world, robot, corner + [-offset, -offset, 0.004])
+    assert not grasp.close().success
