@@ -2,9 +2,11 @@ import json
 
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 
 from foldbot.errors import ConfigError
 from foldbot.io.episode import REQUIRED_RESULT_KEYS, load_episode, rescore
+from foldbot.metrics import fold_goal
 from foldbot.pipeline import EpisodeConfig, run_episode
 
 
@@ -26,11 +28,27 @@ def test_half_fold_meets_target(half_fold_episode):
 
 
 @pytest.mark.slow
-def test_episode_folder_follows_the_contract(half_fold_episode):
+def test_folded_layers_stay_apart_and_above_the_table(half_fold_episode):
     out, result = half_fold_episode
+    episode = load_episode(out)
+    _goal, layers = fold_goal(episode.initial, result["fold_lines"], episode.thickness)
+    final, top = episode.final, layers > 0
+    table = EpisodeConfig().sim.layout.table_height
+    assert final[:, 2].min() > table - 0.001, "no vertex passes through the table"
+    # Each vertex of the folded-over layer lies above the lower-layer vertex beneath it.
+    dist, idx = cKDTree(final[~top, :2]).query(final[top, :2])
+    beneath = dist < 0.015
+    gap = final[top][beneath, 2] - final[~top][idx[beneath], 2]
+    assert beneath.sum() > 0.8 * top.sum()
+    assert (gap > 0).mean() >= 0.99, f"layers interpenetrate: min gap {gap.min() * 1000:.1f} mm"
+
+
+@pytest.mark.slow
+def test_episode_folder_follows_the_contract(half_fold_episode):
+    out, _result = half_fold_episode
     assert {p.name for p in out.iterdir()} >= {"result.json", "cloth.npz", "video.mp4"}
     stored = json.loads((out / "result.json").read_text())
-    assert REQUIRED_RESULT_KEYS <= stored.keys()
+    assert stored.keys() >= REQUIRED_RESULT_KEYS
     assert stored["grasp_points_source"] == "oracle"
     episode = load_episode(out)
     assert episode.faces.shape[1] == 3 and episode.initial.shape == episode.final.shape
@@ -42,7 +60,14 @@ def test_episode_folder_follows_the_contract(half_fold_episode):
     assert np.ptp(episode.initial[:, 2]) < 0.003
     assert 0.4 < stored["coverage"] < 0.6
     for action in stored["actions"]:
-        assert {"kind", "grasp", "place", "grasp_success", "retries", "sim_seconds"} <= action.keys()
+        assert {
+            "kind",
+            "grasp",
+            "place",
+            "grasp_success",
+            "retries",
+            "sim_seconds",
+        } <= action.keys()
 
 
 @pytest.mark.parametrize(

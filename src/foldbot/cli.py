@@ -12,7 +12,7 @@ from foldbot.errors import FoldbotError
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every subcommand."""
-    from foldbot.commands import eval_perception, fold, score
+    from foldbot.commands import bench, eval_perception, fold, score
 
     parser = argparse.ArgumentParser(
         prog="foldbot",
@@ -23,6 +23,7 @@ def build_parser() -> argparse.ArgumentParser:
     commands = {
         "fold": (fold, "fold a garment once and write the episode folder"),
         "eval-perception": (eval_perception, "measure perception accuracy on randomised scenes"),
+        "bench": (bench, "run fold episodes over many seeds and summarise them"),
         "score": (score, "recompute an episode's metrics from cloth.npz and result.json"),
     }
     for name, (module, help_text) in commands.items():

@@ -264,7 +264,9 @@ def _execute_action(executor: ArmExecutor, robot, action: FoldAction, motion: Mo
             grasp_result = seg_log.grasp
             if not grasp_result.success:
                 executor.grasp.open()
-                _move_to(executor, robot, robot.tcp_pose()[0] + [0, 0, motion.retreat_height], motion)
+                _move_to(
+                    executor, robot, robot.tcp_pose()[0] + [0, 0, motion.retreat_height], motion
+                )
                 break
     ok = bool(grasp_result and grasp_result.success)
     return {
@@ -280,4 +282,6 @@ def _move_to(executor: ArmExecutor, robot, target: np.ndarray, motion: MotionCon
     try:
         executor.run(Segment("move", path, motion.free_speed))
     except UnreachableTargetError as exc:
-        raise UnreachableTargetError(f"cannot move to {np.round(target, 3).tolist()}: {exc}") from exc
+        raise UnreachableTargetError(
+            f"cannot move to {np.round(target, 3).tolist()}: {exc}"
+        ) from exc

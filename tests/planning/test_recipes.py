@@ -10,9 +10,7 @@ def square(cx=0.45, cy=0.0, side=0.3, yaw=0.0, z=0.752):
     h = side / 2
     local = {"near_left": (-h, h), "near_right": (-h, -h), "far_right": (h, -h), "far_left": (h, h)}
     c, s = np.cos(yaw), np.sin(yaw)
-    return {
-        n: np.array([cx + c * x - s * y, cy + s * x + c * y, z]) for n, (x, y) in local.items()
-    }
+    return {n: np.array([cx + c * x - s * y, cy + s * x + c * y, z]) for n, (x, y) in local.items()}
 
 
 def test_half_fold_along_x_moves_far_corners_onto_near_corners():

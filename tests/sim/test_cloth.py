@@ -11,7 +11,9 @@ from foldbot.sim.cloth import ClothConfig, DivergenceMonitor, SoftCloth, settle
 
 def test_cloth_is_a_soft_body_in_mesh_order(world):
     mesh = make_towel(TowelSpec(0.2, 0.2, 8))
-    cloth = SoftCloth(world.client, mesh, ClothConfig(), world.layout.table_height, (0.45, 0.0), 0.3)
+    cloth = SoftCloth(
+        world.client, mesh, ClothConfig(), world.layout.table_height, (0.45, 0.0), 0.3
+    )
     # A real soft body (not a multibody of boxes): PyBullet reports its simulation mesh.
     assert p.getNumJoints(cloth.body_id, physicsClientId=world.client) == 0
     v = cloth.sim_vertices()

@@ -76,7 +76,9 @@ class ArmExecutor:
         t_joint = float(np.max(1.875 * joint_travel / (0.8 * self.robot.velocity_limits)))
         return max(t_cart, t_joint, 0.2)
 
-    def plan(self, segments: list[Segment], q_start: np.ndarray | None = None) -> list[PlannedSegment]:
+    def plan(
+        self, segments: list[Segment], q_start: np.ndarray | None = None
+    ) -> list[PlannedSegment]:
         """Solve IK for every waypoint of every segment before anything moves; an infeasible
         waypoint raises UnreachableTargetError naming the segment, the waypoint and the target."""
         q = self.robot.joint_positions() if q_start is None else np.asarray(q_start, dtype=float)

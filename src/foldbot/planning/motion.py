@@ -18,7 +18,7 @@ class MotionConfig:
     """Height above the grasp point the gripper descends from (m)."""
     grasp_depth: float = 0.004
     """TCP height above the perceived grasp point at closing (m); the pads straddle the cloth."""
-    arc_height_ratio: float = 0.6
+    arc_height_ratio: float = 0.5
     """Peak height of the carry arc above the straight line, per metre of carried distance."""
     min_arc_height: float = 0.05
     """Lowest carry-arc peak (m)."""
