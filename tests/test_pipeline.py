@@ -1,21 +1,36 @@
 import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
 from foldbot.errors import ConfigError
+from foldbot.garments.towel import TowelSpec
 from foldbot.io.episode import REQUIRED_RESULT_KEYS, load_episode, rescore
 from foldbot.metrics import fold_goal
 from foldbot.pipeline import EpisodeConfig, run_episode
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess:
+    """`foldbot …` in a fresh process: Bullet's soft-body solver keeps process-global random
+    state, so an episode is reproducible only as the first simulation in its process."""
+    return subprocess.run(
+        [sys.executable, "-m", "foldbot.cli", *args],
+        capture_output=True,
+        text=True,
+        timeout=900,
+        check=True,
+    )
 
 
 @pytest.fixture(scope="module")
 def half_fold_episode(tmp_path_factory):
     """One half fold of the 30 cm, 16×16 towel with the UR5 (the README's headline case)."""
     out = tmp_path_factory.mktemp("episodes") / "half"
-    result = run_episode(EpisodeConfig(seed=0, video_fps=2.0), out, log=lambda *_: None)
-    return out, result
+    run_cli("fold", "--seed", "0", "--video-fps", "2", "--out", str(out))
+    return out, json.loads((out / "result.json").read_text())
 
 
 @pytest.mark.slow
@@ -83,3 +98,66 @@ def test_episode_folder_follows_the_contract(half_fold_episode):
 def test_bad_episode_config(kwargs, needle):
     with pytest.raises(ConfigError, match=needle):
         EpisodeConfig(**kwargs)
+
+
+@pytest.mark.slow
+def test_failed_grasp_is_retried_after_reobserving(tmp_path):
+    """Inject a grasp aimed 6 cm off the corner: the loop must see the failure and retry."""
+    cfg = EpisodeConfig(
+        recipe="diagonal",
+        towel=TowelSpec(0.24, 0.24, 10),
+        fault_grasp_offset=0.06,
+        video_fps=0,
+    )
+    result = run_episode(cfg, tmp_path / "ep", log=lambda *_: None)
+    first = result["actions"][0]
+    assert first["retries"] == 1
+    assert first["attempts"][0]["grasp_success"] is False
+    assert "no cloth" in first["attempts"][0]["grasp_reason"]
+    assert first["attempts"][1]["grasp_success"] is True
+    assert first["grasp_success"] is True
+
+
+@pytest.mark.slow
+def test_same_seed_same_episode(tmp_path):
+    args = ["fold", "--recipe", "diagonal", "--seed", "3", "--width", "0.24", "--height", "0.24"]
+    args += ["--resolution", "8", "--video-fps", "0", "--out"]
+    run_cli(*args, str(tmp_path / "a"))
+    run_cli(*args, str(tmp_path / "b"))
+    a, b = load_episode(tmp_path / "a"), load_episode(tmp_path / "b")
+    assert np.array_equal(a.initial, b.initial)
+    assert np.array_equal(a.final, b.final)
+    for key in ("fold_error_mm", "normalized_performance", "fold_lines", "cloth_pose", "actions"):
+        if key == "actions":
+            strip = [{k: v for k, v in x.items() if k != "wall_seconds"} for x in a.result[key]]
+            assert strip == [
+                {k: v for k, v in x.items() if k != "wall_seconds"} for x in b.result[key]
+            ]
+        else:
+            assert a.result[key] == b.result[key]
+
+
+def test_infeasible_action_is_rejected_before_the_arm_moves(tmp_path):
+    """A place point outside the arm's reach: IK fails during planning, nothing moves."""
+    from foldbot.control.executor import ArmExecutor
+    from foldbot.errors import UnreachableTargetError
+    from foldbot.planning.actions import FoldAction
+    from foldbot.planning.motion import MotionConfig, action_segments
+    from foldbot.sim.robots import make_robot
+    from foldbot.sim.world import SimWorld
+
+    with SimWorld() as world:
+        robot = make_robot("ur5", world.client, world.layout)
+        q0 = robot.joint_positions()
+        executor = ArmExecutor(world, robot, grasp=None)
+        action = FoldAction(
+            grasp=np.array([0.5, 0.0, 0.752]),
+            place=np.array([1.6, 0.0, 0.752]),
+            fold_line=(1.0, 0.0, 0.0, 1.0),
+            label="far_left",
+        )
+        segments = action_segments(action, robot.tcp_pose()[0], MotionConfig())
+        with pytest.raises(UnreachableTargetError, match="segment 'carry'"):
+            executor.plan(segments)
+        assert np.array_equal(robot.joint_positions(), q0)
+        assert world.steps == 0

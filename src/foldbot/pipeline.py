@@ -21,10 +21,10 @@ from foldbot.io.episode import EpisodeWriter
 from foldbot.metrics import score_episode
 from foldbot.perception.estimator import VisionEstimator
 from foldbot.perception.overlay import draw_overlay
-from foldbot.perception.state import ClothState
+from foldbot.perception.state import ClothState, fold_check_iou
 from foldbot.planning.actions import FoldAction
 from foldbot.planning.motion import MotionConfig, Segment, action_segments, line_path
-from foldbot.planning.recipes import RECIPES, plan_recipe
+from foldbot.planning.recipes import RECIPES, plan_stage, predicted_outline, recipe_stages
 from foldbot.sim.camera import CameraConfig, RGBDCamera
 from foldbot.sim.cloth import ClothConfig, DivergenceMonitor, SoftCloth, settle
 from foldbot.sim.grasp import ClothGrasp
@@ -59,8 +59,18 @@ class EpisodeConfig:
     """Cloth centre offset from the workspace centre, uniform in ±this (m)."""
     yaw_range: float = math.pi / 12
     """Cloth yaw, uniform in ±this (rad)."""
-    grasp_retries: int = 1
-    """Re-observe and retry a failed grasp at most this many times per action."""
+    retries: int = 1
+    """Per action: re-observe and redo a failed grasp or an off placement at most this often."""
+    place_tolerance: float = 0.03
+    """A placed corner perceived farther than this from its place point is an off result (m)."""
+    regrasp_radius: float = 0.06
+    """A re-observed corner is matched to a planned grasp within this radius (m); by label, within
+    2.5 × this radius."""
+    fault_grasp_offset: float = 0.0
+    """Fault injection: the episode's first grasp is aimed this far (m) outward from the perceived
+    corner, onto bare table, to exercise the failure → re-observe → retry path."""
+    verify_iou: float = 0.8
+    """A stage is verified when the perceived mask matches the predicted outline this well."""
     video_fps: float = 10.0
     """Frames per simulated second in video.mp4 (0 = no video)."""
 
@@ -84,7 +94,11 @@ class EpisodeConfig:
             isinstance(self.seed, int) and self.seed >= 0,
             f"seed must be an integer ≥ 0, got {self.seed!r}",
         )
-        require(self.grasp_retries >= 0, f"grasp_retries must be ≥ 0, got {self.grasp_retries!r}")
+        require(self.retries >= 0, f"retries must be ≥ 0, got {self.retries!r}")
+        require(
+            0.0 <= self.fault_grasp_offset <= 0.2,
+            f"fault_grasp_offset must be in [0, 0.2] m, got {self.fault_grasp_offset!r}",
+        )
         require(self.video_fps >= 0, f"video_fps must be ≥ 0, got {self.video_fps!r}")
 
 
@@ -149,7 +163,7 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
         log(f"settling the cloth ({mesh.vertices.shape[0]} vertices)…")
         settle(world, cloth)
         initial = oracle.cloth_vertices()
-        park = robot.tcp_pose()[0]
+        park = robot.home_q  # joint-space park: the arm at home hides ~3 % of the workspace
 
         def observe() -> tuple[ClothState, object]:
             obs = camera.observe(robot.joint_positions(), stamp=world.sim_time)
@@ -158,71 +172,80 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
                 recorder.state = state
             return state, obs
 
-        state, obs = observe()
-        if not state.detected:
-            raise FoldbotError(f"no cloth found before the first action: {state.reason}")
-        plan = plan_recipe(cfg.recipe, _corners(state))
-        writer.write_image(
-            "overlay_initial.png",
-            draw_overlay(
-                obs,
-                state,
-                grasp_points=[a.grasp for a in plan.actions],
-                place_points=[a.place for a in plan.actions],
-                fold_line=_line_points(plan.fold_lines[0], layout.table_height),
-            ),
-        )
-        action_logs = []
-        for i, planned in enumerate(plan.actions):
-            log(f"action {i + 1}/{len(plan.actions)}: {planned.label} → place")
-            t_sim, t_wall = world.sim_time, time.perf_counter()
-            retries, outcome, action = 0, None, planned
-            while True:
-                if i > 0 or retries > 0:
-                    # Re-observe: earlier actions move the cloth; grasp where the corner is now.
-                    state, obs = observe()
-                    if state.detected and planned.label in state.keypoints:
-                        action = dataclasses.replace(
-                            planned, grasp=np.asarray(state.keypoints[planned.label][0])
-                        )
-                if recorder is not None:
-                    recorder.overlay_args = {
-                        "grasp_points": [action.grasp],
-                        "place_points": [action.place],
-                        "fold_line": _line_points(action.fold_line, layout.table_height),
-                    }
-                outcome = _execute_action(executor, robot, action, cfg.motion)
-                if outcome["grasp_success"] or retries >= cfg.grasp_retries:
-                    break
-                retries += 1
-                log(f"  grasp failed ({outcome['grasp_reason']}); re-observing, retry {retries}")
-            action_logs.append(
+        fold_lines: list[tuple[float, float, float, float]] = []
+        action_logs: list[dict] = []
+        stage_logs: list[dict] = []
+        for stage in range(recipe_stages(cfg.recipe)):
+            executor.move_joints(park, "park")
+            state, obs = observe()
+            if not state.detected:
+                raise FoldbotError(f"no cloth found before fold stage {stage + 1}: {state.reason}")
+            latest = state
+            corners = _corners(state)
+            plan = plan_stage(cfg.recipe, stage, corners, cfg.motion.place_lift)
+            predicted = predicted_outline(cfg.recipe, stage, corners)
+            fold_lines.append(plan.fold_lines[0])
+            if stage == 0:
+                writer.write_image(
+                    "overlay_initial.png",
+                    draw_overlay(
+                        obs,
+                        state,
+                        grasp_points=[a.grasp for a in plan.actions],
+                        place_points=[a.place for a in plan.actions],
+                        fold_line=_line_points(plan.fold_lines[0], layout.table_height),
+                    ),
+                )
+            for i, planned in enumerate(plan.actions):
+                log(
+                    f"stage {stage + 1}, action {i + 1}/{len(plan.actions)}: "
+                    f"{planned.label} → place"
+                )
+                entry, latest = _closed_loop_action(
+                    cfg,
+                    world,
+                    executor,
+                    robot,
+                    planned,
+                    observe,
+                    park,
+                    recorder,
+                    log,
+                    latest,
+                    inject_fault=cfg.fault_grasp_offset > 0 and not action_logs,
+                )
+                action_logs.append(entry)
+            executor.move_joints(park, "park")
+            world.step(round(0.3 / world.time_step))
+            state, obs = observe()
+            iou = (
+                fold_check_iou(state.mask, predicted, obs.intrinsics, obs.T_world_camera)
+                if state.detected
+                else 0.0
+            )
+            stage_logs.append(
                 {
-                    "kind": "pick_and_place",
-                    "label": action.label,
-                    "grasp": [float(v) for v in action.grasp],
-                    "place": [float(v) for v in action.place],
-                    "grasp_success": outcome["grasp_success"],
-                    "grasp_reason": outcome["grasp_reason"],
-                    "grasped_vertices": outcome["grasped_vertices"],
-                    "retries": retries,
-                    "max_tracking_error_m": outcome["max_tracking_error"],
-                    "sim_seconds": world.sim_time - t_sim,
-                    "wall_seconds": time.perf_counter() - t_wall,
+                    "stage": stage,
+                    "fold_line": list(plan.fold_lines[0]),
+                    "predicted_outline": predicted.tolist(),
+                    "mask_iou_vs_predicted": iou,
+                    "verified": iou >= cfg.verify_iou,
                 }
             )
-        _move_to(executor, robot, park, cfg.motion)
+            log(f"stage {stage + 1} done: mask IoU with the predicted shape {iou:.2f}")
+        executor.move_joints(park, "park")
         world.step(round(0.5 / world.time_step))
         final_state, final_obs = observe()
         final = oracle.cloth_vertices()
-        score = score_episode(initial, final, mesh.faces, plan.fold_lines, cloth.thickness)
+        score = score_episode(initial, final, mesh.faces, fold_lines, cloth.thickness)
         writer.write_image("overlay_final.png", draw_overlay(final_obs, final_state))
         if recorder is not None:
             recorder.capture()
         writer.write_cloth(mesh.faces, initial, final, cloth.thickness)
         result = {
             **score.as_dict(),
-            "fold_lines": [list(line) for line in plan.fold_lines],
+            "fold_lines": [list(line) for line in fold_lines],
+            "stages": stage_logs,
             "garment": cfg.garment,
             "recipe": cfg.recipe,
             "robot": cfg.robot,
@@ -239,6 +262,110 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
         path = writer.commit()
     result["out_dir"] = str(path)
     return result
+
+
+def _nearest_keypoint(state: ClothState, point: np.ndarray, radius: float) -> np.ndarray | None:
+    """The perceived keypoint nearest `point` in the table plane, if within `radius`."""
+    if not state.detected or not state.keypoints:
+        return None
+    pts = np.array([xyz for xyz, _conf in state.keypoints.values()])
+    d = np.linalg.norm(pts[:, :2] - point[:2], axis=1)
+    k = int(np.argmin(d))
+    return pts[k] if d[k] <= radius else None
+
+
+def _regrasp_point(
+    state: ClothState, label: str, planned: np.ndarray, radius: float
+) -> np.ndarray | None:
+    """Where to grasp a corner now: the keypoint with the planned label if it lies within 2.5 ×
+    `radius` of the plan (corners drift ~10 cm as a fold drags the cloth), else the keypoint
+    nearest the plan within `radius`."""
+    if state.detected and label in state.keypoints:
+        xyz = np.asarray(state.keypoints[label][0])
+        if np.linalg.norm(xyz[:2] - planned[:2]) <= 2.5 * radius:
+            return xyz
+    return _nearest_keypoint(state, planned, radius)
+
+
+def _closed_loop_action(
+    cfg: EpisodeConfig,
+    world,
+    executor: ArmExecutor,
+    robot,
+    planned: FoldAction,
+    observe,
+    park: np.ndarray,
+    recorder,
+    log,
+    latest: ClothState,
+    inject_fault: bool = False,
+) -> tuple[dict, ClothState]:
+    """Execute one pick-and-place, re-observing to grasp the corner where it now is, and
+    verifying the placement; a failed grasp or an off placement is redone (bounded).
+
+    `latest` is the state of the newest observation (taken after the cloth last moved)."""
+    t_sim, t_wall = world.sim_time, time.perf_counter()
+    action, outcome, retries, attempts = planned, {}, 0, []
+    state = latest
+    while True:
+        # Earlier actions move the cloth: grasp the corner where it is now.
+        seen = _regrasp_point(state, planned.label, action.grasp, cfg.regrasp_radius)
+        if seen is not None:
+            action = dataclasses.replace(action, grasp=seen)
+        if inject_fault and not attempts:
+            outward = action.grasp[:2] - state.keypoint_array().mean(axis=0)[:2]
+            outward = outward / max(np.linalg.norm(outward), 1e-9) * cfg.fault_grasp_offset
+            action = dataclasses.replace(action, grasp=action.grasp + [*outward, 0.0])
+        if recorder is not None:
+            recorder.overlay_args = {
+                "grasp_points": [action.grasp],
+                "place_points": [action.place],
+                "fold_line": _line_points(action.fold_line, world.layout.table_height),
+            }
+        outcome = _execute_action(executor, robot, action, cfg.motion)
+        placed_error = None
+        executor.move_joints(park, "park")
+        state, _obs = observe()
+        if outcome["grasp_success"]:
+            seen = _nearest_keypoint(state, action.place, 2 * cfg.regrasp_radius)
+            placed_error = (
+                None if seen is None else float(np.linalg.norm(seen[:2] - action.place[:2]))
+            )
+        ok = outcome["grasp_success"] and (
+            placed_error is None or placed_error <= cfg.place_tolerance
+        )
+        attempts.append(
+            {
+                "grasp": [float(v) for v in action.grasp],
+                "grasp_success": outcome["grasp_success"],
+                "grasp_reason": outcome["grasp_reason"],
+                "placed_error_m": placed_error,
+            }
+        )
+        if ok or retries >= cfg.retries:
+            break
+        retries += 1
+        if outcome["grasp_success"]:
+            # Off placement: pick the misplaced corner where it lies and place it again.
+            log(f"  placed {placed_error * 1000:.0f} mm off; re-grasping, retry {retries}")
+            action = dataclasses.replace(action, grasp=seen)
+        else:
+            log(f"  grasp failed ({outcome['grasp_reason']}); re-observed, retry {retries}")
+    return {
+        "kind": "pick_and_place",
+        "label": planned.label,
+        "grasp": [float(v) for v in action.grasp],
+        "place": [float(v) for v in action.place],
+        "grasp_success": outcome["grasp_success"],
+        "grasp_reason": outcome["grasp_reason"],
+        "grasped_vertices": outcome["grasped_vertices"],
+        "placed_error_m": attempts[-1]["placed_error_m"],
+        "retries": retries,
+        "attempts": attempts,
+        "max_tracking_error_m": outcome["max_tracking_error"],
+        "sim_seconds": world.sim_time - t_sim,
+        "wall_seconds": time.perf_counter() - t_wall,
+    }, state
 
 
 def _line_points(line: tuple[float, float, float, float], z: float) -> np.ndarray:
@@ -278,7 +405,10 @@ def _execute_action(executor: ArmExecutor, robot, action: FoldAction, motion: Mo
 
 
 def _move_to(executor: ArmExecutor, robot, target: np.ndarray, motion: MotionConfig) -> None:
-    path = line_path(robot.tcp_pose()[0], np.asarray(target, dtype=float))
+    start = robot.tcp_pose()[0]
+    if np.linalg.norm(start - target) < 0.002:
+        return
+    path = line_path(start, np.asarray(target, dtype=float))
     try:
         executor.run(Segment("move", path, motion.free_speed))
     except UnreachableTargetError as exc:

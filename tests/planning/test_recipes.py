@@ -1,16 +1,117 @@
+import ast
+import inspect
+
 import numpy as np
 import pytest
 
+import foldbot.planning.recipes as recipes_module
 from foldbot.errors import ConfigError
-from foldbot.metrics import FoldLine
-from foldbot.planning.recipes import half_fold, plan_recipe
+from foldbot.metrics import FoldLine, fold_goal
+from foldbot.perception.keypoints import label_corners
+from foldbot.planning.recipes import (
+    CORNER_NAMES,
+    RECIPE_HELP,
+    RECIPES,
+    half_fold,
+    plan_recipe,
+    plan_stage,
+    predicted_outline,
+    recipe_stages,
+)
+
+# (centre x, centre y, yaw): several positions and yaws, away from the labelling ties at 45° + k·90°.
+POSES = [
+    (0.45, 0.0, 0.0),
+    (0.40, 0.05, 0.3),
+    (0.50, -0.08, -0.7),
+    (0.42, 0.1, 1.2),
+    (0.5, 0.0, 2.5),
+]
+# (depth, width) of the flat towel: square, deep, wide.
+SHAPES = [(0.3, 0.3), (0.36, 0.24), (0.22, 0.34)]
+STAGE_GRASPS = {
+    "half": [("far_left", "far_right")],
+    "half_y": [("far_left", "near_left")],
+    "quarter": [("far_left", "far_right"), ("far_left", "near_left")],
+    "diagonal": None,  # one far corner, chosen by the pose
+    "thirds": [("far_left", "far_right"), ("near_left", "near_right")],
+}
+
+
+def towel(cx=0.45, cy=0.0, depth=0.3, width=0.3, yaw=0.0, z=0.752):
+    """Corners of a flat rectangular towel, labelled by the perception rule (as perceived)."""
+    hx, hy = depth / 2, width / 2
+    c, s = np.cos(yaw), np.sin(yaw)
+    local = [(-hx, hy), (-hx, -hy), (hx, -hy), (hx, hy)]
+    pts = np.array([[cx + c * x - s * y, cy + s * x + c * y, z] for x, y in local])
+    return {name: pts[i] for name, i in label_corners(pts).items()}
 
 
 def square(cx=0.45, cy=0.0, side=0.3, yaw=0.0, z=0.752):
-    h = side / 2
-    local = {"near_left": (-h, h), "near_right": (-h, -h), "far_right": (h, -h), "far_left": (h, h)}
-    c, s = np.cos(yaw), np.sin(yaw)
-    return {n: np.array([cx + c * x - s * y, cy + s * x + c * y, z]) for n, (x, y) in local.items()}
+    """Corners of a flat square towel, labelled by the perception rule."""
+    return towel(cx, cy, side, side, yaw, z)
+
+
+def perceive(outline):
+    """Corners the pipeline would perceive on a folded outline (a quad), labelled by the rule."""
+    assert outline.shape == (4, 3)
+    return {name: outline[i] for name, i in label_corners(outline).items()}
+
+
+def run_recipe(recipe, corners):
+    """Plan every stage, each on the corners of the previous stage's predicted outline."""
+    plans, outlines, stage_corners = [], [], []
+    for k in range(recipe_stages(recipe)):
+        stage_corners.append(corners)
+        plans.append(plan_stage(recipe, k, corners))
+        outlines.append(predicted_outline(recipe, k, corners))
+        if k + 1 < recipe_stages(recipe):
+            corners = perceive(outlines[-1])
+    return plans, outlines, stage_corners
+
+
+def area(poly):
+    """Signed (counter-clockwise positive) shoelace area of a polygon's x, y."""
+    x, y = poly[:, 0], poly[:, 1]
+    return 0.5 * float(np.sum(x * np.roll(y, -1) - y * np.roll(x, -1)))
+
+
+def quad_area(corners):
+    """Area of the labelled corner quad."""
+    return area(np.array([corners[n] for n in CORNER_NAMES]))
+
+
+def unit(v):
+    """The x, y of a vector, normalised."""
+    v = np.asarray(v, dtype=float)[:2]
+    return v / np.linalg.norm(v)
+
+
+def on_line(point, line, tol=1e-9):
+    """Whether a point's x, y lies on the (infinite) fold line."""
+    rel = np.asarray(point)[:2] - [line.x, line.y]
+    d = unit([line.dx, line.dy])
+    return abs(rel[0] * d[1] - rel[1] * d[0]) < tol
+
+
+def inside_convex(xy, poly, tol=1e-9):
+    """Mask of points inside (or on) a counter-clockwise convex polygon."""
+    ok = np.ones(len(xy), dtype=bool)
+    for a, b in zip(poly[:, :2], np.roll(poly, -1, axis=0)[:, :2], strict=True):
+        e = unit(b - a)
+        ok &= e[0] * (xy[:, 1] - a[1]) - e[1] * (xy[:, 0] - a[0]) >= -tol
+    return ok
+
+
+def grid_inside(corners, n=30):
+    """Flat grid points inside the quad (bilinear; staggered so none lies on a fold line)."""
+    nl, nr, fr, fl = (corners[k] for k in CORNER_NAMES)
+    u, v = np.meshgrid((np.arange(n) + 0.25) / n, (np.arange(n) + 0.75) / n, indexing="ij")
+    u, v = u.reshape(-1, 1), v.reshape(-1, 1)
+    return (1 - u) * ((1 - v) * nl + v * nr) + u * ((1 - v) * fl + v * fr)
+
+
+# --- the half fold (kept from the first recipe) ---------------------------------------------------
 
 
 def test_half_fold_along_x_moves_far_corners_onto_near_corners():
@@ -35,12 +136,11 @@ def test_half_fold_along_x_moves_far_corners_onto_near_corners():
 def test_half_fold_follows_the_perceived_pose(yaw):
     corners = square(cx=0.4, cy=0.05, side=0.26, yaw=yaw)
     plan = half_fold(corners, axis="y")
+    assert plan.recipe == "half_y"
     centre = np.mean([c for c in corners.values()], axis=0)
     line = FoldLine.coerce(plan.fold_lines[0])
     # The fold line passes through the cloth centre …
-    rel = centre[:2] - [line.x, line.y]
-    d = np.array([line.dx, line.dy]) / np.hypot(line.dx, line.dy)
-    assert abs(rel[0] * d[1] - rel[1] * d[0]) < 1e-9
+    assert on_line(centre, line)
     # … and each place point is its grasp point mirrored across it.
     for action in plan.actions:
         mirrored = line.reflect_xy(action.grasp[None, :2])[0]
@@ -57,3 +157,262 @@ def test_missing_corner_and_unknown_recipe_are_rejected():
         plan_recipe("origami", square())
     with pytest.raises(ConfigError, match="axis"):
         half_fold(square(), axis="z")
+
+
+# --- recipes and stages ---------------------------------------------------------------------------
+
+
+def test_recipe_names_and_stage_counts():
+    assert set(RECIPES) == {"half", "half_y", "quarter", "diagonal", "thirds"}
+    assert set(RECIPE_HELP) == set(RECIPES)
+    assert {r: recipe_stages(r) for r in RECIPES} == {
+        "half": 1,
+        "half_y": 1,
+        "quarter": 2,
+        "diagonal": 1,
+        "thirds": 2,
+    }
+
+
+@pytest.mark.parametrize("recipe", RECIPES)
+def test_plan_recipe_is_the_first_stage(recipe):
+    corners = towel(0.4, 0.03, 0.28, 0.32, yaw=0.2)
+    first, stage0 = (
+        plan_recipe(recipe, corners, place_lift=0.007),
+        plan_stage(recipe, 0, corners, 0.007),
+    )
+    assert first.recipe == stage0.recipe == recipe
+    assert first.fold_lines == stage0.fold_lines
+    assert [a.as_dict() for a in first.actions] == [a.as_dict() for a in stage0.actions]
+
+
+@pytest.mark.parametrize("shape", SHAPES)
+@pytest.mark.parametrize("pose", POSES)
+@pytest.mark.parametrize("recipe", RECIPES)
+def test_every_stage_is_one_fold_whose_places_mirror_the_grasped_corners(recipe, pose, shape):
+    cx, cy, yaw = pose
+    plans, _, stage_corners = run_recipe(recipe, towel(cx, cy, *shape, yaw=yaw))
+    for k, (plan, corners) in enumerate(zip(plans, stage_corners, strict=True)):
+        assert plan.recipe == recipe and len(plan.fold_lines) == 1
+        line = FoldLine.coerce(plan.fold_lines[0])
+        labels = [a.label for a in plan.actions]
+        if STAGE_GRASPS[recipe] is None:
+            assert labels in (["far_left"], ["far_right"])
+        else:
+            assert tuple(labels) == STAGE_GRASPS[recipe][k]
+        for action in plan.actions:
+            assert action.fold_line == plan.fold_lines[0]
+            assert np.array_equal(action.grasp, corners[action.label])
+            assert line.moving_mask(action.grasp[None, :2])[0]  # moving side: left of direction
+            assert np.allclose(action.place[:2], line.reflect_xy(action.grasp[None, :2])[0])
+            assert action.place[2] == pytest.approx(action.grasp[2] + 0.004)
+        # The corners not grasped stay (or lie on the line, for the diagonal).
+        for name in set(CORNER_NAMES) - set(labels):
+            assert line.side(corners[name][None, :2])[0] < 1e-9
+        # The line's point and point + direction are where the crease meets the outline.
+        quad = np.array([corners[n][:2] for n in CORNER_NAMES])
+        ends = np.array([[line.x, line.y], [line.x + line.dx, line.y + line.dy]])
+        assert inside_convex(ends, quad, tol=1e-9).all()
+
+
+@pytest.mark.parametrize("shape", SHAPES)
+@pytest.mark.parametrize("pose", POSES)
+def test_half_lines_join_the_midpoints_of_the_bent_sides(pose, shape):
+    cx, cy, yaw = pose
+    c = towel(cx, cy, *shape, yaw=yaw)
+    line_x = FoldLine.coerce(plan_recipe("half", c).fold_lines[0])
+    line_y = FoldLine.coerce(plan_recipe("half_y", c).fold_lines[0])
+    for a, b in (("near_left", "far_left"), ("near_right", "far_right")):
+        assert on_line((c[a] + c[b]) / 2, line_x)
+    for a, b in (("near_left", "near_right"), ("far_left", "far_right")):
+        assert on_line((c[a] + c[b]) / 2, line_y)
+    # The far side moves for "half", the left side for "half_y".
+    assert line_x.moving_mask(np.array([c["far_left"][:2], c["far_right"][:2]])).all()
+    assert line_y.moving_mask(np.array([c["far_left"][:2], c["near_left"][:2]])).all()
+
+
+@pytest.mark.parametrize("shape", SHAPES)
+@pytest.mark.parametrize("pose", POSES)
+def test_quarter_second_line_is_perpendicular_through_the_folded_centre(pose, shape):
+    cx, cy, yaw = pose
+    plans, outlines, stage_corners = run_recipe("quarter", towel(cx, cy, *shape, yaw=yaw))
+    first, second = (FoldLine.coerce(p.fold_lines[0]) for p in plans)
+    assert abs(unit([first.dx, first.dy]) @ unit([second.dx, second.dy])) < 1e-9
+    folded_centre = np.mean(list(stage_corners[1].values()), axis=0)
+    assert on_line(folded_centre, second)
+    # The folded rectangle is the near half: the second stage grasps its stacked near corner.
+    assert np.allclose(stage_corners[1]["near_left"], stage_corners[0]["near_left"])
+    assert area(outlines[1]) == pytest.approx(quad_area(stage_corners[0]) / 4)
+
+
+@pytest.mark.parametrize("shape", SHAPES)
+@pytest.mark.parametrize("pose", POSES)
+def test_thirds_lines_lie_a_third_from_the_far_then_the_near_edge(pose, shape):
+    cx, cy, yaw = pose
+    flat = towel(cx, cy, *shape, yaw=yaw)
+    plans, _, stage_corners = run_recipe("thirds", flat)
+    depth_axis = unit(flat["far_left"] - flat["near_left"])
+    depth = float((flat["far_left"] - flat["near_left"])[:2] @ depth_axis)
+    near = flat["near_left"][:2]
+    for plan, fraction in zip(plans, (2 / 3, 1 / 3), strict=True):
+        line = FoldLine.coerce(plan.fold_lines[0])
+        # Parallel to the near edge, at `fraction` of the original depth from it.
+        assert abs(unit([line.dx, line.dy]) @ depth_axis) < 1e-9
+        assert (np.array([line.x, line.y]) - near) @ depth_axis == pytest.approx(fraction * depth)
+    # After stage 1 the perceived outline spans 2/3 of the depth, from the original near edge.
+    c1 = stage_corners[1]
+    assert np.allclose(c1["near_left"], flat["near_left"])
+    assert (c1["far_left"] - c1["near_left"])[:2] @ depth_axis == pytest.approx(2 / 3 * depth)
+
+
+@pytest.mark.parametrize("pose", POSES)
+def test_diagonal_line_runs_through_opposite_corners_and_brings_a_far_corner_closer(pose):
+    cx, cy, yaw = pose
+    c = square(cx, cy, 0.3, yaw=yaw)
+    plan = plan_recipe("diagonal", c)
+    line = FoldLine.coerce(plan.fold_lines[0])
+    (action,) = plan.actions
+    pivots = (
+        ("near_left", "far_right") if action.label == "far_left" else ("near_right", "far_left")
+    )
+    opposite = "near_right" if action.label == "far_left" else "near_left"
+    assert all(on_line(c[p], line) for p in pivots)
+    assert np.allclose(action.place[:2], c[opposite][:2], atol=1e-9)  # a square: onto the corner
+    # Of the two diagonals, the carried corner moves most toward the robot (−x).
+    other = "far_right" if action.label == "far_left" else "far_left"
+    other_target = "near_left" if other == "far_right" else "near_right"
+    moved = action.place[0] - action.grasp[0]
+    assert moved < 0
+    assert moved <= c[other_target][0] - c[other][0] + 1e-12
+
+
+def test_diagonal_tie_carries_far_left():
+    plan = plan_recipe("diagonal", square(yaw=0.0))
+    assert [a.label for a in plan.actions] == ["far_left"]
+    assert on_line(square()["near_left"], FoldLine.coerce(plan.fold_lines[0]))
+
+
+# --- composed goals and predicted outlines -------------------------------------------------------
+
+EXPECTED_LAYERS = {
+    "half": {0: 1 / 2, 1: 1 / 2},
+    "half_y": {0: 1 / 2, 1: 1 / 2},
+    "quarter": {0: 1 / 4, 1: 1 / 4, 2: 1 / 4, 3: 1 / 4},
+    # metrics' rule 2·n_max + 1 − n puts the near third (layer 0 before) at index 3: three layers.
+    "thirds": {0: 1 / 3, 1: 1 / 3, 3: 1 / 3},
+    "diagonal": {0: 1 / 2, 1: 1 / 2},
+}
+EXPECTED_AREA = {
+    "half": 1 / 2,
+    "half_y": 1 / 2,
+    "quarter": 1 / 4,
+    "thirds": 1 / 3,
+    "diagonal": 1 / 2,
+}
+
+
+# A diagonal fold of a non-square towel overhangs: see the union test below.
+COMPOSE_CASES = [
+    (recipe, pose, shape)
+    for recipe in RECIPES
+    for pose in POSES
+    for shape in SHAPES
+    if recipe != "diagonal" or shape[0] == shape[1]
+]
+
+
+@pytest.mark.parametrize(("recipe", "pose", "shape"), COMPOSE_CASES)
+def test_composed_goal_has_the_expected_layers_inside_the_predicted_outline(recipe, pose, shape):
+    cx, cy, yaw = pose
+    flat = towel(cx, cy, *shape, yaw=yaw)
+    plans, outlines, _ = run_recipe(recipe, flat)
+    points = grid_inside(flat)
+    lines = [p.fold_lines[0] for p in plans]
+    goal, layers = fold_goal(points, lines, thickness=0.002)
+    values, counts = np.unique(layers, return_counts=True)
+    expected = EXPECTED_LAYERS[recipe]
+    assert set(values.tolist()) == set(expected)
+    tol = 1.5 / 30  # one grid row of the staggered grid (the diagonal cuts it unevenly)
+    for v, n in zip(values, counts, strict=True):
+        assert n / len(points) == pytest.approx(expected[int(v)], abs=tol)
+    final = outlines[-1]
+    assert area(final) > 0  # counter-clockwise
+    assert area(final) == pytest.approx(EXPECTED_AREA[recipe] * quad_area(flat), rel=1e-9)
+    assert inside_convex(goal[:, :2], final).all()
+    assert final[:, 2] == pytest.approx(flat["near_left"][2])
+
+
+@pytest.mark.parametrize("pose", POSES[:3])
+def test_diagonal_outline_of_a_rectangle_is_the_union_of_the_two_triangles(pose):
+    cx, cy, yaw = pose
+    flat = towel(cx, cy, 0.24, 0.36, yaw=yaw)
+    plan = plan_recipe("diagonal", flat)
+    line = FoldLine.coerce(plan.fold_lines[0])
+    outline = predicted_outline("diagonal", 0, flat)
+    quad = np.array([flat[n] for n in CORNER_NAMES])
+    staying = quad[line.side(quad) < 1e-9]  # the two pivots and the staying corner
+    carried = quad[line.side(quad) > 1e-9]
+    mirrored = np.vstack([staying[np.abs(line.side(staying)) < 1e-9], line.reflect_xy(carried)])
+
+    def ccw(tri):
+        """The triangle in counter-clockwise order."""
+        return tri if area(tri) > 0 else tri[::-1]
+
+    lo, hi = quad[:, :2].min(axis=0) - 0.1, quad[:, :2].max(axis=0) + 0.1
+    gx, gy = np.meshgrid(np.linspace(lo[0], hi[0], 400), np.linspace(lo[1], hi[1], 400))
+    xy = np.column_stack([gx.ravel(), gy.ravel()])
+    in_union = inside_convex(xy, ccw(staying)) | inside_convex(xy, ccw(mirrored))
+    cell = (hi[0] - lo[0]) / 399 * (hi[1] - lo[1]) / 399
+    assert area(outline) == pytest.approx(in_union.sum() * cell, rel=0.02)
+    assert area(ccw(staying)) < area(outline) < quad_area(flat)
+    assert len(outline) == 5  # the overhanging tip adds two corners to the triangle
+
+
+# --- bad inputs ------------------------------------------------------------------------------------
+
+
+def test_bad_inputs_are_rejected_with_the_reason():
+    good = square()
+    missing = dict(good)
+    del missing["near_right"], missing["far_left"]
+    with pytest.raises(ConfigError, match=r"near_right.*far_left"):
+        plan_stage("quarter", 0, missing)
+    with pytest.raises(ConfigError, match="missing"):
+        predicted_outline("half", 0, missing)
+    coincident = dict(good, near_right=good["near_left"].copy())
+    with pytest.raises(ConfigError, match="degenerate"):
+        plan_stage("half", 0, coincident)
+    collinear = dict(good, near_right=(good["near_left"] + good["far_right"]) / 2)
+    with pytest.raises(ConfigError, match="collinear"):
+        plan_stage("diagonal", 0, collinear)
+    swapped = dict(good, near_left=good["near_right"], near_right=good["near_left"])
+    with pytest.raises(ConfigError, match="counter-clockwise"):
+        plan_stage("half", 0, swapped)
+    with pytest.raises(ConfigError, match="finite"):
+        plan_stage("half", 0, dict(good, far_right=np.array([np.nan, 0.0, 0.75])))
+    with pytest.raises(ConfigError, match="finite"):
+        plan_stage("half", 0, dict(good, far_right=np.array([0.5, 0.0])))
+    with pytest.raises(ConfigError, match=r"origami.*half, half_y, quarter, diagonal, thirds"):
+        plan_stage("origami", 0, good)
+    with pytest.raises(ConfigError, match="origami"):
+        recipe_stages("origami")
+    with pytest.raises(ConfigError, match="origami"):
+        predicted_outline("origami", 0, good)
+    for recipe, stage in (("half", 1), ("quarter", 2), ("thirds", -1), ("diagonal", 5)):
+        with pytest.raises(ConfigError, match="out of range"):
+            plan_stage(recipe, stage, good)
+        with pytest.raises(ConfigError, match="out of range"):
+            predicted_outline(recipe, stage, good)
+    with pytest.raises(ConfigError, match="integer"):
+        plan_stage("quarter", 1.0, good)
+
+
+def test_planning_never_imports_the_simulator():
+    tree = ast.parse(inspect.getsource(recipes_module))
+    imported = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            imported |= {a.name for a in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            imported.add(node.module or "")
+    assert not any(m.startswith(("pybullet", "foldbot.sim")) for m in imported)

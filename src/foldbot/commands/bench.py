@@ -122,7 +122,9 @@ def run(args: argparse.Namespace) -> int:
             )
             todo.append((cfg, ep))
     t0 = time.perf_counter()
-    with ProcessPoolExecutor(max_workers=args.workers) as pool:
+    # One fresh process per episode: Bullet's soft-body solver keeps process-global random state,
+    # so an episode is reproducible (same seed, same result) only as the first in its process.
+    with ProcessPoolExecutor(max_workers=args.workers, max_tasks_per_child=1) as pool:
         futures = [pool.submit(_episode, cfg, ep) for cfg, ep in todo]
         for fut in tqdm(as_completed(futures), total=len(futures), desc="episodes", unit="ep"):
             results.append(fut.result())

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from foldbot.garments.towel import TowelSpec
 from foldbot.pipeline import GARMENTS, PERCEPTION_MODES, EpisodeConfig, run_episode
-from foldbot.planning.recipes import RECIPES
+from foldbot.planning.recipes import RECIPE_HELP, RECIPES
 from foldbot.sim.robots import ROBOT_NAMES
 from foldbot.sim.world import SimConfig
 
@@ -16,7 +16,12 @@ from foldbot.sim.world import SimConfig
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of `foldbot fold`."""
     parser.add_argument("--garment", default="towel", choices=GARMENTS, help="garment to fold")
-    parser.add_argument("--recipe", default="half", choices=RECIPES, help="fold recipe")
+    parser.add_argument(
+        "--recipe",
+        default="half",
+        choices=RECIPES,
+        help="fold recipe: " + "; ".join(f"{k}: {v}" for k, v in RECIPE_HELP.items()),
+    )
     parser.add_argument("--robot", default="ur5", choices=ROBOT_NAMES, help="arm to use")
     parser.add_argument(
         "--perception",

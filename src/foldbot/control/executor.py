@@ -1,5 +1,6 @@
-"""Executes Cartesian segments on the simulated arm: IK along the path, a minimum-jerk time law within
-the joint velocity limits, joint position control every physics step, tracking monitoring."""
+"""Executes Cartesian segments on the simulated arm: IK along the path, a time-optimal trajectory
+within the joint velocity, acceleration and jerk limits (control.trajectory), joint position control
+with velocity feed-forward every physics step, tracking monitoring."""
 
 from __future__ import annotations
 
@@ -7,7 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from foldbot.errors import UnreachableTargetError
+from foldbot.control.trajectory import JointTrajectory, time_parametrize
+from foldbot.errors import ConfigError, UnreachableTargetError
 from foldbot.planning.motion import Segment
 from foldbot.sim.grasp import ClothGrasp
 from foldbot.sim.robots.base import Robot
@@ -21,8 +23,13 @@ class SegmentLog:
 
     name: str
     duration: float
+    """Time the arm moved (s), gripper event not included."""
     max_tracking_error: float  # m, TCP
     grasp: GraspResult | None = None
+    peak_joint_velocity: float = 0.0
+    """Largest planned |joint velocity| (rad/s)."""
+    peak_joint_acceleration: float = 0.0
+    """Largest planned |joint acceleration| (rad/s²)."""
 
 
 @dataclass(frozen=True)
@@ -34,9 +41,10 @@ class PlannedSegment:
     points: np.ndarray
 
 
-def min_jerk(tau: np.ndarray) -> np.ndarray:
-    """Minimum-jerk time law s(τ) on τ ∈ [0, 1]: zero velocity and acceleration at both ends."""
-    return 10 * tau**3 - 15 * tau**4 + 6 * tau**5
+def _cartesian_arc(points: np.ndarray) -> np.ndarray:
+    """Cumulative TCP path length (m) at each waypoint."""
+    legs = np.linalg.norm(np.diff(np.asarray(points, dtype=float), axis=0), axis=1)
+    return np.concatenate([[0.0], np.cumsum(legs)])
 
 
 class ArmExecutor:
@@ -67,14 +75,29 @@ class ArmExecutor:
             out.append(q)
         return np.asarray(out)
 
+    def trajectory_for(self, path: np.ndarray, points: np.ndarray, speed: float) -> JointTrajectory:
+        """Time-optimal trajectory along the joint path within the robot's joint velocity,
+        acceleration and jerk limits, the TCP (its waypoints' arc length) at `speed` (m/s) or
+        slower, sampled at the physics step."""
+        r = self.robot
+        path = np.asarray(path, dtype=float)
+        if not (np.isfinite(speed) and speed > 0.0):
+            raise ConfigError(f"segment speed must be > 0 m/s, got {speed!r}")
+        return time_parametrize(
+            path,
+            r.velocity_limits,
+            r.acceleration_limits,
+            r.jerk_limits,
+            self.world.time_step,
+            arc=_cartesian_arc(points),
+            max_arc_speed=speed,
+            position_limits=(r.lower_limits, r.upper_limits),
+        )
+
     def duration_for(self, path: np.ndarray, points: np.ndarray, speed: float) -> float:
-        """Segment time: the Cartesian speed, stretched so no joint exceeds its velocity limit under
-        the minimum-jerk law (peak speed 1.875 × mean)."""
-        length = float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
-        joint_travel = np.abs(np.diff(path, axis=0)).sum(axis=0)
-        t_cart = length / speed
-        t_joint = float(np.max(1.875 * joint_travel / (0.8 * self.robot.velocity_limits)))
-        return max(t_cart, t_joint, 0.2)
+        """Segment time (s) under the joint velocity, acceleration and jerk limits, the TCP at
+        ≈ `speed` (m/s) or slower."""
+        return self.trajectory_for(path, points, speed).duration
 
     def plan(
         self, segments: list[Segment], q_start: np.ndarray | None = None
@@ -95,30 +118,53 @@ class ArmExecutor:
             q, start = path[-1], seg.points[-1]
         return planned
 
+    def move_joints(self, q_target: np.ndarray, name: str = "joint_move") -> SegmentLog:
+        """Move in joint space (no Cartesian path) to `q_target` under the joint limits: used to
+        park the arm, where a straight TCP line could pass near a singularity."""
+        q_target = np.asarray(q_target, dtype=float)
+        q0 = self.robot.joint_positions()
+        if np.abs(q_target - q0).max() < 1e-4:
+            return SegmentLog(name, 0.0, 0.0)
+        r = self.robot
+        traj = time_parametrize(
+            np.vstack([q0, q_target]),
+            r.velocity_limits,
+            r.acceleration_limits,
+            r.jerk_limits,
+            self.world.time_step,
+        )
+        for k in range(1, len(traj.times)):
+            r.command_joint_positions(traj.positions[k], traj.velocities[k])
+            self.world.step()
+        err = float(np.linalg.norm(r.tcp_pose()[0] - r.fk_tcp(q_target)[0]))
+        return SegmentLog(name, traj.duration, err)
+
     def run(self, segment: Segment | PlannedSegment) -> SegmentLog:
         """Move along the segment (planning it first if needed), then apply its gripper event."""
         planned = segment if isinstance(segment, PlannedSegment) else self.plan([segment])[0]
         segment, path, points = planned.segment, planned.joint_path, planned.points
         # Start from where the arm really is (it may have drifted by the tracking error).
-        path = path.copy()
+        path = np.array(path, dtype=float)
         path[0] = self.robot.joint_positions()
-        duration = self.duration_for(path, points, segment.speed)
-        dt = self.world.time_step
-        n = max(1, round(duration / dt))
-        # Path parameter u ∈ [0, 1] by Cartesian arc length; piecewise-linear in joint space.
-        seg_len = np.linalg.norm(np.diff(points, axis=0), axis=1)
-        cum = np.concatenate([[0.0], np.cumsum(seg_len)])
-        cum = cum / cum[-1] if cum[-1] > 0 else np.linspace(0, 1, len(points))
+        traj = self.trajectory_for(path, points, segment.speed)
+        # Cartesian reference for monitoring: the TCP waypoints at the trajectory's path coordinate.
+        cum = _cartesian_arc(points)
+        last = len(traj.times) - 1
         max_err = 0.0
-        for k in range(1, n + 1):
-            s = float(min_jerk(np.array(k / n)))
-            q = np.array([np.interp(s, cum, path[:, j]) for j in range(path.shape[1])])
-            self.robot.command_joint_positions(q)
+        for k in range(1, last + 1):
+            self.robot.command_joint_positions(traj.positions[k], traj.velocities[k])
             self.world.step()
-            if k % 8 == 0 or k == n:
-                target = np.array([np.interp(s, cum, points[:, j]) for j in range(3)])
+            if k % 8 == 0 or k == last:
+                target = np.array([np.interp(traj.arc[k], cum, points[:, j]) for j in range(3)])
                 max_err = max(max_err, float(np.linalg.norm(self.robot.tcp_pose()[0] - target)))
-        log = SegmentLog(segment.name, n * dt, max_err)
+        peaks = traj.peaks()
+        log = SegmentLog(
+            segment.name,
+            traj.duration,
+            max_err,
+            peak_joint_velocity=peaks["velocity"],
+            peak_joint_acceleration=peaks["acceleration"],
+        )
         if segment.gripper == "close":
             log.grasp = self.grasp.close()
         elif segment.gripper == "open":

@@ -22,13 +22,15 @@ class MotionConfig:
     """Peak height of the carry arc above the straight line, per metre of carried distance."""
     min_arc_height: float = 0.05
     """Lowest carry-arc peak (m)."""
+    place_lift: float = 0.004
+    """A carried point is released this high above the height it was grasped at (m)."""
     place_height: float = 0.01
     """Height above the place point at which the arc ends before the final lowering (m)."""
     retreat_height: float = 0.08
     """Rise after releasing (m)."""
-    cartesian_speed: float = 0.15
+    cartesian_speed: float = 0.25
     """Nominal TCP speed along carry paths (m/s)."""
-    free_speed: float = 0.3
+    free_speed: float = 0.5
     """Nominal TCP speed for moves without cloth (m/s)."""
     arc_points: int = 40
     """Waypoints along the carry arc."""

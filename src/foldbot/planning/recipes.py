@@ -1,74 +1,353 @@
 """Towel fold recipes computed from the perceived corner keypoints — never from fixed coordinates.
 
 Corners are named in the world frame relative to the robot (see perception.keypoints):
-near_left, near_right, far_right, far_left (near = closer to the robot, left = +y).
+near_left, near_right, far_right, far_left (near = closer to the robot, left = +y); in that order
+they go counter-clockwise around the cloth seen from above.
+
+A recipe is a sequence of stages. Each stage is one fold (one fold line [x, y, dx, dy], moving side
+to its left, as metrics.md requires) computed from the four corners perceived at the START of that
+stage: the pipeline re-observes the cloth after every stage, so stage k sees the folded outline's
+corners, labelled by the same rule. A stage yields one-gripper pick-and-place actions, one corner
+grasp after the other; a grasp of a corner of a folded stack catches all its layers.
+
+Recipes (`RECIPES`; the CLI offers them as `--recipe`, so the half fold's axis is a recipe name):
+- "half"     1 stage. The far edge onto the near edge: the line joins the midpoints of the left and
+             right sides. Grasps: far_left, then far_right.
+- "half_y"   1 stage. The left edge onto the right edge: the line joins the midpoints of the near and
+             far edges. Grasps: far_left, then near_left.
+- "quarter"  2 stages. Stage 1 is "half"; stage 2 is "half_y" on the folded rectangle's perceived
+             corners, i.e. a line perpendicular to the first through the folded rectangle's centre.
+- "diagonal" 1 stage. The line runs through two opposite corners; the one action carries a free far
+             corner over it (onto the opposite corner for a square towel). Of the two diagonals, the
+             one chosen is the one whose carried far corner moves most toward the robot (most
+             negative world x displacement): the farther far corner comes toward the robot, the
+             direction the arm reaches best. Exact ties carry far_left (line near_left–far_right).
+             For a non-square towel the mirrored triangle overhangs the staying one (the place point
+             is still the mirror, as the metric requires).
+- "thirds"   2 stages. Stage 1: the far third onto the middle — the line crosses the left and right
+             sides at 2/3 of the way from the near corner to the far corner. Grasps: far_left, then
+             far_right. Stage 2: the near third on top — the line at 1/3 of the ORIGINAL depth from
+             the near edge. After stage 1 the perceived outline spans from the near edge to the
+             stage-1 crease, i.e. 2/3 of the original depth, so that line is the outline's midline:
+             it joins the midpoints of the perceived left and right sides, and the near side moves.
+             Grasps: near_left, then near_right.
+
+A stage's labels rely on the labelling rule, which is stable while a rectangle's yaw stays away from
+±45° (mod 90°), where two corners tie for "near_left"; there, noise can rotate the labels by one, and
+a second stage would fold along the other axis of the folded rectangle.
+
+Place points are the grasp points mirrored across the stage's fold line, lifted by `place_lift`.
+Each fold line's point lies on the cloth outline and its direction spans the cloth (the point plus
+the direction is the other end of the crease), so drawing [p, p + d] shows the crease.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
+
 import numpy as np
 
 from foldbot.errors import ConfigError
+from foldbot.metrics import FoldLine
 from foldbot.planning.actions import FoldAction, FoldPlan
 
 CORNER_NAMES = ("near_left", "near_right", "far_right", "far_left")
-RECIPES = ("half",)
+"""Corner labels in counter-clockwise order (seen from above, world frame)."""
+RECIPES = ("half", "half_y", "quarter", "diagonal", "thirds")
+"""Recipe names accepted by plan_stage / plan_recipe (and the CLI's --recipe)."""
+RECIPE_HELP = {
+    "half": "far half onto the near half (1 stage)",
+    "half_y": "left half onto the right half (1 stage)",
+    "quarter": "half, then the folded rectangle left onto right (2 stages)",
+    "diagonal": "a far corner onto the opposite corner: a triangle (1 stage)",
+    "thirds": "far third onto the middle, then the near third on top (2 stages)",
+}
+"""One line per recipe, for CLI help."""
+MIN_SIDE = 1e-3
+"""Shortest allowed side of the perceived corner quad (m); shorter means coincident corners."""
+MIN_TURN_SINE = 0.02
+"""Smallest allowed sine of the turn at each corner (~1.1°); smaller means collinear corners."""
+
+Line = tuple[float, float, float, float]
 
 
-def _mirror(point: np.ndarray, line: tuple[float, float, float, float]) -> np.ndarray:
+@dataclass(frozen=True)
+class _Fold:
+    """One stage's fold: its line and the corners it carries, in grasp order."""
+
+    line: Line
+    moving: tuple[str, ...]
+
+
+def _mirror(point: np.ndarray, line: Line) -> np.ndarray:
     """Reflect a point's x, y across the line [x, y, dx, dy]; z is kept."""
-    x, y, dx, dy = line
-    d = np.array([dx, dy]) / np.hypot(dx, dy)
-    rel = point[:2] - np.array([x, y])
-    along = rel @ d
-    out = np.array(point, dtype=float)
-    out[:2] = np.array([x, y]) + 2 * along * d - rel
-    return out
+    return FoldLine(*line).reflect_xy(np.asarray(point, dtype=float))
 
 
 def _require_corners(corners: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The four labelled corners as float xyz arrays; ConfigError if any is missing or malformed,
+    or if they do not form a proper counter-clockwise quad (coincident or collinear corners)."""
     missing = [n for n in CORNER_NAMES if n not in corners]
     if missing:
         raise ConfigError(f"fold planning needs the corners {CORNER_NAMES}, missing {missing}")
-    return {n: np.asarray(corners[n], dtype=float) for n in CORNER_NAMES}
+    c = {}
+    for name in CORNER_NAMES:
+        value = np.asarray(corners[name], dtype=float).reshape(-1)
+        if value.shape != (3,) or not np.all(np.isfinite(value)):
+            raise ConfigError(
+                f"corner {name} = {corners[name]!r} must be a finite world point (x, y, z)"
+            )
+        c[name] = value
+    quad = np.array([c[n][:2] for n in CORNER_NAMES])
+    sides = np.roll(quad, -1, axis=0) - quad  # side k: corner k → k+1
+    lengths = np.linalg.norm(sides, axis=1)
+    if lengths.min() < MIN_SIDE:
+        k = int(np.argmin(lengths))
+        raise ConfigError(
+            f"degenerate corner quad: {CORNER_NAMES[k]} and {CORNER_NAMES[(k + 1) % 4]} are "
+            f"{lengths[k] * 1000:.2f} mm apart (at least {MIN_SIDE * 1000:g} mm needed)"
+        )
+    prev = np.roll(sides, 1, axis=0)  # side arriving at corner k
+    turn = (prev[:, 0] * sides[:, 1] - prev[:, 1] * sides[:, 0]) / (np.roll(lengths, 1) * lengths)
+    if turn.min() < MIN_TURN_SINE:
+        k = int(np.argmin(turn))
+        kind = "collinear with its neighbours" if abs(turn[k]) < MIN_TURN_SINE else "reflex"
+        raise ConfigError(
+            f"degenerate corner quad: {CORNER_NAMES[k]} is {kind} (turn sine {turn[k]:.3g}); "
+            f"the corners must form a convex quad in counter-clockwise order {CORNER_NAMES}"
+        )
+    return c
+
+
+def _oriented_line(a: np.ndarray, b: np.ndarray, probe: np.ndarray) -> Line:
+    """The line from a to b, or from b to a, whichever has `probe` on its left (moving) side."""
+    d = b[:2] - a[:2]
+    rel = probe[:2] - a[:2]
+    if -d[1] * rel[0] + d[0] * rel[1] < 0:
+        a, d = b, -d
+    return (float(a[0]), float(a[1]), float(d[0]), float(d[1]))
+
+
+def _edge_fold(
+    c: dict[str, np.ndarray],
+    moving: tuple[str, str],
+    staying: tuple[str, str],
+    fraction: float,
+) -> _Fold:
+    """Fold whose line crosses the two sides staying[i]→moving[i] at `fraction` of their length
+    from the staying corner; the moving corners are carried, in the given order."""
+    a = c[staying[0]] + fraction * (c[moving[0]] - c[staying[0]])
+    b = c[staying[1]] + fraction * (c[moving[1]] - c[staying[1]])
+    probe = (c[moving[0]] + c[moving[1]]) / 2
+    return _Fold(_oriented_line(a, b, probe), moving)
+
+
+def _half_x(c: dict[str, np.ndarray]) -> _Fold:
+    """Far half onto the near half."""
+    return _edge_fold(c, ("far_left", "far_right"), ("near_left", "near_right"), 0.5)
+
+
+def _half_y(c: dict[str, np.ndarray]) -> _Fold:
+    """Left half onto the right half."""
+    return _edge_fold(c, ("far_left", "near_left"), ("far_right", "near_right"), 0.5)
+
+
+def _far_third(c: dict[str, np.ndarray]) -> _Fold:
+    """Far third onto the middle third: the line at 2/3 of each side from the near edge."""
+    return _edge_fold(c, ("far_left", "far_right"), ("near_left", "near_right"), 2.0 / 3.0)
+
+
+def _near_third(c: dict[str, np.ndarray]) -> _Fold:
+    """Near third on top, from the outline after _far_third: that outline's midline, near moving."""
+    return _edge_fold(c, ("near_left", "near_right"), ("far_left", "far_right"), 0.5)
+
+
+def _diagonal(c: dict[str, np.ndarray]) -> _Fold:
+    """A far corner over the diagonal through its two neighbours: the far corner whose place lies
+    most toward the robot (exact tie: far_left)."""
+    options = (
+        ("far_left", "near_left", "far_right"),  # carried corner, line through these two
+        ("far_right", "near_right", "far_left"),
+    )
+    folds = []
+    for carried, a, b in options:
+        line = _oriented_line(c[a], c[b], c[carried])
+        dx = float(_mirror(c[carried], line)[0] - c[carried][0])  # world x displacement
+        folds.append((dx, _Fold(line, (carried,))))
+    (dx_left, left), (dx_right, right) = folds
+    return right if dx_right < dx_left - 1e-12 else left
+
+
+_STAGES: dict[str, tuple[Callable[[dict[str, np.ndarray]], _Fold], ...]] = {
+    "half": (_half_x,),
+    "half_y": (_half_y,),
+    "quarter": (_half_x, _half_y),
+    "diagonal": (_diagonal,),
+    "thirds": (_far_third, _near_third),
+}
+
+
+def recipe_stages(recipe: str) -> int:
+    """Number of stages (folds, each planned on freshly perceived corners) of a recipe."""
+    if recipe not in _STAGES:
+        raise ConfigError(f"unknown recipe {recipe!r}; allowed: {', '.join(RECIPES)}")
+    return len(_STAGES[recipe])
+
+
+def _stage_fold(recipe: str, stage_index: int, corners: dict[str, np.ndarray]) -> _Fold:
+    """Validate the recipe, stage index and corners, and compute that stage's fold."""
+    n = recipe_stages(recipe)
+    if isinstance(stage_index, bool) or not isinstance(stage_index, int | np.integer):
+        raise ConfigError(f"stage index {stage_index!r} must be an integer in [0, {n - 1}]")
+    if not 0 <= stage_index < n:
+        raise ConfigError(
+            f"stage index {stage_index} is out of range for recipe {recipe!r} "
+            f"({n} stage{'s' if n > 1 else ''}: 0..{n - 1})"
+        )
+    return _STAGES[recipe][int(stage_index)](_require_corners(corners))
+
+
+def plan_stage(
+    recipe: str, stage_index: int, corners: dict[str, np.ndarray], place_lift: float = 0.004
+) -> FoldPlan:
+    """Plan one stage of a recipe on the corners perceived at its start: its one fold line and the
+    one-gripper pick-and-place actions (grasp a corner, release at its mirror, lifted)."""
+    fold = _stage_fold(recipe, stage_index, corners)
+    c = _require_corners(corners)
+    actions = []
+    for name in fold.moving:
+        place = _mirror(c[name], fold.line)
+        place[2] = c[name][2] + place_lift
+        actions.append(FoldAction(grasp=c[name], place=place, fold_line=fold.line, label=name))
+    return FoldPlan(recipe=recipe, fold_lines=(fold.line,), actions=tuple(actions))
+
+
+def plan_recipe(recipe: str, corners: dict[str, np.ndarray], place_lift: float = 0.004) -> FoldPlan:
+    """Plan the first stage of a named recipe on the perceived corners (see plan_stage)."""
+    return plan_stage(recipe, 0, corners, place_lift)
 
 
 def half_fold(
     corners: dict[str, np.ndarray], axis: str = "x", place_lift: float = 0.004
 ) -> FoldPlan:
-    """Half fold: the far edge's corners are carried onto the near edge's (axis "x"), or the left
-    edge's onto the right edge's (axis "y"), one corner grasp after the other (one gripper).
-
-    The fold line runs through the midpoints of the two edges that the fold bends, directed so
-    that the moving side lies to its left, as the metric's convention requires.
-    """
-    c = _require_corners(corners)
-    if axis == "x":  # fold across x: far half moves toward the robot
-        moving = ("far_left", "far_right")
-        staying = ("near_left", "near_right")
-    elif axis == "y":  # left half moves onto the right half
-        moving = ("far_left", "near_left")
-        staying = ("far_right", "near_right")
-    else:
+    """Half fold across x (far onto near, recipe "half") or y (left onto right, "half_y")."""
+    if axis not in ("x", "y"):
         raise ConfigError(f"half fold axis must be 'x' or 'y', got {axis!r}")
-    mid_a = (c[moving[0]] + c[staying[0]]) / 2
-    mid_b = (c[moving[1]] + c[staying[1]]) / 2
-    direction = mid_b[:2] - mid_a[:2]
-    line = (float(mid_a[0]), float(mid_a[1]), float(direction[0]), float(direction[1]))
-    # Orient the line so the moving side is on its left: (−dy, dx)·(p − p0) > 0.
-    probe = (c[moving[0]] + c[moving[1]])[:2] / 2 - mid_a[:2]
-    if -direction[1] * probe[0] + direction[0] * probe[1] < 0:
-        line = (float(mid_b[0]), float(mid_b[1]), float(-direction[0]), float(-direction[1]))
-    actions = []
-    for name in moving:
-        place = _mirror(c[name], line)
-        place[2] = c[name][2] + place_lift
-        actions.append(FoldAction(grasp=c[name], place=place, fold_line=line, label=name))
-    return FoldPlan(recipe="half", fold_lines=(line,), actions=tuple(actions))
+    return plan_stage("half" if axis == "x" else "half_y", 0, corners, place_lift)
 
 
-def plan_recipe(recipe: str, corners: dict[str, np.ndarray]) -> FoldPlan:
-    """Instantiate a named recipe on the perceived corners."""
-    if recipe == "half":
-        return half_fold(corners)
-    raise ConfigError(f"unknown recipe {recipe!r}; allowed: {', '.join(RECIPES)}")
+# --- predicted outline ---------------------------------------------------------------------------
+
+
+def _clip(poly: np.ndarray, side: np.ndarray, keep_positive: bool) -> np.ndarray:
+    """Sutherland–Hodgman: the part of a convex polygon (N×2) where side ≥ 0 (or ≤ 0)."""
+    s = side if keep_positive else -side
+    out = []
+    n = len(poly)
+    for i in range(n):
+        p, q = poly[i], poly[(i + 1) % n]
+        sp, sq = s[i], s[(i + 1) % n]
+        if sp >= 0:
+            out.append(p)
+        if (sp > 0 and sq < 0) or (sp < 0 and sq > 0):
+            out.append(p + (sp / (sp - sq)) * (q - p))
+    return np.array(out).reshape(-1, 2)
+
+
+def _signed_area(poly: np.ndarray) -> float:
+    """Shoelace signed area of a polygon (N×2); positive when counter-clockwise."""
+    x, y = poly[:, 0], poly[:, 1]
+    return 0.5 * float(np.sum(x * np.roll(y, -1) - y * np.roll(x, -1)))
+
+
+def _strictly_inside(p: np.ndarray, poly: np.ndarray, tol: float) -> bool:
+    """Whether p lies inside the convex counter-clockwise polygon, farther than tol from its edges."""
+    n = len(poly)
+    if n < 3:
+        return False
+    for i in range(n):
+        a, b = poly[i], poly[(i + 1) % n]
+        e = b - a
+        length = np.hypot(*e)
+        if length <= tol:
+            continue
+        if (e[0] * (p[1] - a[1]) - e[1] * (p[0] - a[0])) / length <= tol:
+            return False
+    return True
+
+
+def _edge_crossings(p: np.ndarray, q: np.ndarray) -> list[np.ndarray]:
+    """Points where an edge of polygon p crosses an edge of polygon q (parallel edges skipped)."""
+    out = []
+    for i in range(len(p)):
+        a, b = p[i], p[(i + 1) % len(p)]
+        for j in range(len(q)):
+            c, d = q[j], q[(j + 1) % len(q)]
+            r, s = b - a, d - c
+            den = r[0] * s[1] - r[1] * s[0]
+            if abs(den) <= 1e-15 * max(np.hypot(*r) * np.hypot(*s), 1e-300):
+                continue
+            w = c - a
+            t = (w[0] * s[1] - w[1] * s[0]) / den
+            u = (w[0] * r[1] - w[1] * r[0]) / den
+            if -1e-12 <= t <= 1 + 1e-12 and -1e-12 <= u <= 1 + 1e-12:
+                out.append(a + t * r)
+    return out
+
+
+def _fold_outline(quad: np.ndarray, line: FoldLine) -> np.ndarray:
+    """Top-view outline (M×2, counter-clockwise) of a convex quad folded along a line: the union of
+    the staying part and the mirrored moving part.
+
+    Both parts are convex and share the crease chord, on the same side of the line, so their union
+    is star-shaped about the chord's midpoint: its boundary is the candidate points (both parts'
+    vertices and edge crossings) not strictly inside either part, sorted by angle about that point.
+    """
+    side = line.side(quad)
+    staying = _clip(quad, side, keep_positive=False)
+    moving = _clip(quad, side, keep_positive=True)
+    scale = float(np.max(np.linalg.norm(quad - quad.mean(axis=0), axis=1)))
+    tol = 1e-9 * max(scale, 1e-3)
+    if len(moving) < 3 or abs(_signed_area(moving)) <= tol * scale:
+        return staying
+    mirrored = line.reflect_xy(moving)[::-1]  # a reflection flips orientation; restore CCW
+    if len(staying) < 3 or abs(_signed_area(staying)) <= tol * scale:
+        return mirrored
+    candidates = [*staying, *mirrored, *_edge_crossings(staying, mirrored)]
+    points: list[np.ndarray] = []
+    for p in candidates:
+        if _strictly_inside(p, staying, tol) or _strictly_inside(p, mirrored, tol):
+            continue
+        if all(np.hypot(*(p - o)) > 10 * tol for o in points):
+            points.append(p)
+    pts = np.array(points)
+    chord = staying[np.abs(line.side(staying)) <= 10 * tol]
+    centre = chord.mean(axis=0) if len(chord) else staying.mean(axis=0)
+    d = np.array([line.dx, line.dy]) / np.hypot(line.dx, line.dy)
+    rel = pts - centre
+    u = rel @ d
+    v = -(rel @ np.array([-d[1], d[0]]))  # toward the staying side
+    v = np.where(v > 0, v, 0.0)  # round-off below the line → on it (angle 0 or π, never −π)
+    pts = pts[np.argsort(np.arctan2(v, u), kind="stable")]
+    # Drop vertices that lie on the straight edge between their neighbours.
+    keep = []
+    n = len(pts)
+    for i in range(n):
+        a, b, c = pts[i - 1], pts[i], pts[(i + 1) % n]
+        cross = (b[0] - a[0]) * (c[1] - b[1]) - (b[1] - a[1]) * (c[0] - b[0])
+        if abs(cross) > tol * scale:
+            keep.append(b)
+    out = np.array(keep)
+    return out if _signed_area(out) > 0 else out[::-1]
+
+
+def predicted_outline(recipe: str, stage_index: int, corners: dict[str, np.ndarray]) -> np.ndarray:
+    """Top-view outline (N×3, counter-clockwise, at the corners' mean z) the cloth should have after
+    a stage, to compare with the perceived mask: the corner quad folded along the stage's line."""
+    fold = _stage_fold(recipe, stage_index, corners)
+    c = _require_corners(corners)
+    quad = np.array([c[n][:2] for n in CORNER_NAMES])
+    xy = _fold_outline(quad, FoldLine(*fold.line))
+    z = float(np.mean([c[n][2] for n in CORNER_NAMES]))
+    return np.column_stack([xy, np.full(len(xy), z)])

@@ -62,9 +62,15 @@ class ClothGrasp:
         steps = max(1, round(settle_time / self.world.time_step))
         self.world.step(steps)
         caught = self.vertices_between_jaws()
-        if caught.size == 0:
-            return GraspResult(False, (), "no cloth between the jaws")
         pos, quat = self.robot.tcp_pose()
+        if caught.size == 0:
+            nearest = np.linalg.norm(self.cloth.sim_vertices() - pos, axis=1).min()
+            return GraspResult(
+                False,
+                (),
+                f"no cloth between the jaws (TCP at {np.round(pos, 3).tolist()} m, nearest "
+                f"cloth vertex {nearest * 1000:.0f} mm away)",
+            )
         rot = np.asarray(p.getMatrixFromQuaternion(quat)).reshape(3, 3)
         verts = self.cloth.sim_vertices()
         left, right = self.robot.finger_link_indices
