@@ -178,6 +178,11 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
         for stage in range(recipe_stages(cfg.recipe)):
             executor.move_joints(park, "park")
             state, obs = observe()
+            if stage > 0 and isinstance(estimator, OracleEstimator):
+                # Once folded, the corners to fold are the folded outline's, not the mesh's
+                # corner vertices (which now lie stacked in pairs).
+                estimator.corners = "outline"
+                state, obs = observe()
             if not state.detected:
                 raise FoldbotError(f"no cloth found before fold stage {stage + 1}: {state.reason}")
             latest = state
