@@ -27,7 +27,12 @@ def build_parser() -> argparse.ArgumentParser:
         "score": (score, "recompute an episode's metrics from cloth.npz and result.json"),
     }
     for name, (module, help_text) in commands.items():
-        p = sub.add_parser(name, help=help_text, description=module.__doc__)
+        p = sub.add_parser(
+            name,
+            help=help_text,
+            description=module.__doc__,
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+        )
         module.add_arguments(p)
         p.set_defaults(run=module.run)
     return parser

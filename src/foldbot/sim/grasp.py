@@ -18,12 +18,22 @@ from foldbot.types import GraspResult
 class ClothGrasp:
     """Close/open the gripper of `robot` on `cloth`, anchoring what lies between the jaws."""
 
-    def __init__(self, world, robot: Robot, cloth: SoftCloth, tolerance: float = 0.004) -> None:
+    def __init__(
+        self,
+        world,
+        robot: Robot,
+        cloth: SoftCloth,
+        tolerance: float = 0.004,
+        pinch_reach: float = 0.01,
+    ) -> None:
         self.world = world
         self.robot = robot
         self.cloth = cloth
         self.tolerance = tolerance
         """Slack (m) around the pad volume within which a vertex counts as between the jaws."""
+        self.pinch_reach = pinch_reach
+        """How far (m) either side of the closed pads, across the closing axis, cloth is swept in
+        and pinched by closing pads (always within the opening the pads closed from)."""
         self._anchors: list[int] = []
         self.held: tuple[int, ...] = ()
         # Finger pads squeezing cloth nodes through rigid–soft contact blows the cloth up; the pads'
@@ -46,9 +56,10 @@ class ClothGrasp:
         r = self.robot
         g = r.gripper_opening() if gap is None else gap
         tol = self.tolerance
+        reach = min(g / 2 + self.pinch_reach, r.max_opening / 2)
         inside = (
             (np.abs(local[:, 0]) <= r.JAW_WIDTH / 2 + tol)
-            & (np.abs(local[:, 1]) <= g / 2 + tol)
+            & (np.abs(local[:, 1]) <= reach)
             & (local[:, 2] <= r.TIP_BELOW_TCP + tol)
             & (local[:, 2] >= r.TIP_BELOW_TCP - r.JAW_DEPTH)
         )
