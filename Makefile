@@ -18,7 +18,7 @@ install-test: $(VENV)/bin/activate
 
 ## demo: install, then fold a 30 cm towel headless and write the episode folder to $(OUT)
 demo: install
-	$(VENV)/bin/foldbot fold --garment towel --out $(OUT) --overwrite
+	$(VENV)/bin/foldbot fold --garment towel --perception vision --out $(OUT) --overwrite
 
 ## test: install the test dependencies, lint, and run the whole suite
 test: install-test

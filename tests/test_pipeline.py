@@ -64,7 +64,7 @@ def test_episode_folder_follows_the_contract(half_fold_episode):
     assert {p.name for p in out.iterdir()} >= {"result.json", "cloth.npz", "video.mp4"}
     stored = json.loads((out / "result.json").read_text())
     assert set(REQUIRED_RESULT_KEYS) <= stored.keys()
-    assert stored["grasp_points_source"] == "oracle"
+    assert stored["grasp_points_source"] == "vision"
     episode = load_episode(out)
     assert episode.faces.shape[1] == 3 and episode.initial.shape == episode.final.shape
     # Every metric can be recomputed from cloth.npz and fold_lines alone.

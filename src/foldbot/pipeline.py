@@ -46,7 +46,7 @@ class EpisodeConfig:
     """Fold recipe; see planning.recipes.RECIPES."""
     robot: str = "ur5"
     """Arm; allowed: ur5, panda."""
-    perception: str = "oracle"
+    perception: str = "vision"
     """Where keypoints come from: vision (RGB-D) or oracle (simulator ground truth, comparison)."""
     seed: int = 0
     """Randomisation seed: the same seed gives the same episode."""

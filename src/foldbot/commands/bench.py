@@ -46,7 +46,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of `foldbot bench`."""
     parser.add_argument("--recipe", default="half", choices=RECIPES, help="fold recipe")
     parser.add_argument(
-        "--perception", default="oracle", choices=PERCEPTION_MODES, help="keypoint source"
+        "--perception",
+        default="vision",
+        choices=PERCEPTION_MODES,
+        help="keypoints from the RGB-D image (vision) or simulator ground truth (oracle)",
     )
     parser.add_argument("--seeds", default="0-9", help="seeds to run, e.g. 0-19 or 0,4,7")
     parser.add_argument(

@@ -25,7 +25,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", default="ur5", choices=ROBOT_NAMES, help="arm to use")
     parser.add_argument(
         "--perception",
-        default="oracle",
+        default="vision",
         choices=PERCEPTION_MODES,
         help="keypoints from the RGB-D image (vision) or from simulator ground truth (oracle)",
     )
