@@ -185,6 +185,8 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
                 state, obs = observe()
             if not state.detected:
                 raise FoldbotError(f"no cloth found before fold stage {stage + 1}: {state.reason}")
+            if cfg.perception == "vision":
+                _require_in_view(state)
             latest = state
             corners = _corners(state)
             plan = plan_stage(cfg.recipe, stage, corners, cfg.motion.place_lift)
@@ -267,6 +269,16 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
         path = writer.commit()
     result["out_dir"] = str(path)
     return result
+
+
+def _require_in_view(state: ClothState) -> None:
+    """Refuse to plan from a cloth the camera sees only in part (its mask touches the border)."""
+    m = state.mask
+    if m.size and (m[0].any() or m[-1].any() or m[:, 0].any() or m[:, -1].any()):
+        raise FoldbotError(
+            "the cloth extends beyond the camera's view (its mask touches the image border), "
+            "so its corners cannot be seen; use a smaller towel or move the camera"
+        )
 
 
 def _nearest_keypoint(state: ClothState, point: np.ndarray, radius: float) -> np.ndarray | None:
