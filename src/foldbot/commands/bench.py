@@ -17,10 +17,10 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from foldbot.commands.fold import add_recipe_and_perception
 from foldbot.errors import ConfigError, FoldbotError, OutputError
 from foldbot.io.episode import is_episode_dir
-from foldbot.pipeline import PERCEPTION_MODES, EpisodeConfig, run_episode
-from foldbot.planning.recipes import RECIPES
+from foldbot.pipeline import EpisodeConfig, run_episode
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -44,13 +44,7 @@ def parse_seeds(text: str) -> list[int]:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of `foldbot bench`."""
-    parser.add_argument("--recipe", default="half", choices=RECIPES, help="fold recipe")
-    parser.add_argument(
-        "--perception",
-        default="vision",
-        choices=PERCEPTION_MODES,
-        help="keypoints from the RGB-D image (vision) or simulator ground truth (oracle)",
-    )
+    add_recipe_and_perception(parser)
     parser.add_argument("--seeds", default="0-9", help="seeds to run, e.g. 0-19 or 0,4,7")
     parser.add_argument(
         "--workers",

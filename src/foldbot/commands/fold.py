@@ -13,22 +13,27 @@ from foldbot.sim.robots import ROBOT_NAMES
 from foldbot.sim.world import SimConfig
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Options of `foldbot fold`."""
-    parser.add_argument("--garment", default="towel", choices=GARMENTS, help="garment to fold")
+def add_recipe_and_perception(parser: argparse.ArgumentParser) -> None:
+    """`--recipe` and `--perception`, shared by the commands that run episodes."""
     parser.add_argument(
         "--recipe",
         default="half",
         choices=RECIPES,
         help="fold recipe: " + "; ".join(f"{k}: {v}" for k, v in RECIPE_HELP.items()),
     )
-    parser.add_argument("--robot", default="ur5", choices=ROBOT_NAMES, help="arm to use")
     parser.add_argument(
         "--perception",
         default="vision",
         choices=PERCEPTION_MODES,
         help="keypoints from the RGB-D image (vision) or from simulator ground truth (oracle)",
     )
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of `foldbot fold`."""
+    parser.add_argument("--garment", default="towel", choices=GARMENTS, help="garment to fold")
+    add_recipe_and_perception(parser)
+    parser.add_argument("--robot", default="ur5", choices=ROBOT_NAMES, help="arm to use")
     parser.add_argument("--seed", type=int, default=0, help="randomisation seed (default 0)")
     parser.add_argument("--width", type=float, default=0.30, help="towel width in m (0.05–1.0)")
     parser.add_argument("--height", type=float, default=0.30, help="towel height in m (0.05–1.0)")
