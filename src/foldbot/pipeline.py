@@ -51,6 +51,9 @@ class EpisodeConfig:
     seed: int = 0
     """Randomisation seed: the same seed gives the same episode."""
     towel: TowelSpec = field(default_factory=TowelSpec)
+    towel_size_range: tuple[float, float] | None = None
+    """When set, each side of the towel is drawn uniformly from [lo, hi] m by the seed (the
+    resolution stays `towel.resolution` vertices along the longer side)."""
     cloth: ClothConfig = field(default_factory=ClothConfig)
     sim: SimConfig = field(default_factory=SimConfig)
     motion: MotionConfig = field(default_factory=MotionConfig)
@@ -94,6 +97,12 @@ class EpisodeConfig:
             isinstance(self.seed, int) and self.seed >= 0,
             f"seed must be an integer ≥ 0, got {self.seed!r}",
         )
+        if self.towel_size_range is not None:
+            lo, hi = self.towel_size_range
+            require(
+                0.05 <= lo <= hi <= 1.0,
+                f"towel_size_range must satisfy 0.05 ≤ lo ≤ hi ≤ 1.0 m, got {self.towel_size_range!r}",
+            )
         require(self.retries >= 0, f"retries must be ≥ 0, got {self.retries!r}")
         require(
             0.0 <= self.fault_grasp_offset <= 0.2,
@@ -127,6 +136,17 @@ class _VideoRecorder:
         self.writer.add_frame(frame)
 
 
+def _seeded_towel(cfg: EpisodeConfig) -> TowelSpec:
+    """The towel of this episode: `cfg.towel`, or with sides drawn from `towel_size_range`."""
+    if cfg.towel_size_range is None:
+        return cfg.towel
+    # A separate stream, so turning size randomisation on leaves the seed's pose unchanged.
+    rng = np.random.default_rng([cfg.seed, 1])
+    lo, hi = cfg.towel_size_range
+    width, height = (float(v) for v in rng.uniform(lo, hi, size=2))
+    return dataclasses.replace(cfg.towel, width=width, height=height)
+
+
 def _seeded_pose(
     cfg: EpisodeConfig, center: tuple[float, float]
 ) -> tuple[tuple[float, float], float]:
@@ -147,8 +167,9 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
     with writer, SimWorld(cfg.sim) as world:
         layout = world.layout
         robot = make_robot(cfg.robot, world.client, layout)
-        mesh = make_towel(cfg.towel)
         center, yaw = _seeded_pose(cfg, layout.workspace_center_xy)
+        towel = _seeded_towel(cfg)
+        mesh = make_towel(towel)
         cloth = SoftCloth(world.client, mesh, cfg.cloth, layout.table_height, center, yaw)
         world.add_step_hook(DivergenceMonitor(cloth, layout.workspace_center_xy, radius=1.0))
         camera = RGBDCamera(world.client, cfg.camera)
@@ -259,7 +280,7 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
             "seed": cfg.seed,
             "perception": cfg.perception,
             "grasp_points_source": "oracle" if cfg.perception == "oracle" else "vision",
-            "towel": dataclasses.asdict(cfg.towel),
+            "towel": dataclasses.asdict(towel),
             "cloth_pose": {"x": center[0], "y": center[1], "yaw": yaw},
             "actions": action_logs,
             "sim_seconds": world.sim_time,

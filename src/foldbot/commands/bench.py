@@ -47,6 +47,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_recipe_and_perception(parser)
     parser.add_argument("--seeds", default="0-9", help="seeds to run, e.g. 0-19 or 0,4,7")
     parser.add_argument(
+        "--size-range",
+        nargs=2,
+        type=float,
+        metavar=("LO", "HI"),
+        default=None,
+        help="draw each towel side from [LO, HI] m per seed (default: 0.30 m square)",
+    )
+    parser.add_argument(
         "--workers",
         type=int,
         default=max(1, (os.cpu_count() or 1)),
@@ -116,6 +124,7 @@ def run(args: argparse.Namespace) -> int:
                 perception=args.perception,
                 seed=seed,
                 video_fps=args.video_fps,
+                towel_size_range=None if args.size_range is None else tuple(args.size_range),
             )
             todo.append((cfg, ep))
     t0 = time.perf_counter()
@@ -128,6 +137,7 @@ def run(args: argparse.Namespace) -> int:
     results.sort(key=lambda r: r["seed"])
     summary = {
         "recipe": args.recipe,
+        "towel_size_range": args.size_range,
         "perception": args.perception,
         "seeds": seeds,
         "wall_seconds_total": time.perf_counter() - t0,
