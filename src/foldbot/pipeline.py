@@ -196,12 +196,13 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
         fold_lines: list[tuple[float, float, float, float]] = []
         action_logs: list[dict] = []
         stage_logs: list[dict] = []
+        executor.move_joints(park, "park")
+        state, obs = observe()
         for stage in range(recipe_stages(cfg.recipe)):
-            executor.move_joints(park, "park")
-            state, obs = observe()
+            # From stage 2 on, the previous stage's closing observation (arm parked, cloth
+            # settled) is where this stage starts, except for the oracle, which then switches
+            # from the mesh's corner vertices (now stacked in pairs) to the folded outline's.
             if stage > 0 and isinstance(estimator, OracleEstimator):
-                # Once folded, the corners to fold are the folded outline's, not the mesh's
-                # corner vertices (which now lie stacked in pairs).
                 estimator.corners = "outline"
                 state, obs = observe()
             if not state.detected:
