@@ -67,8 +67,9 @@ class EpisodeConfig:
     place_tolerance: float = 0.03
     """A placed corner perceived farther than this from its place point is an off result (m)."""
     regrasp_radius: float = 0.06
-    """A re-observed corner is matched to a planned grasp within this radius (m); by label, within
-    2.5 × this radius."""
+    """A re-observed corner is matched to a planned grasp within this radius (m) by position."""
+    regrasp_label_radius: float = 0.25
+    """… and by its label within this radius (m): a towel's corners are ≥ 0.25 m apart."""
     fault_grasp_offset: float = 0.0
     """Fault injection: the episode's first grasp is aimed this far (m) outward from the perceived
     corner, onto bare table, to exercise the failure → re-observe → retry path."""
@@ -314,14 +315,14 @@ def _nearest_keypoint(state: ClothState, point: np.ndarray, radius: float) -> np
 
 
 def _regrasp_point(
-    state: ClothState, label: str, planned: np.ndarray, radius: float
+    state: ClothState, label: str, planned: np.ndarray, radius: float, label_radius: float
 ) -> np.ndarray | None:
-    """Where to grasp a corner now: the keypoint with the planned label if it lies within 2.5 ×
-    `radius` of the plan (corners drift ~10 cm as a fold drags the cloth), else the keypoint
-    nearest the plan within `radius`."""
+    """Where to grasp a corner now: the keypoint with the planned label if it lies within
+    `label_radius` of the plan (a fold drags the other corners by up to ~15 cm), else the
+    keypoint nearest the plan within `radius`."""
     if state.detected and label in state.keypoints:
         xyz = np.asarray(state.keypoints[label][0])
-        if np.linalg.norm(xyz[:2] - planned[:2]) <= 2.5 * radius:
+        if np.linalg.norm(xyz[:2] - planned[:2]) <= label_radius:
             return xyz
     return _nearest_keypoint(state, planned, radius)
 
@@ -348,7 +349,9 @@ def _closed_loop_action(
     state = latest
     while True:
         # Earlier actions move the cloth: grasp the corner where it is now.
-        seen = _regrasp_point(state, planned.label, action.grasp, cfg.regrasp_radius)
+        seen = _regrasp_point(
+            state, planned.label, action.grasp, cfg.regrasp_radius, cfg.regrasp_label_radius
+        )
         if seen is not None:
             action = dataclasses.replace(action, grasp=seen)
         if inject_fault and not attempts:
