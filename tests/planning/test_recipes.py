@@ -32,6 +32,7 @@ SHAPES = [(0.3, 0.3), (0.36, 0.24), (0.22, 0.34)]
 STAGE_GRASPS = {
     "half": [("far_left", "far_right")],
     "half_y": [("far_left", "near_left")],
+    "half_long": "shape",  # half or half_y: the far-apart pair, by the towel's shape
     "quarter": [("far_left", "far_right"), ("far_left", "near_left")],
     "diagonal": None,  # one far corner, chosen by the pose
     "thirds": [("far_left", "far_right"), ("near_left", "near_right")],
@@ -163,11 +164,12 @@ def test_missing_corner_and_unknown_recipe_are_rejected():
 
 
 def test_recipe_names_and_stage_counts():
-    assert set(RECIPES) == {"half", "half_y", "quarter", "diagonal", "thirds"}
+    assert set(RECIPES) == {"half", "half_y", "half_long", "quarter", "diagonal", "thirds"}
     assert set(RECIPE_HELP) == set(RECIPES)
     assert {r: recipe_stages(r) for r in RECIPES} == {
         "half": 1,
         "half_y": 1,
+        "half_long": 1,
         "quarter": 2,
         "diagonal": 1,
         "thirds": 2,
@@ -196,7 +198,13 @@ def test_every_stage_is_one_fold_whose_places_mirror_the_grasped_corners(recipe,
         assert plan.recipe == recipe and len(plan.fold_lines) == 1
         line = FoldLine.coerce(plan.fold_lines[0])
         labels = [a.label for a in plan.actions]
-        if STAGE_GRASPS[recipe] is None:
+        if STAGE_GRASPS[recipe] == "shape":
+            # Depth and width as perceived (labels follow the world frame, not the towel's).
+            depth = np.linalg.norm(corners["far_left"] - corners["near_left"])
+            width = np.linalg.norm(corners["far_left"] - corners["far_right"])
+            deep = depth > 1.1 * width
+            assert labels == (["far_left", "near_left"] if deep else ["far_left", "far_right"])
+        elif STAGE_GRASPS[recipe] is None:
             assert labels in (["far_left"], ["far_right"])
         else:
             assert tuple(labels) == STAGE_GRASPS[recipe][k]
@@ -297,6 +305,7 @@ def test_diagonal_tie_carries_far_left():
 EXPECTED_LAYERS = {
     "half": {0: 1 / 2, 1: 1 / 2},
     "half_y": {0: 1 / 2, 1: 1 / 2},
+    "half_long": {0: 1 / 2, 1: 1 / 2},
     "quarter": {0: 1 / 4, 1: 1 / 4, 2: 1 / 4, 3: 1 / 4},
     # metrics' rule 2·n_max + 1 − n puts the near third (layer 0 before) at index 3: three layers.
     "thirds": {0: 1 / 3, 1: 1 / 3, 3: 1 / 3},
@@ -305,6 +314,7 @@ EXPECTED_LAYERS = {
 EXPECTED_AREA = {
     "half": 1 / 2,
     "half_y": 1 / 2,
+    "half_long": 1 / 2,
     "quarter": 1 / 4,
     "thirds": 1 / 3,
     "diagonal": 1 / 2,
@@ -392,7 +402,9 @@ def test_bad_inputs_are_rejected_with_the_reason():
         plan_stage("half", 0, dict(good, far_right=np.array([np.nan, 0.0, 0.75])))
     with pytest.raises(ConfigError, match="finite"):
         plan_stage("half", 0, dict(good, far_right=np.array([0.5, 0.0])))
-    with pytest.raises(ConfigError, match=r"origami.*half, half_y, quarter, diagonal, thirds"):
+    with pytest.raises(
+        ConfigError, match=r"origami.*half, half_y, half_long, quarter, diagonal, thirds"
+    ):
         plan_stage("origami", 0, good)
     with pytest.raises(ConfigError, match="origami"):
         recipe_stages("origami")
@@ -416,3 +428,30 @@ def test_planning_never_imports_the_simulator():
         elif isinstance(node, ast.ImportFrom):
             imported.add(node.module or "")
     assert not any(m.startswith(("pybullet", "foldbot.sim")) for m in imported)
+
+
+@pytest.mark.parametrize(
+    ("width_x", "width_y", "expected_moving"),
+    [
+        (0.40, 0.27, {"far_left", "near_left"}),  # deep and narrow: fold left onto right
+        (0.27, 0.40, {"far_left", "far_right"}),  # wide: far half onto the near half
+        (0.30, 0.30, {"far_left", "far_right"}),  # square: the `half` axis
+        (0.315, 0.30, {"far_left", "far_right"}),  # within the 10 % margin: still `half`
+    ],
+)
+def test_half_long_carries_the_far_apart_corners(width_x, width_y, expected_moving):
+    hx, hy = width_x / 2, width_y / 2
+    corners = {
+        "near_left": np.array([0.45 - hx, hy, 0.752]),
+        "near_right": np.array([0.45 - hx, -hy, 0.752]),
+        "far_right": np.array([0.45 + hx, -hy, 0.752]),
+        "far_left": np.array([0.45 + hx, hy, 0.752]),
+    }
+    from foldbot.planning.recipes import plan_stage
+
+    plan = plan_stage("half_long", 0, corners)
+    assert {a.label for a in plan.actions} == expected_moving
+    # The carried pair: along the longer side, unless within the margin (then `half`'s far edge).
+    a, b = (a.grasp for a in plan.actions)
+    expected = width_x if width_x > 1.1 * width_y else width_y
+    assert np.linalg.norm(a - b) == pytest.approx(expected)

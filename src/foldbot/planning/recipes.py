@@ -15,6 +15,8 @@ Recipes (`RECIPES`; the CLI offers them as `--recipe`, so the half fold's axis i
              right sides. Grasps: far_left, then far_right.
 - "half_y"   1 stage. The left edge onto the right edge: the line joins the midpoints of the near and
              far edges. Grasps: far_left, then near_left.
+- "half_long" 1 stage. "half" or "half_y", whichever carries the far-apart pair of corners (the fold
+             line runs along the longer side); "half" unless the depth exceeds the width by 10 %.
 - "quarter"  2 stages. Stage 1 is "half"; stage 2 is "half_y" on the folded rectangle's perceived
              corners, i.e. a line perpendicular to the first through the folded rectangle's centre.
 - "diagonal" 1 stage. The line runs through two opposite corners; the one action carries a free far
@@ -54,11 +56,12 @@ from foldbot.planning.actions import FoldAction, FoldPlan
 
 CORNER_NAMES = ("near_left", "near_right", "far_right", "far_left")
 """Corner labels in counter-clockwise order (seen from above, world frame)."""
-RECIPES = ("half", "half_y", "quarter", "diagonal", "thirds")
+RECIPES = ("half", "half_y", "half_long", "quarter", "diagonal", "thirds")
 """Recipe names accepted by plan_stage / plan_recipe (and the CLI's --recipe)."""
 RECIPE_HELP = {
     "half": "far half onto the near half (1 stage)",
     "half_y": "left half onto the right half (1 stage)",
+    "half_long": "in half across the longer side, the shorter carry (half or half_y; 1 stage)",
     "quarter": "half, then the folded rectangle left onto right (2 stages)",
     "diagonal": "a far corner onto the opposite corner: a triangle (1 stage)",
     "thirds": "far third onto the middle, then the near third on top (2 stages)",
@@ -153,6 +156,19 @@ def _half_y(c: dict[str, np.ndarray]) -> _Fold:
     return _edge_fold(c, ("far_left", "near_left"), ("far_right", "near_right"), 0.5)
 
 
+LONG_SIDE_MARGIN = 1.1
+"""half_long folds along y only when the near–far depth exceeds the left–right width by this
+factor, so near-square towels keep the `half` axis whatever the perception noise."""
+
+
+def _half_long(c: dict[str, np.ndarray]) -> _Fold:
+    """Half fold whose carried corners are the far-apart pair: one gripper carries one corner after
+    the other, and a corner close to the carried one is dragged along by the first carry."""
+    depth = np.linalg.norm((c["far_left"] + c["far_right"] - c["near_left"] - c["near_right"])[:2])
+    width = np.linalg.norm((c["far_left"] + c["near_left"] - c["far_right"] - c["near_right"])[:2])
+    return _half_y(c) if depth > LONG_SIDE_MARGIN * width else _half_x(c)
+
+
 def _far_third(c: dict[str, np.ndarray]) -> _Fold:
     """Far third onto the middle third: the line at 2/3 of each side from the near edge."""
     return _edge_fold(c, ("far_left", "far_right"), ("near_left", "near_right"), 2.0 / 3.0)
@@ -182,6 +198,7 @@ def _diagonal(c: dict[str, np.ndarray]) -> _Fold:
 _STAGES: dict[str, tuple[Callable[[dict[str, np.ndarray]], _Fold], ...]] = {
     "half": (_half_x,),
     "half_y": (_half_y,),
+    "half_long": (_half_long,),
     "quarter": (_half_x, _half_y),
     "diagonal": (_diagonal,),
     "thirds": (_far_third, _near_third),
