@@ -122,14 +122,13 @@ def backproject(
     uv: np.ndarray, depth: np.ndarray, intrinsics: CameraIntrinsics, T_world_camera: np.ndarray
 ) -> np.ndarray:
     """World points (N×3, m) of pixels `uv` (N×2) at optical-axis depths `depth` (N, m)."""
-    K = check_intrinsics(intrinsics)
-    T = check_pose(T_world_camera)
     uv = np.asarray(uv, dtype=float).reshape(-1, 2)
     z = np.asarray(depth, dtype=float).reshape(-1)
     if z.shape[0] != uv.shape[0]:
         raise PerceptionError(f"{uv.shape[0]} pixels but {z.shape[0]} depths")
-    rays = np.linalg.solve(K, np.c_[uv, np.ones(len(uv))].T).T
-    return transform(T, rays * z[:, None])
+    # Ray directions have a unit optical-axis component, so depth z scales them to the point.
+    origin, directions = pixel_rays(uv, intrinsics, T_world_camera)
+    return origin + directions * z[:, None]
 
 
 def pixel_rays(
