@@ -1,5 +1,8 @@
 """One fold episode on the simulated cell: observe → estimate → plan → execute → re-observe → score.
 
+The closed loop itself is foldbot.loop; this module builds the in-process cell it runs on
+(`SimCell`), scores the result against ground truth and writes the episode folder.
+
 The planner and the executor only see estimated keypoints (vision or, for comparison, the named
 oracle); ground truth is read for scoring and recorded as such.
 """
@@ -14,23 +17,25 @@ from pathlib import Path
 
 import numpy as np
 
-from foldbot.control.executor import ArmExecutor
-from foldbot.errors import FoldbotError, UnreachableTargetError, require
+from foldbot.control.executor import ArmExecutor, PlannedSegment
+from foldbot.errors import UnreachableTargetError, require
 from foldbot.garments.towel import TowelSpec, make_towel
 from foldbot.io.episode import EpisodeWriter
+from foldbot.loop import FoldCell, FoldRecord, LoopConfig, StepLog, run_fold
 from foldbot.metrics import score_episode
 from foldbot.perception.estimator import VisionEstimator
 from foldbot.perception.overlay import draw_overlay
-from foldbot.perception.state import ClothState, fold_check_iou
+from foldbot.perception.state import ClothState
 from foldbot.planning.actions import FoldAction
 from foldbot.planning.motion import MotionConfig, Segment, action_segments, line_path
-from foldbot.planning.recipes import RECIPES, plan_stage, predicted_outline, recipe_stages
+from foldbot.planning.recipes import RECIPES
 from foldbot.sim.camera import CameraConfig, RGBDCamera
 from foldbot.sim.cloth import ClothConfig, DivergenceMonitor, SoftCloth, settle
 from foldbot.sim.grasp import ClothGrasp
 from foldbot.sim.oracle import GroundTruthOracle, OracleEstimator
 from foldbot.sim.robots import ROBOT_NAMES, make_robot
 from foldbot.sim.world import SimConfig, SimWorld
+from foldbot.types import Observation
 
 GARMENTS = ("towel",)
 PERCEPTION_MODES = ("vision", "oracle")
@@ -157,8 +162,127 @@ def _seeded_pose(
     return (center[0] + float(dx), center[1] + float(dy)), yaw
 
 
-def _corners(state: ClothState) -> dict[str, np.ndarray]:
-    return {name: xyz for name, (xyz, _conf) in state.keypoints.items()}
+class SimCell(FoldCell):
+    """The in-process cell: PyBullet world, arm, gripper, camera and an estimator, driven by
+    direct calls (the ROS nodes offer the same cell over topics)."""
+
+    def __init__(
+        self,
+        world: SimWorld,
+        robot,
+        executor: ArmExecutor,
+        camera: RGBDCamera,
+        estimator,
+        motion: MotionConfig,
+        recorder: _VideoRecorder | None = None,
+    ) -> None:
+        self.world = world
+        self.robot = robot
+        self.executor = executor
+        self.camera = camera
+        self.estimator = estimator
+        self.motion = motion
+        self.recorder = recorder
+        self.table_height = world.layout.table_height
+        self.park_q = robot.home_q  # joint-space park: the arm at home hides ~3 % of the workspace
+
+    @property
+    def sim_time(self) -> float:
+        return self.world.sim_time
+
+    def observe(self) -> tuple[ClothState, Observation]:
+        obs = self.camera.observe(self.robot.joint_positions(), stamp=self.world.sim_time)
+        state = self.estimator.estimate(obs)
+        if self.recorder is not None:
+            self.recorder.state = state
+        return state, obs
+
+    def start_stage(self, stage: int) -> bool:
+        # The oracle switches from the mesh's corner vertices (stacked in pairs once folded)
+        # to the folded outline's corners.
+        if isinstance(self.estimator, OracleEstimator):
+            self.estimator.corners = "outline"
+            return True
+        return False
+
+    def plan_action(self, action: FoldAction) -> list[PlannedSegment]:
+        return self.executor.plan(action_segments(action, self.robot.tcp_pose()[0], self.motion))
+
+    def run_step(self, step: PlannedSegment) -> StepLog:
+        seg_log = self.executor.run(step)
+        return StepLog(seg_log.name, seg_log.max_tracking_error, seg_log.grasp)
+
+    def release_and_lift(self) -> None:
+        self.executor.grasp.open()
+        start = self.robot.tcp_pose()[0]
+        target = start + [0.0, 0.0, self.motion.retreat_height]
+        try:
+            self.executor.run(Segment("lift", line_path(start, target), self.motion.free_speed))
+        except UnreachableTargetError as exc:
+            raise UnreachableTargetError(
+                f"cannot move to {np.round(target, 3).tolist()}: {exc}"
+            ) from exc
+
+    def park(self) -> None:
+        self.executor.move_joints(self.park_q, "park")
+
+    def wait(self, seconds: float) -> None:
+        self.world.step(round(seconds / self.world.time_step))
+
+    def show(self, state: ClothState | None = None, **overlay) -> None:
+        if self.recorder is not None:
+            self.recorder.overlay_args = overlay
+
+
+def loop_config(cfg: EpisodeConfig) -> LoopConfig:
+    """The closed loop's part of an episode configuration."""
+    return LoopConfig(
+        recipe=cfg.recipe,
+        retries=cfg.retries,
+        place_tolerance=cfg.place_tolerance,
+        regrasp_radius=cfg.regrasp_radius,
+        regrasp_label_radius=cfg.regrasp_label_radius,
+        fault_grasp_offset=cfg.fault_grasp_offset,
+        verify_iou=cfg.verify_iou,
+        place_lift=cfg.motion.place_lift,
+        require_full_view=cfg.perception == "vision",
+    )
+
+
+def episode_result(
+    cfg: EpisodeConfig,
+    towel: TowelSpec,
+    pose: tuple[tuple[float, float], float],
+    score,
+    record: FoldRecord,
+    sim_seconds: float,
+    wall_seconds: float,
+    camera: CameraConfig,
+) -> dict:
+    """result.json's content (shared/notes/metrics.md's contract plus the episode's log)."""
+    (x, y), yaw = pose
+    return {
+        **score.as_dict(),
+        "fold_lines": [list(line) for line in record.fold_lines],
+        "stages": record.stages,
+        "garment": cfg.garment,
+        "recipe": cfg.recipe,
+        "robot": cfg.robot,
+        "seed": cfg.seed,
+        "perception": cfg.perception,
+        "grasp_points_source": "oracle" if cfg.perception == "oracle" else "vision",
+        "towel": dataclasses.asdict(towel),
+        "cloth_pose": {"x": x, "y": y, "yaw": yaw},
+        "camera": {
+            "width": camera.width,
+            "height": camera.height,
+            "K": camera.K.tolist(),
+            "T_world_camera": camera.T_world_camera.tolist(),
+        },
+        "actions": record.actions,
+        "sim_seconds": sim_seconds,
+        "wall_seconds": wall_seconds,
+    }
 
 
 def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=print) -> dict:
@@ -176,8 +300,7 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
         camera = RGBDCamera(world.client, cfg.camera)
         oracle = GroundTruthOracle(cloth, camera)
         estimator = VisionEstimator() if cfg.perception == "vision" else OracleEstimator(oracle)
-        grasp = ClothGrasp(world, robot, cloth)
-        executor = ArmExecutor(world, robot, grasp)
+        executor = ArmExecutor(world, robot, ClothGrasp(world, robot, cloth))
         recorder = None
         if cfg.video_fps > 0:
             recorder = _VideoRecorder(camera, writer, cfg.video_fps)
@@ -185,275 +308,27 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
         log(f"settling the cloth ({mesh.vertices.shape[0]} vertices)…")
         settle(world, cloth)
         initial = oracle.cloth_vertices()
-        park = robot.home_q  # joint-space park: the arm at home hides ~3 % of the workspace
-
-        def observe() -> tuple[ClothState, object]:
-            obs = camera.observe(robot.joint_positions(), stamp=world.sim_time)
-            state = estimator.estimate(obs)
-            if recorder is not None:
-                recorder.state = state
-            return state, obs
-
-        fold_lines: list[tuple[float, float, float, float]] = []
-        action_logs: list[dict] = []
-        stage_logs: list[dict] = []
-        executor.move_joints(park, "park")
-        state, obs = observe()
-        for stage in range(recipe_stages(cfg.recipe)):
-            # From stage 2 on, the previous stage's closing observation (arm parked, cloth
-            # settled) is where this stage starts, except for the oracle, which then switches
-            # from the mesh's corner vertices (now stacked in pairs) to the folded outline's.
-            if stage > 0 and isinstance(estimator, OracleEstimator):
-                estimator.corners = "outline"
-                state, obs = observe()
-            if not state.detected:
-                raise FoldbotError(f"no cloth found before fold stage {stage + 1}: {state.reason}")
-            if cfg.perception == "vision":
-                _require_in_view(state)
-            latest = state
-            corners = _corners(state)
-            plan = plan_stage(cfg.recipe, stage, corners, cfg.motion.place_lift)
-            predicted = predicted_outline(cfg.recipe, stage, corners)
-            fold_lines.append(plan.fold_lines[0])
-            if stage == 0:
-                writer.write_image(
-                    "overlay_initial.png",
-                    draw_overlay(
-                        obs,
-                        state,
-                        grasp_points=[a.grasp for a in plan.actions],
-                        place_points=[a.place for a in plan.actions],
-                        fold_line=_line_points(plan.fold_lines[0], layout.table_height),
-                    ),
-                )
-            for i, planned in enumerate(plan.actions):
-                log(
-                    f"stage {stage + 1}, action {i + 1}/{len(plan.actions)}: "
-                    f"{planned.label} → place"
-                )
-                entry, latest = _closed_loop_action(
-                    cfg,
-                    world,
-                    executor,
-                    robot,
-                    planned,
-                    observe,
-                    park,
-                    recorder,
-                    log,
-                    latest,
-                    inject_fault=cfg.fault_grasp_offset > 0 and not action_logs,
-                )
-                action_logs.append(entry)
-            executor.move_joints(park, "park")
-            world.step(round(0.3 / world.time_step))
-            state, obs = observe()
-            iou = (
-                fold_check_iou(state.mask, predicted, obs.intrinsics, obs.T_world_camera)
-                if state.detected
-                else 0.0
-            )
-            stage_logs.append(
-                {
-                    "stage": stage,
-                    "fold_line": list(plan.fold_lines[0]),
-                    "predicted_outline": predicted.tolist(),
-                    "mask_iou_vs_predicted": iou,
-                    "verified": iou >= cfg.verify_iou,
-                }
-            )
-            log(f"stage {stage + 1} done: mask IoU with the predicted shape {iou:.2f}")
-        executor.move_joints(park, "park")
-        world.step(round(0.5 / world.time_step))
-        final_state, final_obs = observe()
+        cell = SimCell(world, robot, executor, camera, estimator, cfg.motion, recorder)
+        record = run_fold(loop_config(cfg), cell, log)
         final = oracle.cloth_vertices()
-        score = score_episode(initial, final, mesh.faces, fold_lines, cloth.thickness)
-        writer.write_image("overlay_final.png", draw_overlay(final_obs, final_state))
+        score = score_episode(initial, final, mesh.faces, record.fold_lines, cloth.thickness)
+        if record.initial_overlay is not None:
+            writer.write_image("overlay_initial.png", record.initial_overlay)
+        writer.write_image("overlay_final.png", draw_overlay(record.final_obs, record.final_state))
         if recorder is not None:
             recorder.capture()
         writer.write_cloth(mesh.faces, initial, final, cloth.thickness)
-        result = {
-            **score.as_dict(),
-            "fold_lines": [list(line) for line in fold_lines],
-            "stages": stage_logs,
-            "garment": cfg.garment,
-            "recipe": cfg.recipe,
-            "robot": cfg.robot,
-            "seed": cfg.seed,
-            "perception": cfg.perception,
-            "grasp_points_source": "oracle" if cfg.perception == "oracle" else "vision",
-            "towel": dataclasses.asdict(towel),
-            "cloth_pose": {"x": center[0], "y": center[1], "yaw": yaw},
-            "actions": action_logs,
-            "sim_seconds": world.sim_time,
-            "wall_seconds": time.perf_counter() - wall0,
-        }
+        result = episode_result(
+            cfg,
+            towel,
+            (center, yaw),
+            score,
+            record,
+            world.sim_time,
+            time.perf_counter() - wall0,
+            cfg.camera,
+        )
         writer.write_result(result)
         path = writer.commit()
     result["out_dir"] = str(path)
     return result
-
-
-def _require_in_view(state: ClothState) -> None:
-    """Refuse to plan from a cloth the camera sees only in part (its mask touches the border)."""
-    m = state.mask
-    if m.size and (m[0].any() or m[-1].any() or m[:, 0].any() or m[:, -1].any()):
-        raise FoldbotError(
-            "the cloth extends beyond the camera's view (its mask touches the image border), "
-            "so its corners cannot be seen; use a smaller towel or move the camera"
-        )
-
-
-def _nearest_keypoint(state: ClothState, point: np.ndarray, radius: float) -> np.ndarray | None:
-    """The perceived keypoint nearest `point` in the table plane, if within `radius`."""
-    if not state.detected or not state.keypoints:
-        return None
-    pts = np.array([xyz for xyz, _conf in state.keypoints.values()])
-    d = np.linalg.norm(pts[:, :2] - point[:2], axis=1)
-    k = int(np.argmin(d))
-    return pts[k] if d[k] <= radius else None
-
-
-def _regrasp_point(
-    state: ClothState, label: str, planned: np.ndarray, radius: float, label_radius: float
-) -> np.ndarray | None:
-    """Where to grasp a corner now: the keypoint with the planned label if it lies within
-    `label_radius` of the plan (a fold drags the other corners by up to ~15 cm), else the
-    keypoint nearest the plan within `radius`."""
-    if state.detected and label in state.keypoints:
-        xyz = np.asarray(state.keypoints[label][0])
-        if np.linalg.norm(xyz[:2] - planned[:2]) <= label_radius:
-            return xyz
-    return _nearest_keypoint(state, planned, radius)
-
-
-def _closed_loop_action(
-    cfg: EpisodeConfig,
-    world,
-    executor: ArmExecutor,
-    robot,
-    planned: FoldAction,
-    observe,
-    park: np.ndarray,
-    recorder,
-    log,
-    latest: ClothState,
-    inject_fault: bool = False,
-) -> tuple[dict, ClothState]:
-    """Execute one pick-and-place, re-observing to grasp the corner where it now is, and
-    verifying the placement; a failed grasp or an off placement is redone (bounded).
-
-    `latest` is the state of the newest observation (taken after the cloth last moved)."""
-    t_sim, t_wall = world.sim_time, time.perf_counter()
-    action, outcome, retries, attempts = planned, {}, 0, []
-    state = latest
-    while True:
-        # Earlier actions move the cloth: grasp the corner where it is now.
-        seen = _regrasp_point(
-            state, planned.label, action.grasp, cfg.regrasp_radius, cfg.regrasp_label_radius
-        )
-        if seen is not None:
-            action = dataclasses.replace(action, grasp=seen)
-        if inject_fault and not attempts:
-            outward = action.grasp[:2] - state.keypoint_array().mean(axis=0)[:2]
-            outward = outward / max(np.linalg.norm(outward), 1e-9) * cfg.fault_grasp_offset
-            action = dataclasses.replace(action, grasp=action.grasp + [*outward, 0.0])
-        if recorder is not None:
-            recorder.overlay_args = {
-                "grasp_points": [action.grasp],
-                "place_points": [action.place],
-                "fold_line": _line_points(action.fold_line, world.layout.table_height),
-            }
-        outcome = _execute_action(executor, robot, action, cfg.motion)
-        placed_error = None
-        executor.move_joints(park, "park")
-        state, _obs = observe()
-        if outcome["grasp_success"]:
-            seen = _nearest_keypoint(state, action.place, 2 * cfg.regrasp_radius)
-            placed_error = (
-                None if seen is None else float(np.linalg.norm(seen[:2] - action.place[:2]))
-            )
-        ok = outcome["grasp_success"] and (
-            placed_error is None or placed_error <= cfg.place_tolerance
-        )
-        attempts.append(
-            {
-                "grasp": [float(v) for v in action.grasp],
-                "grasp_success": outcome["grasp_success"],
-                "grasp_reason": outcome["grasp_reason"],
-                "placed_error_m": placed_error,
-            }
-        )
-        if ok or retries >= cfg.retries:
-            break
-        retries += 1
-        if outcome["grasp_success"]:
-            # Off placement: pick the misplaced corner where it lies and place it again.
-            log(f"  placed {placed_error * 1000:.0f} mm off; re-grasping, retry {retries}")
-            action = dataclasses.replace(action, grasp=seen)
-        else:
-            log(f"  grasp failed ({outcome['grasp_reason']}); re-observed, retry {retries}")
-    return {
-        "kind": "pick_and_place",
-        "label": planned.label,
-        "grasp": [float(v) for v in action.grasp],
-        "place": [float(v) for v in action.place],
-        "grasp_success": outcome["grasp_success"],
-        "grasp_reason": outcome["grasp_reason"],
-        "grasped_vertices": outcome["grasped_vertices"],
-        "placed_error_m": attempts[-1]["placed_error_m"],
-        "retries": retries,
-        "attempts": attempts,
-        "max_tracking_error_m": outcome["max_tracking_error"],
-        "sim_seconds": world.sim_time - t_sim,
-        "wall_seconds": time.perf_counter() - t_wall,
-    }, state
-
-
-def _line_points(line: tuple[float, float, float, float], z: float) -> np.ndarray:
-    """The fold line's segment across the cloth as two world points (the planner's line runs from
-    one folded edge's midpoint to the other's), for drawing."""
-    x, y, dx, dy = line
-    return np.array([[x, y, z], [x + dx, y + dy, z]])
-
-
-def _execute_action(executor: ArmExecutor, robot, action: FoldAction, motion: MotionConfig) -> dict:
-    """Plan the whole pick-and-place (IK on every waypoint), then run it; stop after a failed grasp."""
-    try:
-        planned = executor.plan(action_segments(action, robot.tcp_pose()[0], motion))
-    except UnreachableTargetError as exc:
-        raise UnreachableTargetError(
-            f"action '{action.label}' is infeasible (nothing moved): {exc}"
-        ) from exc
-    grasp_result, max_err = None, 0.0
-    for seg in planned:
-        seg_log = executor.run(seg)
-        max_err = max(max_err, seg_log.max_tracking_error)
-        if seg_log.grasp is not None:
-            grasp_result = seg_log.grasp
-            if not grasp_result.success:
-                executor.grasp.open()
-                _move_to(
-                    executor, robot, robot.tcp_pose()[0] + [0, 0, motion.retreat_height], motion
-                )
-                break
-    ok = bool(grasp_result and grasp_result.success)
-    return {
-        "grasp_success": ok,
-        "grasp_reason": grasp_result.reason if grasp_result else "no grasp attempted",
-        "grasped_vertices": list(grasp_result.vertex_ids) if grasp_result else [],
-        "max_tracking_error": max_err,
-    }
-
-
-def _move_to(executor: ArmExecutor, robot, target: np.ndarray, motion: MotionConfig) -> None:
-    start = robot.tcp_pose()[0]
-    if np.linalg.norm(start - target) < 0.002:
-        return
-    path = line_path(start, np.asarray(target, dtype=float))
-    try:
-        executor.run(Segment("move", path, motion.free_speed))
-    except UnreachableTargetError as exc:
-        raise UnreachableTargetError(
-            f"cannot move to {np.round(target, 3).tolist()}: {exc}"
-        ) from exc

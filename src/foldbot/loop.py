@@ -1,0 +1,329 @@
+"""The closed fold loop — observe → plan a stage → per action: grasp where the corner is now,
+carry, place → re-observe → retry or go on → verify the stage — written once against `FoldCell`.
+
+`FoldCell` is what the loop needs from a robot cell. The in-process simulation implements it
+(`pipeline.SimCell`), and so do the ROS nodes (`foldbot.ros.task_node.RosCell`), so the same
+decisions run whether the modules talk by function call or over topics. The loop sees only
+observations (ClothState from images) and the cell's reports; never ground truth.
+"""
+
+from __future__ import annotations
+
+import abc
+import dataclasses
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from foldbot.errors import FoldbotError, UnreachableTargetError
+from foldbot.perception.overlay import draw_overlay
+from foldbot.perception.state import ClothState, fold_check_iou
+from foldbot.planning.actions import FoldAction, FoldPlan
+from foldbot.planning.recipes import plan_stage, predicted_outline, recipe_stages
+from foldbot.types import GraspResult, Observation
+
+
+@dataclass(frozen=True)
+class LoopConfig:
+    """The closed loop's decisions (see pipeline.EpisodeConfig for their meaning)."""
+
+    recipe: str = "half"
+    retries: int = 1
+    place_tolerance: float = 0.03
+    regrasp_radius: float = 0.06
+    regrasp_label_radius: float = 0.25
+    fault_grasp_offset: float = 0.0
+    verify_iou: float = 0.8
+    place_lift: float = 0.004
+    require_full_view: bool = True
+    """Refuse to plan when the cloth's mask touches the image border (vision)."""
+
+
+@dataclass
+class StepLog:
+    """What one motion step (a segment, and its gripper event) did."""
+
+    name: str
+    max_tracking_error: float
+    grasp: GraspResult | None = None
+
+
+class FoldCell(abc.ABC):
+    """A robot cell as the fold loop drives it: eyes, a planner for motions, an arm that moves."""
+
+    table_height: float
+    """Height of the table top in the world (m), for drawing fold lines."""
+
+    @property
+    @abc.abstractmethod
+    def sim_time(self) -> float:
+        """The cell's clock (s)."""
+
+    @abc.abstractmethod
+    def observe(self) -> tuple[ClothState, Observation]:
+        """A fresh camera frame of the resting cell and what perception makes of it."""
+
+    def plan_stage(
+        self, recipe: str, stage: int, corners: dict[str, np.ndarray], place_lift: float
+    ) -> tuple[FoldPlan, np.ndarray]:
+        """The stage's fold plan from perceived corners, and the outline it should leave."""
+        return (
+            plan_stage(recipe, stage, corners, place_lift),
+            predicted_outline(recipe, stage, corners),
+        )
+
+    @abc.abstractmethod
+    def plan_action(self, action: FoldAction) -> list[Any]:
+        """Motion steps for one pick-and-place, every waypoint's IK solved before anything moves;
+        raises UnreachableTargetError naming the infeasible waypoint."""
+
+    @abc.abstractmethod
+    def run_step(self, step: Any) -> StepLog:
+        """Move along one planned step, then apply its gripper event (close → grasp result)."""
+
+    @abc.abstractmethod
+    def release_and_lift(self) -> None:
+        """After a failed grasp: open the gripper and move straight up (the retreat height)."""
+
+    @abc.abstractmethod
+    def park(self) -> None:
+        """Move the arm (joint space) to its park pose, out of the camera's way."""
+
+    @abc.abstractmethod
+    def wait(self, seconds: float) -> None:
+        """Let the cloth come to rest for `seconds` of cell time."""
+
+    def start_stage(self, stage: int) -> bool:
+        """Called before stage `stage` (≥ 1) is planned; True when the previous stage's closing
+        observation is stale for planning (the oracle switches corner sources)."""
+        return False
+
+    def show(self, state: ClothState | None = None, **overlay: Any) -> None:  # noqa: B027
+        """Debug overlay for the video: the latest state and planned points / fold line."""
+
+
+@dataclass
+class FoldRecord:
+    """What a fold did, for the episode's result.json and pictures."""
+
+    fold_lines: list[tuple[float, float, float, float]] = field(default_factory=list)
+    actions: list[dict] = field(default_factory=list)
+    stages: list[dict] = field(default_factory=list)
+    initial_overlay: np.ndarray | None = None
+    final_state: ClothState | None = None
+    final_obs: Observation | None = None
+
+
+def line_points(line: tuple[float, float, float, float], z: float) -> np.ndarray:
+    """The fold line's segment across the cloth as two world points, for drawing."""
+    x, y, dx, dy = line
+    return np.array([[x, y, z], [x + dx, y + dy, z]])
+
+
+def corners_of(state: ClothState) -> dict[str, np.ndarray]:
+    """Perceived keypoint positions by label."""
+    return {name: xyz for name, (xyz, _conf) in state.keypoints.items()}
+
+
+def require_in_view(state: ClothState) -> None:
+    """Refuse to plan from a cloth the camera sees only in part (its mask touches the border)."""
+    m = state.mask
+    if m.size and (m[0].any() or m[-1].any() or m[:, 0].any() or m[:, -1].any()):
+        raise FoldbotError(
+            "the cloth extends beyond the camera's view (its mask touches the image border), "
+            "so its corners cannot be seen; use a smaller towel or move the camera"
+        )
+
+
+def run_fold(
+    cfg: LoopConfig, cell: FoldCell, log: Callable[[str], None] = print, settle_s: float = 0.3
+) -> FoldRecord:
+    """Fold the cloth on `cell` stage by stage in a closed loop; returns the record."""
+    rec = FoldRecord()
+    cell.park()
+    state, obs = cell.observe()
+    for stage in range(recipe_stages(cfg.recipe)):
+        # From stage 2 on, the previous stage's closing observation (arm parked, cloth
+        # settled) is where this stage starts, unless the cell asks for a fresh one.
+        if stage > 0 and cell.start_stage(stage):
+            state, obs = cell.observe()
+        if not state.detected:
+            raise FoldbotError(f"no cloth found before fold stage {stage + 1}: {state.reason}")
+        if cfg.require_full_view:
+            require_in_view(state)
+        latest = state
+        corners = corners_of(state)
+        plan, predicted = cell.plan_stage(cfg.recipe, stage, corners, cfg.place_lift)
+        rec.fold_lines.append(plan.fold_lines[0])
+        if stage == 0:
+            rec.initial_overlay = draw_overlay(
+                obs,
+                state,
+                grasp_points=[a.grasp for a in plan.actions],
+                place_points=[a.place for a in plan.actions],
+                fold_line=line_points(plan.fold_lines[0], cell.table_height),
+            )
+        for i, planned in enumerate(plan.actions):
+            log(f"stage {stage + 1}, action {i + 1}/{len(plan.actions)}: {planned.label} → place")
+            entry, latest = closed_loop_action(
+                cfg,
+                cell,
+                planned,
+                latest,
+                log,
+                inject_fault=cfg.fault_grasp_offset > 0 and not rec.actions,
+            )
+            rec.actions.append(entry)
+        cell.park()
+        cell.wait(settle_s)
+        state, obs = cell.observe()
+        iou = (
+            fold_check_iou(state.mask, predicted, obs.intrinsics, obs.T_world_camera)
+            if state.detected
+            else 0.0
+        )
+        rec.stages.append(
+            {
+                "stage": stage,
+                "fold_line": list(plan.fold_lines[0]),
+                "predicted_outline": np.asarray(predicted).tolist(),
+                "mask_iou_vs_predicted": iou,
+                "verified": iou >= cfg.verify_iou,
+            }
+        )
+        log(f"stage {stage + 1} done: mask IoU with the predicted shape {iou:.2f}")
+    cell.park()
+    cell.wait(0.5)
+    rec.final_state, rec.final_obs = cell.observe()
+    return rec
+
+
+def nearest_keypoint(state: ClothState, point: np.ndarray, radius: float) -> np.ndarray | None:
+    """The perceived keypoint nearest `point` in the table plane, if within `radius`."""
+    if not state.detected or not state.keypoints:
+        return None
+    pts = np.array([xyz for xyz, _conf in state.keypoints.values()])
+    d = np.linalg.norm(pts[:, :2] - point[:2], axis=1)
+    k = int(np.argmin(d))
+    return pts[k] if d[k] <= radius else None
+
+
+def regrasp_point(
+    state: ClothState, label: str, planned: np.ndarray, radius: float, label_radius: float
+) -> np.ndarray | None:
+    """Where to grasp a corner now: the keypoint with the planned label if it lies within
+    `label_radius` of the plan (a fold drags the other corners by up to ~15 cm), else the
+    keypoint nearest the plan within `radius`."""
+    if state.detected and label in state.keypoints:
+        xyz = np.asarray(state.keypoints[label][0])
+        if np.linalg.norm(xyz[:2] - planned[:2]) <= label_radius:
+            return xyz
+    return nearest_keypoint(state, planned, radius)
+
+
+def closed_loop_action(
+    cfg: LoopConfig,
+    cell: FoldCell,
+    planned: FoldAction,
+    latest: ClothState,
+    log: Callable[[str], None] = print,
+    inject_fault: bool = False,
+) -> tuple[dict, ClothState]:
+    """Execute one pick-and-place, re-observing to grasp the corner where it now is, and
+    verifying the placement; a failed grasp or an off placement is redone (bounded).
+
+    `latest` is the state of the newest observation (taken after the cloth last moved)."""
+    t_sim, t_wall = cell.sim_time, time.perf_counter()
+    action, outcome, retries, attempts = planned, {}, 0, []
+    state = latest
+    while True:
+        # Earlier actions move the cloth: grasp the corner where it is now.
+        seen = regrasp_point(
+            state, planned.label, action.grasp, cfg.regrasp_radius, cfg.regrasp_label_radius
+        )
+        if seen is not None:
+            action = dataclasses.replace(action, grasp=seen)
+        if inject_fault and not attempts:
+            outward = action.grasp[:2] - state.keypoint_array().mean(axis=0)[:2]
+            outward = outward / max(np.linalg.norm(outward), 1e-9) * cfg.fault_grasp_offset
+            action = dataclasses.replace(action, grasp=action.grasp + [*outward, 0.0])
+        cell.show(
+            state,
+            grasp_points=[action.grasp],
+            place_points=[action.place],
+            fold_line=line_points(action.fold_line, cell.table_height),
+        )
+        outcome = execute_action(cell, action)
+        placed_error = None
+        cell.park()
+        state, _obs = cell.observe()
+        if outcome["grasp_success"]:
+            seen = nearest_keypoint(state, action.place, 2 * cfg.regrasp_radius)
+            placed_error = (
+                None if seen is None else float(np.linalg.norm(seen[:2] - action.place[:2]))
+            )
+        ok = outcome["grasp_success"] and (
+            placed_error is None or placed_error <= cfg.place_tolerance
+        )
+        attempts.append(
+            {
+                "grasp": [float(v) for v in action.grasp],
+                "grasp_success": outcome["grasp_success"],
+                "grasp_reason": outcome["grasp_reason"],
+                "placed_error_m": placed_error,
+            }
+        )
+        if ok or retries >= cfg.retries:
+            break
+        retries += 1
+        if outcome["grasp_success"]:
+            # Off placement: pick the misplaced corner where it lies and place it again.
+            log(f"  placed {placed_error * 1000:.0f} mm off; re-grasping, retry {retries}")
+            action = dataclasses.replace(action, grasp=seen)
+        else:
+            log(f"  grasp failed ({outcome['grasp_reason']}); re-observed, retry {retries}")
+    return {
+        "kind": "pick_and_place",
+        "label": planned.label,
+        "grasp": [float(v) for v in action.grasp],
+        "place": [float(v) for v in action.place],
+        "grasp_success": outcome["grasp_success"],
+        "grasp_reason": outcome["grasp_reason"],
+        "grasped_vertices": outcome["grasped_vertices"],
+        "placed_error_m": attempts[-1]["placed_error_m"],
+        "retries": retries,
+        "attempts": attempts,
+        "max_tracking_error_m": outcome["max_tracking_error"],
+        "sim_seconds": cell.sim_time - t_sim,
+        "wall_seconds": time.perf_counter() - t_wall,
+    }, state
+
+
+def execute_action(cell: FoldCell, action: FoldAction) -> dict:
+    """Plan the whole pick-and-place (IK on every waypoint), then run it; after a failed grasp,
+    open, lift and stop."""
+    try:
+        steps = cell.plan_action(action)
+    except UnreachableTargetError as exc:
+        raise UnreachableTargetError(
+            f"action '{action.label}' is infeasible (nothing moved): {exc}"
+        ) from exc
+    grasp_result, max_err = None, 0.0
+    for step in steps:
+        step_log = cell.run_step(step)
+        max_err = max(max_err, step_log.max_tracking_error)
+        if step_log.grasp is not None:
+            grasp_result = step_log.grasp
+            if not grasp_result.success:
+                cell.release_and_lift()
+                break
+    ok = bool(grasp_result and grasp_result.success)
+    return {
+        "grasp_success": ok,
+        "grasp_reason": grasp_result.reason if grasp_result else "no grasp attempted",
+        "grasped_vertices": list(grasp_result.vertex_ids) if grasp_result else [],
+        "max_tracking_error": max_err,
+    }
