@@ -12,7 +12,7 @@ from foldbot.errors import FoldbotError
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every subcommand."""
-    from foldbot.commands import bench, eval_perception, fold, score
+    from foldbot.commands import bench, eval_perception, fold, ros_fold, score
 
     parser = argparse.ArgumentParser(
         prog="foldbot",
@@ -25,6 +25,7 @@ def build_parser() -> argparse.ArgumentParser:
         "eval-perception": (eval_perception, "measure perception accuracy on randomised scenes"),
         "bench": (bench, "run fold episodes over many seeds and summarise them"),
         "score": (score, "recompute an episode's metrics from cloth.npz and result.json"),
+        "ros-fold": (ros_fold, "fold over ROS 1 topics (roslaunch) and write the episode folder"),
     }
     for name, (module, help_text) in commands.items():
         p = sub.add_parser(

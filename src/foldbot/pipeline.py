@@ -285,22 +285,48 @@ def episode_result(
     }
 
 
+@dataclass
+class SimCellParts:
+    """The simulated cell of one episode, built from its config (and seed) in a world."""
+
+    world: SimWorld
+    robot: object
+    towel: TowelSpec
+    mesh: object
+    cloth: SoftCloth
+    center: tuple[float, float]
+    yaw: float
+    camera: RGBDCamera
+    oracle: GroundTruthOracle
+    executor: ArmExecutor
+
+
+def build_sim_cell(cfg: EpisodeConfig, world: SimWorld) -> SimCellParts:
+    """Arm, cloth (seeded size and pose), divergence monitor, camera, oracle and executor."""
+    layout = world.layout
+    robot = make_robot(cfg.robot, world.client, layout)
+    center, yaw = _seeded_pose(cfg, layout.workspace_center_xy)
+    towel = _seeded_towel(cfg)
+    mesh = make_towel(towel)
+    cloth = SoftCloth(world.client, mesh, cfg.cloth, layout.table_height, center, yaw)
+    world.add_step_hook(DivergenceMonitor(cloth, layout.workspace_center_xy, radius=1.0))
+    camera = RGBDCamera(world.client, cfg.camera)
+    oracle = GroundTruthOracle(cloth, camera)
+    executor = ArmExecutor(world, robot, ClothGrasp(world, robot, cloth))
+    return SimCellParts(world, robot, towel, mesh, cloth, center, yaw, camera, oracle, executor)
+
+
 def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=print) -> dict:
     """Run one fold episode and write the episode folder (result.json, cloth.npz, video.mp4)."""
     writer = EpisodeWriter(out_dir, overwrite=overwrite, fps=max(cfg.video_fps, 1.0))
     wall0 = time.perf_counter()
     with writer, SimWorld(cfg.sim) as world:
-        layout = world.layout
-        robot = make_robot(cfg.robot, world.client, layout)
-        center, yaw = _seeded_pose(cfg, layout.workspace_center_xy)
-        towel = _seeded_towel(cfg)
-        mesh = make_towel(towel)
-        cloth = SoftCloth(world.client, mesh, cfg.cloth, layout.table_height, center, yaw)
-        world.add_step_hook(DivergenceMonitor(cloth, layout.workspace_center_xy, radius=1.0))
-        camera = RGBDCamera(world.client, cfg.camera)
-        oracle = GroundTruthOracle(cloth, camera)
+        parts = build_sim_cell(cfg, world)
+        robot, cloth, mesh, camera, oracle = (
+            parts.robot, parts.cloth, parts.mesh, parts.camera, parts.oracle
+        )  # fmt: skip
+        center, yaw, towel, executor = parts.center, parts.yaw, parts.towel, parts.executor
         estimator = VisionEstimator() if cfg.perception == "vision" else OracleEstimator(oracle)
-        executor = ArmExecutor(world, robot, ClothGrasp(world, robot, cloth))
         recorder = None
         if cfg.video_fps > 0:
             recorder = _VideoRecorder(camera, writer, cfg.video_fps)

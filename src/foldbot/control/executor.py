@@ -118,6 +118,17 @@ class ArmExecutor:
             q, start = path[-1], seg.points[-1]
         return planned
 
+    def joint_move_trajectory(self, q0: np.ndarray, q_target: np.ndarray) -> JointTrajectory:
+        """Rest-to-rest joint-space move from `q0` to `q_target` under the joint limits."""
+        r = self.robot
+        return time_parametrize(
+            np.vstack([q0, q_target]),
+            r.velocity_limits,
+            r.acceleration_limits,
+            r.jerk_limits,
+            self.world.time_step,
+        )
+
     def move_joints(self, q_target: np.ndarray, name: str = "joint_move") -> SegmentLog:
         """Move in joint space (no Cartesian path) to `q_target` under the joint limits: used to
         park the arm, where a straight TCP line could pass near a singularity."""
@@ -126,13 +137,7 @@ class ArmExecutor:
         if np.abs(q_target - q0).max() < 1e-4:
             return SegmentLog(name, 0.0, 0.0)
         r = self.robot
-        traj = time_parametrize(
-            np.vstack([q0, q_target]),
-            r.velocity_limits,
-            r.acceleration_limits,
-            r.jerk_limits,
-            self.world.time_step,
-        )
+        traj = self.joint_move_trajectory(q0, q_target)
         for k in range(1, len(traj.times)):
             r.command_joint_positions(traj.positions[k], traj.velocities[k])
             self.world.step()

@@ -1,0 +1,141 @@
+"""`foldbot ros-fold`: fold a towel over ROS 1 topics — roslaunch brings up the sim, perception,
+planner and task nodes (and roscore when none runs) — and write the same episode folder as
+`foldbot fold`. `--record BAG` records the run with rosbag.
+
+Needs ROS 1 from Debian (scripts/install_ros.sh)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shlex
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+from foldbot.commands import fold
+from foldbot.errors import ConfigError, FoldbotError, OutputError
+
+ROS_PACKAGE_DIR = Path(__file__).resolve().parents[3] / "ros"
+"""The repository's ROS package folder (holds foldbot_ros/)."""
+
+
+def ros_missing() -> str | None:
+    """Why ROS 1 cannot run here, or None when it can."""
+    try:
+        import rosbag  # noqa: F401
+        import rospy  # noqa: F401
+    except ImportError as exc:
+        return f"ROS 1 Python packages are not importable ({exc}); run scripts/install_ros.sh"
+    for tool in ("roslaunch", "roscore", "rosbag"):
+        if shutil.which(tool) is None:
+            return f"`{tool}` is not on PATH; run scripts/install_ros.sh"
+    if not (ROS_PACKAGE_DIR / "foldbot_ros" / "package.xml").is_file():
+        return f"the foldbot_ros package is not at {ROS_PACKAGE_DIR} (use a source checkout)"
+    return None
+
+
+def ros_env(port: int) -> dict[str, str]:
+    """Environment for ROS processes: our package on ROS_PACKAGE_PATH, this interpreter's bin
+    first on PATH (the nodes' `python3`), the master on `port`."""
+    env = dict(os.environ)
+    paths = [str(ROS_PACKAGE_DIR), "/usr/share"]
+    if env.get("ROS_PACKAGE_PATH"):
+        paths.append(env["ROS_PACKAGE_PATH"])
+    env["ROS_PACKAGE_PATH"] = os.pathsep.join(paths)
+    env["PATH"] = os.pathsep.join([str(Path(sys.executable).parent), env.get("PATH", "")])
+    env["ROS_MASTER_URI"] = f"http://localhost:{port}"
+    env.setdefault("ROS_HOSTNAME", "localhost")
+    env["PYTHONUNBUFFERED"] = "1"
+    return env
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """`foldbot fold`'s options, plus the ROS ones."""
+    fold.add_arguments(parser)
+    parser.add_argument("--record", type=Path, default=None, help="record the run to this .bag")
+    parser.add_argument(
+        "--camera-rate",
+        type=float,
+        default=None,
+        help="camera frames per simulated second during motions (default: --video-fps)",
+    )
+    parser.add_argument(
+        "--port", type=int, default=11311, help="ROS master port (started if none runs there)"
+    )
+
+
+def fold_args_text(args: argparse.Namespace) -> str:
+    """The episode's `foldbot fold` options as one shell-quoted string (the nodes parse it)."""
+    words = [
+        *("--garment", args.garment, "--recipe", args.recipe, "--robot", args.robot),
+        *("--perception", args.perception, "--seed", str(args.seed)),
+        *("--width", repr(args.width), "--height", repr(args.height)),
+        *("--resolution", str(args.resolution), "--video-fps", repr(args.video_fps)),
+        *("--out", str(Path(args.out).resolve())),
+    ]
+    if args.mass is not None:
+        words += ["--mass", repr(args.mass)]
+    if args.overwrite:
+        words.append("--overwrite")
+    return shlex.join(words)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Validate, roslaunch the fold, then report from the episode folder the task node wrote."""
+    if args.gui:
+        raise ConfigError("--gui is not available over ROS; use `foldbot fold --gui`")
+    if args.perception != "vision":
+        raise ConfigError(
+            f"--perception {args.perception!r} is not available over ROS: the perception node "
+            "is vision (RGB-D) only; use `foldbot fold --perception oracle` for the oracle"
+        )
+    fold.config_from_args(args)  # bad values fail here, before anything starts
+    if not (1 <= args.port <= 65535):
+        raise ConfigError(f"--port must be in 1–65535, got {args.port}")
+    out = Path(args.out)
+    if out.exists() and any(out.iterdir()) and not args.overwrite:
+        raise OutputError(f"{out} already exists and is not empty; pass --overwrite to replace it")
+    if args.record is not None:
+        if args.record.suffix != ".bag":
+            raise ConfigError(f"--record must name a .bag file, got {str(args.record)!r}")
+        if args.record.exists() and not args.overwrite:
+            raise OutputError(f"{args.record} already exists; pass --overwrite to replace it")
+        args.record.parent.mkdir(parents=True, exist_ok=True)
+    missing = ros_missing()
+    if missing:
+        raise FoldbotError(missing)
+    rate = args.video_fps if args.camera_rate is None else args.camera_rate
+    if not rate > 0:
+        raise ConfigError(f"--camera-rate must be > 0 frames per s, got {rate!r}")
+    cmd = [
+        "roslaunch",
+        "-p",
+        str(args.port),
+        "foldbot_ros",
+        "fold.launch",
+        f"fold_args:={fold_args_text(args)}",
+        f"camera_rate:={rate}",
+        f"record:={args.record.resolve() if args.record else ''}",
+    ]
+    result_file = out / "result.json"
+    before = result_file.stat().st_mtime_ns if result_file.is_file() else None
+    proc = subprocess.run(cmd, env=ros_env(args.port), check=False)
+    if not result_file.is_file() or result_file.stat().st_mtime_ns == before:
+        raise FoldbotError(
+            f"the ROS fold wrote no episode (roslaunch exit code {proc.returncode}); "
+            "see the task node's error above"
+        )
+    result = json.loads(result_file.read_text())
+    print(
+        f"fold {'succeeded' if result['success'] else 'FAILED'} over ROS: "
+        f"fold error {result['fold_error_mm']:.1f} mm, "
+        f"normalized performance {result['normalized_performance']:.3f}, "
+        f"{result['sim_seconds']:.1f} s simulated in {result['wall_seconds']:.1f} s"
+    )
+    print(f"episode written to {out}")
+    if args.record:
+        print(f"bag recorded to {args.record}")
+    return 0

@@ -1,0 +1,235 @@
+"""Conversions between foldbot's types and ROS 1 messages (sensor_msgs, geometry_msgs,
+trajectory_msgs, std_msgs), in one place so every node speaks the same conventions:
+images rgb8 / 32FC1 metres / mono8, camera_info from K with no distortion, world-frame keypoints
+as a PoseArray in CORNER_LABELS order, JSON on std_msgs/String for the control-plane reports."""
+
+from __future__ import annotations
+
+import json
+
+import genpy
+import numpy as np
+from geometry_msgs.msg import Pose, PoseArray, TransformStamped
+from scipy.spatial.transform import Rotation
+from sensor_msgs import point_cloud2
+from sensor_msgs.msg import CameraInfo, Image, JointState, PointCloud2
+from std_msgs.msg import Header, String
+from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
+from trajectory_msgs.msg import JointTrajectoryPoint
+
+from foldbot.errors import FoldbotError
+from foldbot.perception.keypoints import CORNER_LABELS
+from foldbot.perception.state import ClothState
+from foldbot.planning.actions import FoldAction
+from foldbot.types import CameraIntrinsics
+
+_ENCODINGS = {"rgb8": (np.uint8, 3), "mono8": (np.uint8, 1), "32FC1": (np.float32, 1)}
+
+
+def stamp_of(seconds: float) -> genpy.Time:
+    """A ROS time from simulated seconds."""
+    return genpy.Time.from_sec(float(seconds))
+
+
+def header(seconds: float, frame_id: str) -> Header:
+    return Header(stamp=stamp_of(seconds), frame_id=frame_id)
+
+
+def image_msg(array: np.ndarray, encoding: str, seconds: float, frame_id: str) -> Image:
+    """sensor_msgs/Image of an H×W(×C) array: rgb8 (uint8 ×3), mono8 (uint8) or 32FC1 (float32)."""
+    if encoding not in _ENCODINGS:
+        raise FoldbotError(f"unsupported image encoding {encoding!r}; allowed: {list(_ENCODINGS)}")
+    dtype, channels = _ENCODINGS[encoding]
+    a = np.ascontiguousarray(array, dtype=dtype)
+    h, w = a.shape[:2]
+    return Image(
+        header=header(seconds, frame_id),
+        height=h,
+        width=w,
+        encoding=encoding,
+        is_bigendian=0,
+        step=w * channels * a.itemsize,
+        data=a.tobytes(),
+    )
+
+
+def image_array(msg: Image) -> np.ndarray:
+    """The array of a sensor_msgs/Image in one of the encodings above."""
+    if msg.encoding not in _ENCODINGS:
+        raise FoldbotError(
+            f"unsupported image encoding {msg.encoding!r}; allowed: {list(_ENCODINGS)}"
+        )
+    dtype, channels = _ENCODINGS[msg.encoding]
+    a = np.frombuffer(
+        msg.data, dtype=np.dtype(dtype).newbyteorder(">" if msg.is_bigendian else "<")
+    )
+    shape = (msg.height, msg.width, channels) if channels > 1 else (msg.height, msg.width)
+    return a.reshape(shape).astype(dtype)
+
+
+def camera_info_msg(intr: CameraIntrinsics, seconds: float, frame_id: str) -> CameraInfo:
+    """sensor_msgs/CameraInfo of an ideal pinhole camera (plumb_bob, zero distortion)."""
+    k = np.asarray(intr.K, dtype=float)
+    p = np.zeros((3, 4))
+    p[:, :3] = k
+    return CameraInfo(
+        header=header(seconds, frame_id),
+        height=intr.height,
+        width=intr.width,
+        distortion_model="plumb_bob",
+        D=[0.0] * 5,
+        K=k.ravel().tolist(),
+        R=np.eye(3).ravel().tolist(),
+        P=p.ravel().tolist(),
+    )
+
+
+def intrinsics_of(msg: CameraInfo) -> CameraIntrinsics:
+    return CameraIntrinsics(
+        K=np.array(msg.K, dtype=float).reshape(3, 3), width=msg.width, height=msg.height
+    )
+
+
+def transform_msg(T: np.ndarray, parent: str, child: str, seconds: float) -> TransformStamped:
+    """geometry_msgs/TransformStamped of the 4×4 pose of `child` in `parent`."""
+    t = TransformStamped(header=header(seconds, parent), child_frame_id=child)
+    t.transform.translation.x, t.transform.translation.y, t.transform.translation.z = (
+        float(v) for v in T[:3, 3]
+    )
+    q = Rotation.from_matrix(T[:3, :3]).as_quat()
+    r = t.transform.rotation
+    r.x, r.y, r.z, r.w = (float(v) for v in q)
+    return t
+
+
+def matrix_of(t: TransformStamped) -> np.ndarray:
+    tr, r = t.transform.translation, t.transform.rotation
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_quat([r.x, r.y, r.z, r.w]).as_matrix()
+    T[:3, 3] = [tr.x, tr.y, tr.z]
+    return T
+
+
+def state_json(state: ClothState) -> str:
+    """ClothState without its mask (which travels as an image) as JSON."""
+    return json.dumps(
+        {
+            "stamp": state.stamp,
+            "detected": state.detected,
+            "reason": state.reason,
+            "keypoints": {
+                k: [*(float(v) for v in xyz), float(c)] for k, (xyz, c) in state.keypoints.items()
+            },
+            "coverage_m2": state.coverage_m2,
+            "flatness": state.flatness,
+            "outline_world": np.asarray(state.outline_world).tolist(),
+            "table_plane": np.asarray(state.table_plane).tolist(),
+        }
+    )
+
+
+def keypoints_msg(state: ClothState, seconds: float, frame_id: str) -> PoseArray:
+    """The perceived corners as a PoseArray in CORNER_LABELS order (empty when not detected)."""
+    msg = PoseArray(header=header(seconds, frame_id))
+    for label in CORNER_LABELS:
+        if label in state.keypoints:
+            pose = Pose()
+            pose.position.x, pose.position.y, pose.position.z = (
+                float(v) for v in state.keypoints[label][0]
+            )
+            pose.orientation.w = 1.0
+            msg.poses.append(pose)
+    return msg
+
+
+def state_from(json_text: str, mask: np.ndarray) -> ClothState:
+    """Rebuild a ClothState from `state_json` and its mask image (nonzero = cloth)."""
+    d = json.loads(json_text)
+    return ClothState(
+        detected=bool(d["detected"]),
+        reason=d["reason"],
+        keypoints={k: (np.array(v[:3]), float(v[3])) for k, v in d["keypoints"].items()},
+        mask=np.asarray(mask) > 0,
+        coverage_m2=float(d["coverage_m2"]),
+        flatness=float(d["flatness"]),
+        outline_world=np.array(d["outline_world"], dtype=float).reshape(-1, 3),
+        table_plane=np.array(d["table_plane"], dtype=float),
+        stamp=float(d["stamp"]),
+    )
+
+
+def trajectory_msg(
+    joint_names: list[str] | tuple[str, ...],
+    times: np.ndarray,
+    positions: np.ndarray,
+    velocities: np.ndarray,
+    seconds: float,
+    frame_id: str,
+) -> JointTrajectoryMsg:
+    """trajectory_msgs/JointTrajectory from sampled times (s), positions (rad), velocities."""
+    msg = JointTrajectoryMsg(header=header(seconds, frame_id), joint_names=list(joint_names))
+    for t, q, v in zip(times, positions, velocities, strict=True):
+        msg.points.append(
+            JointTrajectoryPoint(
+                positions=[float(x) for x in q],
+                velocities=[float(x) for x in v],
+                time_from_start=genpy.Duration.from_sec(float(t)),
+            )
+        )
+    return msg
+
+
+def trajectory_arrays(msg: JointTrajectoryMsg) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(times, positions, velocities) of a JointTrajectory; missing velocities are zeros."""
+    if not msg.points:
+        raise FoldbotError("joint trajectory has no points")
+    n = len(msg.joint_names)
+    times = np.array([p.time_from_start.to_sec() for p in msg.points])
+    pos = np.array([p.positions for p in msg.points], dtype=float)
+    if pos.shape != (len(msg.points), n):
+        raise FoldbotError(
+            f"joint trajectory points must have {n} positions each, got shape {pos.shape}"
+        )
+    vel = np.array(
+        [p.velocities if len(p.velocities) == n else [0.0] * n for p in msg.points], dtype=float
+    )
+    if np.any(np.diff(times) < 0):
+        raise FoldbotError("joint trajectory time_from_start must not decrease")
+    return times, pos, vel
+
+
+def joint_state_msg(
+    names: list[str], q: np.ndarray, v: np.ndarray, seconds: float, frame_id: str = ""
+) -> JointState:
+    return JointState(
+        header=header(seconds, frame_id),
+        name=list(names),
+        position=[float(x) for x in q],
+        velocity=[float(x) for x in v],
+    )
+
+
+def cloud_msg(points: np.ndarray, seconds: float, frame_id: str) -> PointCloud2:
+    """An xyz float32 PointCloud2 of N×3 points (m)."""
+    return point_cloud2.create_cloud_xyz32(header(seconds, frame_id), np.asarray(points).tolist())
+
+
+def cloud_array(msg: PointCloud2) -> np.ndarray:
+    return np.array(
+        list(point_cloud2.read_points(msg, field_names=("x", "y", "z"), skip_nans=False)),
+        dtype=float,
+    ).reshape(-1, 3)
+
+
+def fold_action_from(d: dict) -> FoldAction:
+    """A FoldAction from its `as_dict()` form."""
+    return FoldAction(
+        grasp=np.array(d["grasp"], dtype=float),
+        place=np.array(d["place"], dtype=float),
+        fold_line=tuple(float(v) for v in d["fold_line"]),
+        label=d.get("label", ""),
+    )
+
+
+def string_msg(payload: dict) -> String:
+    return String(data=json.dumps(payload))

@@ -1,0 +1,26 @@
+"""The episode configuration every node shares: the options of `foldbot fold`, passed once as
+the ROS parameter /foldbot/fold_args and parsed by each node with fold's own parser, so the sim,
+planner and task nodes build the same EpisodeConfig (and seed) as an in-process fold."""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+
+from foldbot.commands import fold
+from foldbot.pipeline import EpisodeConfig
+
+FOLD_ARGS_PARAM = "/foldbot/fold_args"
+CAMERA_RATE_PARAM = "/foldbot/camera_rate"
+
+
+def fold_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="foldbot ros-fold", add_help=False)
+    fold.add_arguments(parser)
+    return parser
+
+
+def parse_fold_args(text: str) -> tuple[argparse.Namespace, EpisodeConfig]:
+    """Parse `foldbot fold` options (a shell-quoted string); raises ConfigError on bad values."""
+    args = fold_parser().parse_args(shlex.split(text))
+    return args, fold.config_from_args(args)

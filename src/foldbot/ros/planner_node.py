@@ -1,0 +1,130 @@
+"""The planner node: perceived corners → fold plan (planning.recipes) → joint trajectories
+(IK on every waypoint, ruckig time law: control.executor), on request.
+
+It keeps its own kinematic model of the cell (the same URDF in a private, never-stepped PyBullet
+world) for IK; it sees no cloth. Requests and responses are JSON on planner/request and
+planner/response (kinds: stage, action, park, lift); a response echoes the request's id and, for
+motions, carries each step's sampled trajectory and gripper event."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+import rospy
+from std_msgs.msg import String
+
+from foldbot.control.executor import ArmExecutor
+from foldbot.errors import FoldbotError
+from foldbot.planning.motion import Segment, action_segments, line_path
+from foldbot.planning.recipes import plan_stage, predicted_outline
+from foldbot.ros import TOPICS, convert
+from foldbot.ros.node_args import FOLD_ARGS_PARAM, parse_fold_args
+from foldbot.sim.robots import make_robot
+from foldbot.sim.world import SimWorld
+
+
+class MotionPlanner:
+    """Plans fold stages and arm motions on a kinematic model of the cell (no ROS inside)."""
+
+    def __init__(self, fold_args: str) -> None:
+        _args, self.cfg = parse_fold_args(fold_args)
+        self.world = SimWorld(self.cfg.sim)  # the model: table and arm only, never stepped
+        self.robot = make_robot(self.cfg.robot, self.world.client, self.world.layout)
+        self.executor = ArmExecutor(self.world, self.robot, grasp=None)
+
+    def _ik_steps(self, segments, q: np.ndarray) -> list[dict]:
+        """IK for every waypoint of every segment (nothing moves before all are feasible)."""
+        self.robot.reset_joints(q)  # the model starts where the arm is, as in-process planning
+        return [
+            {
+                "name": ps.segment.name,
+                "gripper": ps.segment.gripper,
+                "path": ps.joint_path.tolist(),
+                "points": ps.points.tolist(),
+                "speed": ps.segment.speed,
+            }
+            for ps in self.executor.plan(segments, q_start=q)
+        ]
+
+    def _trajectory(self, name: str, traj) -> dict:
+        return {
+            "name": name,
+            "joint_names": list(self.robot.ARM_JOINT_NAMES),
+            "times": traj.times.tolist(),
+            "positions": traj.positions.tolist(),
+            "velocities": traj.velocities.tolist(),
+        }
+
+    def handle(self, req: dict) -> dict:
+        """One request → its response payload (raises FoldbotError on bad or infeasible ones).
+
+        stage: corners → fold plan; action / lift: joint paths (IK) of the motion's steps;
+        time: a step's joint path, starting where the arm now is → its trajectory (ruckig);
+        park: the joint-space trajectory to the park pose."""
+        kind = req.get("kind")
+        if kind == "stage":
+            corners = {k: np.array(v, dtype=float) for k, v in req["corners"].items()}
+            plan = plan_stage(req["recipe"], int(req["stage"]), corners, float(req["place_lift"]))
+            outline = predicted_outline(req["recipe"], int(req["stage"]), corners)
+            return {
+                "fold_lines": [list(line) for line in plan.fold_lines],
+                "actions": [a.as_dict() for a in plan.actions],
+                "predicted_outline": np.asarray(outline).tolist(),
+            }
+        if kind == "time":
+            traj = self.executor.trajectory_for(
+                np.array(req["path"], dtype=float),
+                np.array(req["points"], dtype=float),
+                float(req["speed"]),
+            )
+            return {"trajectory": self._trajectory(req.get("name", ""), traj)}
+        q = np.array(req["q"], dtype=float)
+        start = self.robot.fk_tcp(q)[0]
+        if kind == "action":
+            action = convert.fold_action_from(req["action"])
+            return {"steps": self._ik_steps(action_segments(action, start, self.cfg.motion), q)}
+        if kind == "lift":
+            up = start + [0.0, 0.0, float(req["height"])]
+            return {
+                "steps": self._ik_steps(
+                    [Segment("lift", line_path(start, up), self.cfg.motion.free_speed)], q
+                )
+            }
+        if kind == "park":
+            if np.abs(self.robot.home_q - q).max() < 1e-4:
+                return {"trajectory": None}
+            traj = self.executor.joint_move_trajectory(q, self.robot.home_q)
+            return {"trajectory": self._trajectory("park", traj)}
+        raise FoldbotError(
+            f"unknown planner request kind {kind!r}; allowed: stage, action, lift, time, park"
+        )
+
+
+class PlannerNode:
+    def __init__(self, fold_args: str) -> None:
+        self.planner = MotionPlanner(fold_args)
+        self.pub = rospy.Publisher(TOPICS["plan_response"], String, queue_size=10)
+        rospy.Subscriber(TOPICS["plan_request"], String, self._on_request)
+
+    def _on_request(self, msg: String) -> None:
+        req = json.loads(msg.data)
+        try:
+            out = {"id": req.get("id"), "ok": True, **self.planner.handle(req)}
+        except FoldbotError as exc:
+            out = {
+                "id": req.get("id"),
+                "ok": False,
+                "error": str(exc),
+                "error_type": type(exc).__name__,
+            }
+        self.pub.publish(String(data=json.dumps(out)))
+
+
+def main(argv: list[str] | None = None) -> int:
+    rospy.init_node("foldbot_planner", argv=argv if argv is not None else sys.argv)
+    node = PlannerNode(rospy.get_param(FOLD_ARGS_PARAM))
+    rospy.spin()
+    node.planner.world.close()
+    return 0

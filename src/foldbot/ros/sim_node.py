@@ -1,0 +1,231 @@
+"""The sim node: the PyBullet cell (pipeline.build_sim_cell) behind ROS topics.
+
+Publishes the RGB-D camera (camera/color/image_raw rgb8, camera/depth/image_raw 32FC1 metres,
+their camera_info), /joint_states, /clock (simulated time), /tf_static (world → base_link and
+→ camera_color_optical_frame), the grasp outcome (gripper/grasp) and, for scoring only, the
+cloth's ground truth (ground_truth/cloth). Executes trajectory_msgs/JointTrajectory on
+arm/joint_trajectory, "open"/"close" on gripper/command and sim/wait (s), one at a time; after
+each it publishes a camera frame of the resting cell and a JSON report on sim/result.
+
+The simulation advances only while it executes a command (lockstep), so a run over topics is as
+reproducible as the in-process one and /clock never runs ahead of the cell.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import queue
+import sys
+
+import numpy as np
+import rospy
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import CameraInfo, Image, JointState, PointCloud2
+from std_msgs.msg import Empty, Float64, String
+from tf2_msgs.msg import TFMessage
+from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
+
+from foldbot.errors import FoldbotError
+from foldbot.pipeline import build_sim_cell
+from foldbot.ros import BASE_FRAME, CAMERA_FRAME, TOPICS, WORLD_FRAME, convert
+from foldbot.ros.node_args import CAMERA_RATE_PARAM, FOLD_ARGS_PARAM, parse_fold_args
+from foldbot.sim.cloth import settle
+from foldbot.sim.robots import make_robot
+from foldbot.sim.world import SimWorld
+
+
+class SimNode:
+    """Owns the simulated cell; every PyBullet call happens on the main thread."""
+
+    def __init__(self, fold_args: str, camera_rate: float) -> None:
+        _args, self.cfg = parse_fold_args(fold_args)
+        self.world = SimWorld(self.cfg.sim)
+        self.parts = build_sim_cell(self.cfg, self.world)
+        self.robot = self.parts.robot
+        # A kinematic twin in a private world, for the commanded TCP: FK there never touches
+        # the simulated arm (resetting its joints would jolt cloth held in the gripper).
+        self.model_world = SimWorld(dataclasses.replace(self.cfg.sim, gui=False))
+        self.model = make_robot(self.cfg.robot, self.model_world.client, self.model_world.layout)
+        self.camera_period = 1.0 / camera_rate if camera_rate > 0 else float("inf")
+        self.commands: queue.Queue = queue.Queue()
+        self._next_clock = 0.0
+        self._next_joints = 0.0
+        self._next_frame = 0.0
+        latch = {"queue_size": 1, "latch": True}
+        self.pub = {
+            "clock": rospy.Publisher(TOPICS["clock"], Clock, queue_size=10),
+            "joints": rospy.Publisher(TOPICS["joint_states"], JointState, queue_size=10),
+            "tf": rospy.Publisher(TOPICS["tf_static"], TFMessage, **latch),
+            "color": rospy.Publisher(TOPICS["color"], Image, queue_size=50),
+            "color_info": rospy.Publisher(TOPICS["color_info"], CameraInfo, queue_size=50),
+            "depth": rospy.Publisher(TOPICS["depth"], Image, queue_size=50),
+            "depth_info": rospy.Publisher(TOPICS["depth_info"], CameraInfo, queue_size=50),
+            "grasp": rospy.Publisher(TOPICS["grasp"], String, queue_size=10),
+            "result": rospy.Publisher(TOPICS["cell_result"], String, **latch),
+            "truth": rospy.Publisher(TOPICS["ground_truth"], PointCloud2, **latch),
+            "mesh": rospy.Publisher(TOPICS["ground_truth_mesh"], String, **latch),
+        }
+        for topic, kind, cls in (
+            (TOPICS["trajectory"], "trajectory", JointTrajectoryMsg),
+            (TOPICS["gripper"], "gripper", String),
+            (TOPICS["wait"], "wait", Float64),
+            (TOPICS["ground_truth_request"], "ground_truth", Empty),
+        ):
+            rospy.Subscriber(topic, cls, lambda msg, k=kind: self.commands.put((k, msg)))
+        self.world.add_step_hook(self._on_step)
+
+    # ------------------------------------------------------------------ publishing
+    def _on_step(self, world: SimWorld) -> None:
+        t = world.sim_time
+        if t + 1e-9 >= self._next_clock:
+            self._next_clock = t + 0.01
+            self.pub["clock"].publish(Clock(clock=convert.stamp_of(t)))
+        if t + 1e-9 >= self._next_joints:
+            self._next_joints = t + 0.02
+            self._publish_joints()
+        if t + 1e-9 >= self._next_frame:
+            self._next_frame = t + self.camera_period
+            self.publish_frame()
+
+    def _publish_joints(self) -> None:
+        r = self.robot
+        names = [*r.ARM_JOINT_NAMES, *r.FINGER_JOINT_NAMES]
+        q = np.r_[r.joint_positions(), r.finger_positions()]
+        v = np.r_[r.joint_velocities(), np.zeros(2)]
+        self.pub["joints"].publish(convert.joint_state_msg(names, q, v, self.world.sim_time))
+
+    def publish_frame(self) -> float:
+        """Render and publish one RGB-D frame; returns its stamp (simulated s)."""
+        t = self.world.sim_time
+        obs = self.parts.camera.observe(self.robot.joint_positions(), stamp=t)
+        info = convert.camera_info_msg(obs.intrinsics, t, CAMERA_FRAME)
+        self.pub["color_info"].publish(info)
+        self.pub["depth_info"].publish(info)
+        self.pub["depth"].publish(convert.image_msg(obs.depth, "32FC1", t, CAMERA_FRAME))
+        self.pub["color"].publish(convert.image_msg(obs.rgb, "rgb8", t, CAMERA_FRAME))
+        return t
+
+    def publish_static(self) -> None:
+        base = np.eye(4)
+        base[:3, 3] = self.world.layout.robot_base_xyz
+        tfs = [
+            convert.transform_msg(base, WORLD_FRAME, BASE_FRAME, 0.0),
+            convert.transform_msg(self.parts.camera.T_world_camera, WORLD_FRAME, CAMERA_FRAME, 0.0),
+        ]
+        self.pub["tf"].publish(TFMessage(transforms=tfs))
+
+    def publish_ground_truth(self) -> None:
+        """Ground truth for scoring only (the task node's metrics), never for perception."""
+        t = self.world.sim_time
+        self.pub["truth"].publish(
+            convert.cloud_msg(self.parts.oracle.cloth_vertices(), t, WORLD_FRAME)
+        )
+
+    def report(self, payload: dict) -> None:
+        payload.setdefault("sim_time", self.world.sim_time)
+        payload.setdefault("q", self.robot.joint_positions().tolist())
+        self.pub["result"].publish(convert.string_msg(payload))
+
+    # ------------------------------------------------------------------ commands
+    def execute_trajectory(self, msg: JointTrajectoryMsg) -> dict:
+        r = self.robot
+        if list(msg.joint_names) != list(r.ARM_JOINT_NAMES):
+            raise FoldbotError(
+                f"trajectory joint_names {list(msg.joint_names)} must be the arm's "
+                f"{list(r.ARM_JOINT_NAMES)}"
+            )
+        times, pos, vel = convert.trajectory_arrays(msg)
+        dt = self.world.time_step
+        n = round(times[-1] / dt)
+        if len(times) == n + 1 and np.allclose(times, np.arange(n + 1) * dt, atol=1e-6):
+            # Sampled at the physics step (as the planner sends them): play the samples as they are.
+            q_cmd, v_cmd = pos[1:], vel[1:]
+        else:  # any other sampling: interpolate onto the physics steps
+            grid = np.arange(1, n + 1) * dt
+            q_cmd = np.column_stack([np.interp(grid, times, pos[:, j]) for j in range(r.dof)])
+            v_cmd = np.column_stack([np.interp(grid, times, vel[:, j]) for j in range(r.dof)])
+        # Commanded TCP for tracking, computed at rest before the arm moves.
+        check = list(range(7, n, 8)) + ([n - 1] if n else [])
+        tcp_ref = {k: self.model.fk_tcp(q_cmd[k])[0] for k in check}
+        max_err = 0.0
+        for k in range(n):
+            r.command_joint_positions(q_cmd[k], v_cmd[k])
+            self.world.step()
+            if k in tcp_ref:
+                max_err = max(max_err, float(np.linalg.norm(r.tcp_pose()[0] - tcp_ref[k])))
+        return {"duration": float(times[-1]), "max_tracking_error": max_err}
+
+    def execute(self, kind: str, msg) -> dict:
+        grasp = self.parts.executor.grasp
+        if kind == "trajectory":
+            return self.execute_trajectory(msg)
+        if kind == "gripper":
+            if msg.data == "close":
+                g = grasp.close()
+                outcome = {
+                    "success": g.success,
+                    "vertex_ids": list(g.vertex_ids),
+                    "reason": g.reason,
+                }
+                self.pub["grasp"].publish(convert.string_msg(outcome))
+                return {"grasp": outcome}
+            if msg.data == "open":
+                grasp.open()
+                return {}
+            raise FoldbotError(f"unknown gripper command {msg.data!r}; allowed: open, close")
+        if kind == "wait":
+            if not (np.isfinite(msg.data) and 0.0 <= msg.data <= 60.0):
+                raise FoldbotError(f"sim/wait must be in [0, 60] s, got {msg.data!r}")
+            self.world.step(round(msg.data / self.world.time_step))
+            return {}
+        if kind == "ground_truth":
+            self.publish_ground_truth()
+            return {}
+        raise FoldbotError(f"unknown command {kind!r}")
+
+    def spin(self) -> None:
+        mesh = self.parts.mesh
+        self.publish_static()
+        self.pub["mesh"].publish(
+            convert.string_msg(
+                {"faces": np.asarray(mesh.faces).tolist(), "thickness": self.parts.cloth.thickness}
+            )
+        )
+        rospy.loginfo("settling the cloth (%d vertices)", mesh.vertices.shape[0])
+        settle(self.world, self.parts.cloth)
+        self.publish_ground_truth()
+        self.report({"command": "ready", "ok": True, "frame_stamp": self.publish_frame()})
+        while not rospy.is_shutdown():
+            try:
+                kind, msg = self.commands.get(timeout=0.1)
+            except queue.Empty:
+                continue
+            try:
+                out = self.execute(kind, msg)
+            except FoldbotError as exc:
+                # Divergence or a bad command: report it (the task node raises it) and stop.
+                self.report(
+                    {
+                        "command": kind,
+                        "ok": False,
+                        "error": str(exc),
+                        "error_type": type(exc).__name__,
+                    }
+                )
+                if type(exc).__name__ == "SimulationDivergedError":
+                    rospy.signal_shutdown("the simulation diverged")
+                continue
+            self.report({"command": kind, "ok": True, **out, "frame_stamp": self.publish_frame()})
+
+
+def main(argv: list[str] | None = None) -> int:
+    rospy.init_node("foldbot_sim", argv=argv if argv is not None else sys.argv)
+    node = SimNode(
+        rospy.get_param(FOLD_ARGS_PARAM), float(rospy.get_param(CAMERA_RATE_PARAM, 10.0))
+    )
+    try:
+        node.spin()
+    finally:
+        node.world.close()
+        node.model_world.close()
+    return 0

@@ -1,0 +1,411 @@
+"""The task node: sequences a whole fold over topics and writes the episode folder.
+
+It runs the same closed loop as `foldbot fold` (foldbot.loop.run_fold) on `RosCell`, a FoldCell
+whose eyes are the perception node's outputs, whose planner is the planner node and whose arm
+is the sim node. At the end it scores the fold from the sim node's ground-truth topic (metrics
+only) and writes the episode output contract: result.json, cloth.npz, video.mp4 (the camera
+stream with the debug overlays) and the overlay pictures.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import sys
+import threading
+import time
+from collections import OrderedDict
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import rospy
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import CameraInfo, Image, PointCloud2
+from std_msgs.msg import Empty, Float64, String
+from tf2_msgs.msg import TFMessage
+from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
+
+from foldbot import errors
+from foldbot.io.episode import EpisodeWriter
+from foldbot.loop import FoldCell, StepLog, run_fold
+from foldbot.metrics import score_episode
+from foldbot.perception.overlay import draw_overlay
+from foldbot.perception.state import ClothState
+from foldbot.pipeline import _seeded_pose, _seeded_towel, episode_result, loop_config
+from foldbot.planning.actions import FoldAction, FoldPlan
+from foldbot.ros import CAMERA_FRAME, TOPICS, WORLD_FRAME, convert
+from foldbot.ros.node_args import FOLD_ARGS_PARAM, parse_fold_args
+from foldbot.sim.layout import CellLayout
+from foldbot.types import GraspResult, Observation
+
+REPLY_TIMEOUT_S = 300.0
+"""Longest wall time to wait for a node's reply before the fold is abandoned."""
+
+
+def _raise_remote(reply: dict, what: str) -> None:
+    """Re-raise a node's reported error as the same foldbot error type."""
+    cls = getattr(errors, reply.get("error_type", ""), errors.FoldbotError)
+    if not (isinstance(cls, type) and issubclass(cls, errors.FoldbotError)):
+        cls = errors.FoldbotError
+    raise cls(f"{what}: {reply.get('error', 'failed')}")
+
+
+class _Inbox:
+    """Messages of one topic as they arrive, and a wait for the next one that matches."""
+
+    def __init__(self) -> None:
+        self.items: list[Any] = []
+        self.cond = threading.Condition()
+
+    def put(self, item: Any) -> None:
+        with self.cond:
+            self.items.append(item)
+            self.cond.notify_all()
+
+    def take(self, match, what: str, timeout: float = REPLY_TIMEOUT_S) -> Any:
+        deadline = time.monotonic() + timeout
+        with self.cond:
+            while True:
+                for i, item in enumerate(self.items):
+                    if match(item):
+                        return self.items.pop(i)
+                left = deadline - time.monotonic()
+                if left <= 0 or rospy.is_shutdown():
+                    raise errors.FoldbotError(f"no {what} within {timeout:.0f} s")
+                self.cond.wait(min(left, 0.5))
+
+
+class RosCell(FoldCell):
+    """The cell as seen over topics: the perception, planner and sim nodes."""
+
+    def __init__(self, layout: CellLayout, video: EpisodeWriter | None) -> None:
+        self.table_height = layout.table_height
+        self.video = video
+        self._ids = itertools.count(1)
+        self._clock = 0.0
+        self.rest_q = np.zeros(0)
+        self._lock = threading.Lock()
+        self.results, self.plans = _Inbox(), _Inbox()
+        self.states: OrderedDict[float, str] = OrderedDict()
+        self.masks: OrderedDict[float, np.ndarray] = OrderedDict()
+        self.frames: OrderedDict[float, Image] = OrderedDict()
+        self._infos: OrderedDict[float, CameraInfo] = OrderedDict()
+        self.depths: OrderedDict[float, Image] = OrderedDict()
+        self.perceived = threading.Condition()
+        self.T_world_camera: np.ndarray | None = None
+        self.latest_state: ClothState | None = None
+        self.overlay: dict = {}
+        self.rest_stamp = 0.0
+        self.truth = _Inbox()
+        self.mesh = _Inbox()
+        self.pub_traj = rospy.Publisher(TOPICS["trajectory"], JointTrajectoryMsg, queue_size=5)
+        self.pub_gripper = rospy.Publisher(TOPICS["gripper"], String, queue_size=5)
+        self.pub_wait = rospy.Publisher(TOPICS["wait"], Float64, queue_size=5)
+        self.pub_truth = rospy.Publisher(TOPICS["ground_truth_request"], Empty, queue_size=5)
+        self.pub_plan = rospy.Publisher(TOPICS["plan_request"], String, queue_size=5)
+        rospy.Subscriber(TOPICS["clock"], Clock, self._on_clock)
+        rospy.Subscriber(TOPICS["tf_static"], TFMessage, self._on_tf)
+        rospy.Subscriber(
+            TOPICS["cell_result"], String, lambda m: self.results.put(json.loads(m.data))
+        )
+        rospy.Subscriber(
+            TOPICS["plan_response"], String, lambda m: self.plans.put(json.loads(m.data))
+        )
+        rospy.Subscriber(TOPICS["ground_truth"], PointCloud2, self.truth.put)
+        rospy.Subscriber(
+            TOPICS["ground_truth_mesh"], String, lambda m: self.mesh.put(json.loads(m.data))
+        )
+        rospy.Subscriber(TOPICS["state"], String, self._on_state, queue_size=200)
+        rospy.Subscriber(TOPICS["mask"], Image, self._on_mask, queue_size=200, buff_size=2**24)
+        rospy.Subscriber(TOPICS["color"], Image, self._on_color, queue_size=200, buff_size=2**26)
+        rospy.Subscriber(TOPICS["color_info"], CameraInfo, self._on_info, queue_size=200)
+        rospy.Subscriber(
+            TOPICS["depth"],
+            Image,
+            lambda m: self._remember(self.depths, m.header.stamp.to_sec(), m, keep=16),
+            queue_size=200,
+            buff_size=2**26,
+        )
+
+    # ------------------------------------------------------------------ subscriptions
+    def _on_clock(self, msg: Clock) -> None:
+        self._clock = max(self._clock, msg.clock.to_sec())
+
+    def _on_tf(self, msg: TFMessage) -> None:
+        for t in msg.transforms:
+            if t.header.frame_id == WORLD_FRAME and t.child_frame_id == CAMERA_FRAME:
+                self.T_world_camera = convert.matrix_of(t)
+
+    def _remember(self, store: OrderedDict, stamp: float, value: Any, keep: int = 64) -> None:
+        with self.perceived:
+            store[round(stamp, 6)] = value
+            while len(store) > keep:
+                store.popitem(last=False)
+            self.perceived.notify_all()
+
+    def _on_state(self, msg: String) -> None:
+        stamp = json.loads(msg.data)["stamp"]
+        self._remember(self.states, stamp, msg.data)
+
+    def _on_mask(self, msg: Image) -> None:
+        self._remember(self.masks, msg.header.stamp.to_sec(), convert.image_array(msg))
+
+    def _on_info(self, msg: CameraInfo) -> None:
+        self._remember(self._infos, msg.header.stamp.to_sec(), msg)
+
+    def _on_color(self, msg: Image) -> None:
+        stamp = msg.header.stamp.to_sec()
+        self._remember(self.frames, stamp, msg, keep=16)
+        if self.video is None:
+            return
+        # The video: every camera frame, with the newest perceived state and planned points.
+        frame = convert.image_array(msg)
+        info = self._infos.get(round(stamp, 6))
+        state = self.latest_state
+        if (
+            state is not None
+            and state.detected
+            and info is not None
+            and self.T_world_camera is not None
+        ):
+            obs = Observation(
+                frame,
+                np.ones(frame.shape[:2], np.float32),  # drawing needs no depth
+                convert.intrinsics_of(info),
+                self.T_world_camera,
+            )
+            frame = draw_overlay(obs, state, **self.overlay)
+        with self._lock:
+            self.video.add_frame(frame)
+
+    # ------------------------------------------------------------------ requests
+    def _command(self, publish, what: str) -> dict:
+        publish()
+        reply = self.results.take(lambda r: True, f"reply from the sim node to {what}")
+        if not reply.get("ok"):
+            _raise_remote(reply, what)
+        self.rest_stamp = float(reply["frame_stamp"])
+        self.rest_q = np.array(reply["q"], dtype=float)
+        self._clock = float(reply["sim_time"])
+        return reply
+
+    def _plan(self, kind: str, **payload: Any) -> dict:
+        rid = next(self._ids)
+        self.pub_plan.publish(String(data=json.dumps({"id": rid, "kind": kind, **payload})))
+        reply = self.plans.take(lambda r: r.get("id") == rid, f"{kind} plan from the planner node")
+        if not reply.get("ok"):
+            _raise_remote(reply, f"planning {kind}")
+        return reply
+
+    def joint_positions(self) -> np.ndarray:
+        """The arm's joints where the last command left it (the sim node's report: exact, where
+        /joint_states may lag the last step)."""
+        return self.rest_q.copy()
+
+    # ------------------------------------------------------------------ FoldCell
+    @property
+    def sim_time(self) -> float:
+        return self._clock
+
+    def wait_ready(self) -> dict:
+        reply = self.results.take(
+            lambda r: r.get("command") == "ready", "ready report from the sim node"
+        )
+        self.rest_stamp = float(reply["frame_stamp"])
+        self.rest_q = np.array(reply["q"], dtype=float)
+        self._clock = float(reply["sim_time"])
+        return reply
+
+    def observe(self) -> tuple[ClothState, Observation]:
+        key = round(self.rest_stamp, 6)
+        deadline = time.monotonic() + REPLY_TIMEOUT_S
+        with self.perceived:
+            while not (
+                key in self.states
+                and key in self.masks
+                and key in self.frames
+                and key in self._infos
+                and key in self.depths
+            ):
+                if time.monotonic() > deadline or rospy.is_shutdown():
+                    raise errors.FoldbotError(
+                        f"no perception result for the frame at t = {self.rest_stamp:.3f} s"
+                    )
+                self.perceived.wait(0.5)
+            state = convert.state_from(self.states[key], self.masks[key])
+            color, info, depth = self.frames[key], self._infos[key], self.depths[key]
+        if self.T_world_camera is None:
+            raise errors.FoldbotError("no world → camera transform on /tf_static")
+        obs = Observation(
+            rgb=convert.image_array(color),
+            depth=convert.image_array(depth),
+            intrinsics=convert.intrinsics_of(info),
+            T_world_camera=self.T_world_camera,
+            stamp=self.rest_stamp,
+        )
+        self.latest_state = state
+        return state, obs
+
+    def plan_stage(
+        self, recipe: str, stage: int, corners: dict[str, np.ndarray], place_lift: float
+    ) -> tuple[FoldPlan, np.ndarray]:
+        reply = self._plan(
+            "stage",
+            recipe=recipe,
+            stage=stage,
+            corners={k: [float(x) for x in v] for k, v in corners.items()},
+            place_lift=place_lift,
+        )
+        plan = FoldPlan(
+            recipe=recipe,
+            fold_lines=tuple(tuple(line) for line in reply["fold_lines"]),
+            actions=tuple(convert.fold_action_from(a) for a in reply["actions"]),
+        )
+        return plan, np.array(reply["predicted_outline"], dtype=float)
+
+    def plan_action(self, action: FoldAction) -> list[dict]:
+        return self._plan("action", action=action.as_dict(), q=self.joint_positions().tolist())[
+            "steps"
+        ]
+
+    def _follow(self, traj: dict) -> dict:
+        msg = convert.trajectory_msg(
+            traj["joint_names"],
+            np.array(traj["times"]),
+            np.array(traj["positions"]),
+            np.array(traj["velocities"]),
+            self.sim_time,
+            "",
+        )
+        return self._command(lambda: self.pub_traj.publish(msg), f"trajectory '{traj['name']}'")
+
+    def run_step(self, step: dict) -> StepLog:
+        # Time the planned joint path from where the arm really is (it may be off by the
+        # tracking error), then follow it and apply the step's gripper event.
+        path = np.array(step["path"], dtype=float)
+        path[0] = self.joint_positions()
+        traj = self._plan(
+            "time",
+            name=step["name"],
+            path=path.tolist(),
+            points=step["points"],
+            speed=step["speed"],
+        )["trajectory"]
+        reply = self._follow(traj)
+        grasp = None
+        if step["gripper"] == "close":
+            g = self._command(
+                lambda: self.pub_gripper.publish(String(data="close")), "gripper close"
+            )["grasp"]
+            grasp = GraspResult(bool(g["success"]), tuple(g["vertex_ids"]), g["reason"])
+        elif step["gripper"] == "open":
+            self._command(lambda: self.pub_gripper.publish(String(data="open")), "gripper open")
+        return StepLog(step["name"], float(reply["max_tracking_error"]), grasp)
+
+    def release_and_lift(self) -> None:
+        self._command(lambda: self.pub_gripper.publish(String(data="open")), "gripper open")
+        for step in self._plan("lift", q=self.joint_positions().tolist(), height=0.08)["steps"]:
+            self.run_step(step)
+
+    def park(self) -> None:
+        traj = self._plan("park", q=self.joint_positions().tolist())["trajectory"]
+        if traj is not None:
+            self._follow(traj)
+
+    def wait(self, seconds: float) -> None:
+        self._command(lambda: self.pub_wait.publish(Float64(data=float(seconds))), "wait")
+
+    def show(self, state: ClothState | None = None, **overlay: Any) -> None:
+        self.overlay = overlay
+
+    def ground_truth(self) -> np.ndarray:
+        """The cloth's vertices now (for scoring only)."""
+        self.truth.items.clear()
+        self._command(lambda: self.pub_truth.publish(Empty()), "ground-truth request")
+        return convert.cloud_array(
+            self.truth.take(lambda m: True, "ground truth from the sim node")
+        )
+
+
+def run_task(fold_args: str, log=rospy.loginfo) -> dict:
+    """Fold over topics and write the episode folder; returns result.json's content."""
+    args, cfg = parse_fold_args(fold_args)
+    layout = cfg.sim.layout
+    writer = EpisodeWriter(args.out, overwrite=args.overwrite, fps=max(cfg.video_fps, 1.0))
+    wall0 = time.perf_counter()
+    with writer:
+        cell = RosCell(layout, writer if cfg.video_fps > 0 else None)
+        cell.wait_ready()
+        initial = convert.cloud_array(cell.truth.take(lambda m: True, "initial ground truth"))
+        mesh = cell.mesh.take(lambda m: True, "cloth mesh from the sim node")
+        record = run_fold(loop_config(cfg), cell, log)
+        final = cell.ground_truth()
+        faces = np.array(mesh["faces"], dtype=np.int64)
+        score = score_episode(initial, final, faces, record.fold_lines, float(mesh["thickness"]))
+        with cell._lock:
+            cell.video = None
+            if record.initial_overlay is not None:
+                writer.write_image("overlay_initial.png", record.initial_overlay)
+            writer.write_image(
+                "overlay_final.png", draw_overlay(record.final_obs, record.final_state)
+            )
+            writer.write_cloth(faces, initial, final, float(mesh["thickness"]))
+            result = episode_result(
+                cfg,
+                _seeded_towel(cfg),
+                _seeded_pose(cfg, layout.workspace_center_xy),
+                score,
+                record,
+                cell.sim_time,
+                time.perf_counter() - wall0,
+                cfg.camera,
+            )
+            result["transport"] = "ros"
+            writer.write_result(result)
+            path = writer.commit()
+    result["out_dir"] = str(Path(path))
+    return result
+
+
+def main(argv: list[str] | None = None) -> int:
+    rospy.init_node("foldbot_task", argv=argv if argv is not None else sys.argv)
+    pub = rospy.Publisher(TOPICS["episode"], String, queue_size=1, latch=True)
+    try:
+        result = run_task(rospy.get_param(FOLD_ARGS_PARAM))
+    except errors.FoldbotError as exc:
+        pub.publish(
+            String(
+                data=json.dumps({"ok": False, "error": str(exc), "error_type": type(exc).__name__})
+            )
+        )
+        rospy.logerr("fold failed: %s", exc)
+        print(f"foldbot: error: {exc}", file=sys.stderr, flush=True)
+        rospy.signal_shutdown("fold failed")
+        return 2
+    pub.publish(
+        String(
+            data=json.dumps(
+                {
+                    "ok": True,
+                    **{
+                        k: result[k]
+                        for k in (
+                            "success",
+                            "fold_error_mm",
+                            "normalized_performance",
+                            "coverage",
+                            "out_dir",
+                        )
+                    },
+                }
+            )
+        )
+    )
+    print(
+        f"fold {'succeeded' if result['success'] else 'FAILED'}: fold error {result['fold_error_mm']:.1f} mm, "
+        f"normalized performance {result['normalized_performance']:.3f}; episode written to {result['out_dir']}",
+        flush=True,
+    )
+    rospy.signal_shutdown("fold done")
+    return 0
