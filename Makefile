@@ -4,7 +4,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 OUT ?= runs/demo
 
-.PHONY: demo test lint install install-test clean
+.PHONY: demo test lint install install-test install-ros ros-demo clean
 
 $(VENV)/bin/activate:
 	$(PYTHON) -m venv $(VENV)
@@ -20,8 +20,16 @@ install-test: $(VENV)/bin/activate
 demo: install
 	$(VENV)/bin/foldbot fold --garment towel --perception vision --out $(OUT) --overwrite
 
-## test: install the test dependencies, lint, and run the whole suite
-test: install-test
+## install-ros: ROS 1 from Debian (apt-get, needs root or sudo), importable from the venv
+install-ros: $(VENV)/bin/activate
+	bash scripts/install_ros.sh $(VENV)
+
+## ros-demo: the same fold over ROS 1 topics (roslaunch), recorded to $(OUT)-ros.bag
+ros-demo: install install-ros
+	$(VENV)/bin/foldbot ros-fold --garment towel --out $(OUT)-ros --record $(OUT)-ros.bag --overwrite
+
+## test: install the test dependencies and ROS 1, lint, and run the whole suite
+test: install-test install-ros
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
 	$(PY) -m pytest -q

@@ -12,7 +12,15 @@ from foldbot.errors import FoldbotError
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every subcommand."""
-    from foldbot.commands import bench, eval_perception, fold, ros_fold, score
+    from foldbot.commands import (
+        bench,
+        eval_perception,
+        export_bag,
+        fold,
+        ros_fold,
+        ros_replay,
+        score,
+    )
 
     parser = argparse.ArgumentParser(
         prog="foldbot",
@@ -26,6 +34,8 @@ def build_parser() -> argparse.ArgumentParser:
         "bench": (bench, "run fold episodes over many seeds and summarise them"),
         "score": (score, "recompute an episode's metrics from cloth.npz and result.json"),
         "ros-fold": (ros_fold, "fold over ROS 1 topics (roslaunch) and write the episode folder"),
+        "ros-replay": (ros_replay, "replay a recorded bag through perception; compare keypoints"),
+        "export-bag": (export_bag, "write an episode folder as a ROS 1 bag (no ROS needed)"),
     }
     for name, (module, help_text) in commands.items():
         p = sub.add_parser(

@@ -184,12 +184,14 @@ def trajectory_arrays(msg: JointTrajectoryMsg) -> tuple[np.ndarray, np.ndarray, 
     if not msg.points:
         raise FoldbotError("joint trajectory has no points")
     n = len(msg.joint_names)
+    bad = [i for i, p in enumerate(msg.points) if len(p.positions) != n]
+    if bad:
+        raise FoldbotError(
+            f"joint trajectory points must have {n} positions each (one per joint name); "
+            f"point {bad[0]} has {len(msg.points[bad[0]].positions)}"
+        )
     times = np.array([p.time_from_start.to_sec() for p in msg.points])
     pos = np.array([p.positions for p in msg.points], dtype=float)
-    if pos.shape != (len(msg.points), n):
-        raise FoldbotError(
-            f"joint trajectory points must have {n} positions each, got shape {pos.shape}"
-        )
     vel = np.array(
         [p.velocities if len(p.velocities) == n else [0.0] * n for p in msg.points], dtype=float
     )

@@ -28,6 +28,8 @@ class PerceptionNode:
         self.estimator = VisionEstimator()
         self.T_world_camera: np.ndarray | None = None
         self._lock = threading.Lock()
+        self._pending: list[tuple[Image, Image, CameraInfo]] = []
+        """Frames that came before the camera pose; estimated once it arrives."""
         self.pub_keypoints = rospy.Publisher(TOPICS["keypoints"], PoseArray, queue_size=50)
         self.pub_mask = rospy.Publisher(TOPICS["mask"], Image, queue_size=50)
         self.pub_state = rospy.Publisher(TOPICS["state"], String, queue_size=50)
@@ -48,15 +50,19 @@ class PerceptionNode:
             if t.header.frame_id == WORLD_FRAME and t.child_frame_id == CAMERA_FRAME:
                 with self._lock:
                     self.T_world_camera = convert.matrix_of(t)
+                    pending, self._pending = self._pending, []
+                for frame in pending:
+                    self._estimate(*frame, self.T_world_camera)
 
     def _on_frame(self, color: Image, depth: Image, info: CameraInfo) -> None:
         with self._lock:
             T = self.T_world_camera
-        if T is None:
-            rospy.logwarn_throttle(
-                5.0, "no world → %s transform on /tf_static yet; frame skipped", CAMERA_FRAME
-            )
-            return
+            if T is None:
+                self._pending = [*self._pending[-20:], (color, depth, info)]
+                return
+        self._estimate(color, depth, info, T)
+
+    def _estimate(self, color: Image, depth: Image, info: CameraInfo, T: np.ndarray) -> None:
         stamp = color.header.stamp.to_sec()
         obs = Observation(
             rgb=convert.image_array(color),

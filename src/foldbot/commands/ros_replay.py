@@ -1,0 +1,37 @@
+"""`foldbot ros-replay`: play a bag recorded by `foldbot ros-fold --record` through a fresh
+perception node and check that it gives the same keypoints as the live run, frame by frame.
+Exit code 0 when every frame matches, 1 when not. Needs ROS 1 (scripts/install_ros.sh)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from foldbot.errors import ConfigError, FoldbotError
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("bag", type=Path, help="bag recorded with foldbot ros-fold --record")
+    parser.add_argument("--port", type=int, default=11311, help="ROS master port")
+    parser.add_argument("--rate", type=float, default=1.0, help="rosbag play rate (default 1)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from foldbot.commands.ros_fold import ros_missing
+
+    if not (args.rate > 0):
+        raise ConfigError(f"--rate must be > 0, got {args.rate!r}")
+    missing = ros_missing()
+    if missing:
+        raise FoldbotError(missing)
+    from foldbot.ros.replay import replay
+
+    report = replay(args.bag, args.port, args.rate)
+    print(
+        f"replayed {report.frames_compared} of {report.frames_in_bag} frames through the "
+        f"perception node: largest keypoint difference {report.max_keypoint_difference_m:.3g} m, "
+        f"labels {'equal' if report.labels_equal else 'DIFFER'}, "
+        f"detections {'equal' if report.detected_equal else 'DIFFER'}"
+    )
+    print("same keypoints as the live run" if report.same else "NOT the same as the live run")
+    return 0 if report.same else 1

@@ -1,0 +1,160 @@
+"""Replay a recorded fold through a fresh perception node and compare its keypoints with the
+ones the live run published (recorded in the same bag on cloth/state), frame by frame."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from foldbot.errors import FoldbotError
+
+INPUT_TOPICS = (
+    "/tf_static",
+    "/camera/color/image_raw",
+    "/camera/color/camera_info",
+    "/camera/depth/image_raw",
+)
+
+
+@dataclass
+class ReplayReport:
+    """How the replayed keypoints compare with the live run's."""
+
+    frames_in_bag: int
+    frames_compared: int
+    max_keypoint_difference_m: float
+    labels_equal: bool
+    detected_equal: bool
+
+    @property
+    def same(self) -> bool:
+        return (
+            self.frames_compared == self.frames_in_bag
+            and self.labels_equal
+            and self.detected_equal
+            and self.max_keypoint_difference_m <= 1e-9
+        )
+
+
+def recorded_states(bag_path: Path) -> dict[float, dict]:
+    """The live run's perception outputs in the bag, by frame stamp, for the frames whose
+    images and camera_info the bag holds."""
+    import rosbag
+
+    out, inputs = {}, {t: set() for t in INPUT_TOPICS[1:]}
+    with rosbag.Bag(str(bag_path)) as bag:
+        for topic, msg, _t in bag.read_messages(topics=["/cloth/state", *INPUT_TOPICS[1:]]):
+            if topic == "/cloth/state":
+                d = json.loads(msg.data)
+                out[round(d["stamp"], 6)] = d
+            else:
+                inputs[topic].add(round(msg.header.stamp.to_sec(), 6))
+    # Only frames whose inputs the bag holds can be replayed (the recorder may join late).
+    replayable = set.intersection(*inputs.values())
+    return {k: v for k, v in out.items() if k in replayable}
+
+
+def _start(cmd: list[str], env: dict, log) -> subprocess.Popen:
+    return subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT)
+
+
+def replay(
+    bag_path: str | Path, port: int, rate: float = 1.0, timeout: float = 600.0
+) -> ReplayReport:
+    """Start roscore (if none on `port`), the perception node and `rosbag play`; collect the
+    node's cloth/state for every frame and compare with the recorded ones."""
+    from foldbot.commands.ros_fold import ROS_PACKAGE_DIR, ros_env
+
+    bag_path = Path(bag_path)
+    if not bag_path.is_file():
+        raise FoldbotError(f"no bag at {bag_path}")
+    live = recorded_states(bag_path)
+    if not live:
+        raise FoldbotError(
+            f"{bag_path} holds no /cloth/state messages (record a run with --record)"
+        )
+    env = ros_env(port)
+    os.environ.update({k: env[k] for k in ("ROS_MASTER_URI", "ROS_HOSTNAME", "ROS_PACKAGE_PATH")})
+    import rosgraph
+    import rospy
+    from std_msgs.msg import String
+
+    procs: list[subprocess.Popen] = []
+    log = open(os.devnull, "w")  # noqa: SIM115 - closed in finally
+    try:
+        if not rosgraph.is_master_online(env["ROS_MASTER_URI"]):
+            procs.append(_start(["roscore", "-p", str(port)], env, log))
+            deadline = time.monotonic() + 30
+            while not rosgraph.is_master_online(env["ROS_MASTER_URI"]):
+                if time.monotonic() > deadline:
+                    raise FoldbotError(f"roscore did not come up on port {port}")
+                time.sleep(0.2)
+        node = ROS_PACKAGE_DIR / "foldbot_ros" / "nodes" / "perception_node"
+        procs.append(
+            _start(
+                [sys.executable, str(node), "__name:=foldbot_perception_replay"], env, sys.stderr
+            )
+        )
+        replayed: dict[float, dict] = {}
+        lock = threading.Lock()
+
+        def on_state(msg: String) -> None:
+            d = json.loads(msg.data)
+            with lock:
+                replayed[round(d["stamp"], 6)] = d
+
+        rospy.init_node("foldbot_replay_check", anonymous=True, disable_signals=True)
+        rospy.Subscriber("/cloth/state", String, on_state, queue_size=1000)
+        master = rosgraph.Master("/foldbot_replay_check")
+        deadline = time.monotonic() + 60
+        while True:  # wait until the perception node subscribes to the camera
+            _pubs, subs, _srvs = master.getSystemState()
+            if any(t == "/camera/color/image_raw" and n for t, n in subs):
+                break
+            if time.monotonic() > deadline:
+                raise FoldbotError("the perception node did not start")
+            time.sleep(0.2)
+        time.sleep(1.0)
+        play = subprocess.run(
+            ["rosbag", "play", "-q", "-r", str(rate), str(bag_path), "--topics", *INPUT_TOPICS],
+            env=env,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            timeout=timeout,
+            check=False,
+        )
+        if play.returncode != 0:
+            raise FoldbotError(f"rosbag play failed (exit code {play.returncode})")
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            with lock:
+                if set(live) <= set(replayed):
+                    break
+            time.sleep(0.2)
+        rospy.signal_shutdown("replay done")
+    finally:
+        for p in reversed(procs):
+            p.terminate()
+            try:
+                p.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                p.kill()
+        log.close()
+    common = sorted(set(live) & set(replayed))
+    diff, labels_ok, detected_ok = 0.0, True, True
+    for stamp in common:
+        a, b = live[stamp], replayed[stamp]
+        detected_ok &= a["detected"] == b["detected"]
+        labels_ok &= set(a["keypoints"]) == set(b["keypoints"])
+        for label in set(a["keypoints"]) & set(b["keypoints"]):
+            d = np.abs(np.array(a["keypoints"][label]) - np.array(b["keypoints"][label])).max()
+            diff = max(diff, float(d))
+    return ReplayReport(len(live), len(common), diff, labels_ok, detected_ok)

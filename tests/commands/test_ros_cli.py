@@ -1,0 +1,33 @@
+"""`foldbot ros-fold`, `ros-replay` and `export-bag`: clear errors before anything starts (these
+run with or without ROS installed)."""
+
+import pytest
+
+from foldbot.cli import main
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["ros-fold", "--out", "{tmp}/e", "--perception", "oracle"], "vision (RGB-D) only"),
+        (["ros-fold", "--out", "{tmp}/e", "--gui"], "--gui is not available over ROS"),
+        (["ros-fold", "--out", "{tmp}/e", "--record", "{tmp}/run.txt"], "must name a .bag"),
+        (["ros-fold", "--out", "{tmp}/e", "--resolution", "2"], "resolution"),
+        (["ros-fold", "--out", "{tmp}/e", "--port", "0"], "--port"),
+        (["ros-replay", "{tmp}/missing.bag", "--rate", "0"], "--rate"),
+        (["export-bag", "{tmp}", "--out", "{tmp}/x.txt"], "must end in .bag"),
+    ],
+)
+def test_bad_input_is_named(args, needle, tmp_path, capsys):
+    code = main([a.replace("{tmp}", str(tmp_path)) for a in args])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert needle in err
+    assert not (tmp_path / "e").exists()
+
+
+def test_export_of_a_folder_that_is_no_episode_names_it(tmp_path, capsys):
+    (tmp_path / "ep").mkdir()
+    assert main(["export-bag", str(tmp_path / "ep"), "--out", str(tmp_path / "x.bag")]) == 2
+    assert "ep" in capsys.readouterr().err
+    assert not (tmp_path / "x.bag").exists()

@@ -1,0 +1,75 @@
+"""`foldbot export-bag` without ROS: an episode folder becomes a ROS 1 bag (rosbags), whose
+messages read back as the episode's frames, camera, ground truth and result."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from rosbags.highlevel import AnyReader
+
+from foldbot.io.episode import load_episode
+
+
+@pytest.fixture(scope="module")
+def episode(tmp_path_factory):
+    out = tmp_path_factory.mktemp("export") / "episode"
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "foldbot.cli",
+            "fold",
+            "--resolution",
+            "6",
+            "--video-fps",
+            "2",
+            "--out",
+            str(out),
+        ],
+        check=True,
+        capture_output=True,
+        timeout=600,
+    )
+    return out
+
+
+@pytest.mark.slow
+def test_export_reads_back(episode, tmp_path):
+    from foldbot.ros.bag_export import export_episode
+
+    bag = tmp_path / "episode.bag"
+    counts = export_episode(episode, bag)
+    result = json.loads((episode / "result.json").read_text())
+    cloth = load_episode(episode)
+    assert counts["/camera/color/image_raw"] == counts["/camera/color/camera_info"] > 5
+    with AnyReader([bag]) as reader:
+        types = {c.topic: c.msgtype for c in reader.connections}
+        assert types["/camera/color/image_raw"] == "sensor_msgs/msg/Image"
+        assert types["/tf_static"] == "tf2_msgs/msg/TFMessage"
+        msgs = {}
+        for conn, _t, raw in reader.messages():
+            msgs.setdefault(conn.topic, []).append(reader.deserialize(raw, conn.msgtype))
+    img = msgs["/camera/color/image_raw"][0]
+    assert (img.encoding, img.width, img.height) == ("rgb8", 640, 480)
+    np.testing.assert_allclose(
+        np.reshape(msgs["/camera/color/camera_info"][0].K, (3, 3)), result["camera"]["K"]
+    )
+    initial = np.frombuffer(
+        msgs["/ground_truth/cloth_initial"][0].data.tobytes(), np.float32
+    ).reshape(-1, 3)
+    np.testing.assert_allclose(initial, cloth.initial, atol=1e-6)
+    assert json.loads(msgs["/task/result"][0].data)["fold_error_mm"] == result["fold_error_mm"]
+    assert len(msgs["/fold/grasp_points"][0].poses) == len(result["actions"])
+
+
+def test_refuses_to_overwrite(episode, tmp_path):
+    from foldbot.errors import OutputError
+    from foldbot.ros.bag_export import export_episode
+
+    bag = tmp_path / "x.bag"
+    bag.write_bytes(b"keep")
+    with pytest.raises(OutputError, match="already exists"):
+        export_episode(episode, bag)
+    assert bag.read_bytes() == b"keep"

@@ -1,0 +1,107 @@
+"""Message conversions: foldbot types ↔ ROS 1 messages, lossless where it matters."""
+
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("rospy", reason="ROS 1 Python packages not installed (scripts/install_ros.sh)")
+
+from foldbot.errors import FoldbotError
+from foldbot.perception.state import ClothState
+from foldbot.planning.actions import FoldAction
+from foldbot.ros import convert
+from foldbot.types import CameraIntrinsics
+
+
+@pytest.mark.parametrize(
+    ("array", "encoding"),
+    [
+        (np.arange(2 * 3 * 3, dtype=np.uint8).reshape(2, 3, 3), "rgb8"),
+        (np.array([[0, 255], [7, 9]], dtype=np.uint8), "mono8"),
+        (np.array([[0.5, np.nan], [1.25, 0.0]], dtype=np.float32), "32FC1"),
+    ],
+)
+def test_images_round_trip(array, encoding):
+    msg = convert.image_msg(array, encoding, 1.5, "cam")
+    assert msg.encoding == encoding and msg.header.frame_id == "cam"
+    assert msg.header.stamp.to_sec() == pytest.approx(1.5)
+    np.testing.assert_array_equal(convert.image_array(msg), array)
+
+
+def test_unknown_encoding_is_named():
+    with pytest.raises(FoldbotError, match="bgr16"):
+        convert.image_msg(np.zeros((2, 2, 3), np.uint16), "bgr16", 0.0, "cam")
+
+
+def test_camera_info_keeps_K():
+    K = np.array([[880.0, 0, 320.5], [0, 881.0, 240.25], [0, 0, 1]])
+    intr = CameraIntrinsics(K=K, width=640, height=480)
+    back = convert.intrinsics_of(convert.camera_info_msg(intr, 0.0, "cam"))
+    np.testing.assert_array_equal(back.K, K)
+    assert (back.width, back.height) == (640, 480)
+
+
+def test_transform_round_trip():
+    T = np.eye(4)
+    c, s = np.cos(0.3), np.sin(0.3)
+    T[:3, :3] = [[c, -s, 0], [s, c, 0], [0, 0, 1]]
+    T[:3, 3] = [0.1, -0.2, 1.7]
+    np.testing.assert_allclose(
+        convert.matrix_of(convert.transform_msg(T, "world", "cam", 0.0)), T, atol=1e-12
+    )
+
+
+def test_cloth_state_round_trip_and_pose_array_order():
+    mask = np.zeros((4, 5), bool)
+    mask[1:3, 1:4] = True
+    kp = {
+        "far_left": (np.array([0.6, 0.1, 0.76]), 0.9),
+        "near_left": (np.array([0.3, 0.1, 0.76]), 1.0),
+        "near_right": (np.array([0.3, -0.1, 0.76]), 1.0),
+        "far_right": (np.array([0.6, -0.1, 0.76]), 0.5),
+    }
+    state = ClothState(
+        True, "", kp, mask, 0.06, 0.002, np.zeros((0, 3)), np.array([0, 0, 1, -0.75]), 3.25
+    )
+    back = convert.state_from(convert.state_json(state), mask.astype(np.uint8) * 255)
+    assert back.detected and back.stamp == 3.25
+    np.testing.assert_array_equal(back.mask, mask)
+    for label, (xyz, conf) in kp.items():
+        np.testing.assert_array_equal(back.keypoints[label][0], xyz)
+        assert back.keypoints[label][1] == conf
+    poses = convert.keypoints_msg(state, 3.25, "world").poses
+    xs = [(p.position.x, p.position.y) for p in poses]
+    assert xs == [(0.3, 0.1), (0.3, -0.1), (0.6, -0.1), (0.6, 0.1)]  # CORNER_LABELS order
+    assert json.loads(convert.state_json(state))["keypoints"]["far_right"][3] == 0.5
+
+
+def test_trajectory_round_trip_and_bad_points():
+    t = np.array([0.0, 0.1, 0.2])
+    q = np.arange(18, dtype=float).reshape(3, 6) / 10
+    v = np.ones((3, 6))
+    msg = convert.trajectory_msg([f"j{i}" for i in range(6)], t, q, v, 0.0, "")
+    t2, q2, v2 = convert.trajectory_arrays(msg)
+    np.testing.assert_allclose(t2, t)
+    np.testing.assert_array_equal(q2, q)
+    np.testing.assert_array_equal(v2, v)
+    msg.points[1].positions = [0.0] * 5
+    with pytest.raises(FoldbotError, match="6 positions"):
+        convert.trajectory_arrays(msg)
+
+
+def test_point_cloud_round_trip():
+    pts = np.array([[0.1, 0.2, 0.75], [0.4, -0.3, 0.76]])
+    np.testing.assert_allclose(
+        convert.cloud_array(convert.cloud_msg(pts, 0.0, "world")), pts, atol=1e-7
+    )
+
+
+def test_fold_action_round_trip():
+    a = FoldAction(
+        np.array([0.6, 0.1, 0.76]), np.array([0.3, 0.1, 0.77]), (0.45, 0.2, 0.0, -0.4), "far_left"
+    )
+    b = convert.fold_action_from(json.loads(json.dumps(a.as_dict())))
+    np.testing.assert_array_equal(a.grasp, b.grasp)
+    np.testing.assert_array_equal(a.place, b.place)
+    assert a.fold_line == b.fold_line and a.label == b.label
