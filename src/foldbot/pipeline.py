@@ -9,6 +9,7 @@ oracle); ground truth is read for scoring and recorded as such.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 import time
@@ -299,6 +300,8 @@ class SimCellParts:
     camera: RGBDCamera
     oracle: GroundTruthOracle
     executor: ArmExecutor
+    model_world: SimWorld
+    """The planner's kinematic twin of the arm lives here (never stepped); close it with the cell."""
 
 
 def build_sim_cell(cfg: EpisodeConfig, world: SimWorld) -> SimCellParts:
@@ -312,16 +315,21 @@ def build_sim_cell(cfg: EpisodeConfig, world: SimWorld) -> SimCellParts:
     world.add_step_hook(DivergenceMonitor(cloth, layout.workspace_center_xy, radius=1.0))
     camera = RGBDCamera(world.client, cfg.camera)
     oracle = GroundTruthOracle(cloth, camera)
-    executor = ArmExecutor(world, robot, ClothGrasp(world, robot, cloth))
-    return SimCellParts(world, robot, towel, mesh, cloth, center, yaw, camera, oracle, executor)
+    model_world = SimWorld(dataclasses.replace(cfg.sim, gui=False))
+    model = make_robot(cfg.robot, model_world.client, model_world.layout)
+    executor = ArmExecutor(world, robot, ClothGrasp(world, robot, cloth), model=model)
+    return SimCellParts(
+        world, robot, towel, mesh, cloth, center, yaw, camera, oracle, executor, model_world
+    )
 
 
 def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=print) -> dict:
     """Run one fold episode and write the episode folder (result.json, cloth.npz, video.mp4)."""
     writer = EpisodeWriter(out_dir, overwrite=overwrite, fps=max(cfg.video_fps, 1.0))
     wall0 = time.perf_counter()
-    with writer, SimWorld(cfg.sim) as world:
+    with writer, SimWorld(cfg.sim) as world, contextlib.ExitStack() as stack:
         parts = build_sim_cell(cfg, world)
+        stack.callback(parts.model_world.close)
         robot, cloth, mesh, camera, oracle = (
             parts.robot, parts.cloth, parts.mesh, parts.camera, parts.oracle
         )  # fmt: skip

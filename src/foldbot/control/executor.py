@@ -56,11 +56,15 @@ class ArmExecutor:
         robot: Robot,
         grasp: ClothGrasp,
         yaw: float = 0.0,
+        model: Robot | None = None,
     ) -> None:
         self.world = world
         self.robot = robot
         self.grasp = grasp
         self.yaw = yaw
+        self.model = robot if model is None else model
+        """Where IK and FK are computed: a kinematic twin of `robot` in a world of its own keeps
+        planning from touching the simulated arm (the ROS planner node plans the same way)."""
 
     def joint_path(self, points: np.ndarray, q_seed: np.ndarray) -> np.ndarray:
         """IK for every waypoint, each seeded by the previous solution (N × dof)."""
@@ -69,7 +73,7 @@ class ArmExecutor:
         q = q_seed
         for i, pt in enumerate(points):
             try:
-                q = self.robot.solve_ik(pt, quat, q_seed=q, tol=1e-3)
+                q = self.model.solve_ik(pt, quat, q_seed=q, tol=1e-3)
             except UnreachableTargetError as exc:
                 raise UnreachableTargetError(f"waypoint {i} of the path: {exc}") from exc
             out.append(q)
@@ -105,7 +109,9 @@ class ArmExecutor:
         """Solve IK for every waypoint of every segment before anything moves; an infeasible
         waypoint raises UnreachableTargetError naming the segment, the waypoint and the target."""
         q = self.robot.joint_positions() if q_start is None else np.asarray(q_start, dtype=float)
-        start = self.robot.fk_tcp(q)[0]
+        if self.model is not self.robot:
+            self.model.reset_joints(q)  # the twin starts where the arm is
+        start = self.model.fk_tcp(q)[0]
         planned = []
         for seg in segments:
             try:

@@ -13,7 +13,6 @@ reproducible as the in-process one and /clock never runs ahead of the cell.
 
 from __future__ import annotations
 
-import dataclasses
 import queue
 import sys
 
@@ -30,7 +29,6 @@ from foldbot.pipeline import build_sim_cell
 from foldbot.ros import BASE_FRAME, CAMERA_FRAME, TOPICS, WORLD_FRAME, convert
 from foldbot.ros.node_args import CAMERA_RATE_PARAM, FOLD_ARGS_PARAM, parse_fold_args
 from foldbot.sim.cloth import settle
-from foldbot.sim.robots import make_robot
 from foldbot.sim.world import SimWorld
 
 
@@ -42,10 +40,9 @@ class SimNode:
         self.world = SimWorld(self.cfg.sim)
         self.parts = build_sim_cell(self.cfg, self.world)
         self.robot = self.parts.robot
-        # A kinematic twin in a private world, for the commanded TCP: FK there never touches
-        # the simulated arm (resetting its joints would jolt cloth held in the gripper).
-        self.model_world = SimWorld(dataclasses.replace(self.cfg.sim, gui=False))
-        self.model = make_robot(self.cfg.robot, self.model_world.client, self.model_world.layout)
+        # The arm's kinematic twin (its own world) gives the commanded TCP: FK there never
+        # touches the simulated arm.
+        self.model = self.parts.executor.model
         self.camera_period = 1.0 / camera_rate if camera_rate > 0 else float("inf")
         self.commands: queue.Queue = queue.Queue()
         self._next_clock = 0.0
@@ -227,5 +224,5 @@ def main(argv: list[str] | None = None) -> int:
         node.spin()
     finally:
         node.world.close()
-        node.model_world.close()
+        node.parts.model_world.close()
     return 0
