@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial import ConvexHull
 
 from foldbot.control.executor import ArmExecutor
 from foldbot.errors import FoldbotError, UnreachableTargetError, require
@@ -20,6 +21,7 @@ from foldbot.garments.towel import TowelSpec, make_towel
 from foldbot.io.episode import EpisodeWriter
 from foldbot.metrics import score_episode
 from foldbot.perception.estimator import VisionEstimator
+from foldbot.perception.keypoints import label_corners, max_area_quad
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState, fold_check_iou
 from foldbot.planning.actions import FoldAction
@@ -75,6 +77,9 @@ class EpisodeConfig:
     corner, onto bare table, to exercise the failure → re-observe → retry path."""
     verify_iou: float = 0.8
     """A stage is verified when the perceived mask matches the predicted outline this well."""
+    closed_loop: bool = True
+    """False: open loop, for comparison: plan every stage once from the first observation and
+    execute all actions with no re-observation, regrasp, retry or stage verification."""
     video_fps: float = 10.0
     """Frames per simulated second in video.mp4 (0 = no video)."""
 
@@ -199,7 +204,22 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
         stage_logs: list[dict] = []
         executor.move_joints(park, "park")
         state, obs = observe()
-        for stage in range(recipe_stages(cfg.recipe)):
+        if not cfg.closed_loop:
+            _run_open_loop(
+                cfg,
+                executor,
+                robot,
+                writer,
+                recorder,
+                log,
+                state,
+                obs,
+                fold_lines,
+                action_logs,
+                stage_logs,
+                cloth.thickness,
+            )
+        for stage in range(recipe_stages(cfg.recipe) if cfg.closed_loop else 0):
             # From stage 2 on, the previous stage's closing observation (arm parked, cloth
             # settled) is where this stage starts, except for the oracle, which then switches
             # from the mesh's corner vertices (now stacked in pairs) to the folded outline's.
@@ -281,6 +301,7 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
             "robot": cfg.robot,
             "seed": cfg.seed,
             "perception": cfg.perception,
+            "closed_loop": cfg.closed_loop,
             "grasp_points_source": "oracle" if cfg.perception == "oracle" else "vision",
             "towel": dataclasses.asdict(towel),
             "cloth_pose": {"x": center[0], "y": center[1], "yaw": yaw},
@@ -292,6 +313,85 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
         path = writer.commit()
     result["out_dir"] = str(path)
     return result
+
+
+def _run_open_loop(
+    cfg: EpisodeConfig,
+    executor: ArmExecutor,
+    robot,
+    writer: EpisodeWriter,
+    recorder,
+    log,
+    state: ClothState,
+    obs,
+    fold_lines: list,
+    action_logs: list,
+    stage_logs: list,
+    thickness: float,
+) -> None:
+    """Open loop (the comparison baseline): plan every stage from the first observation — a later
+    stage on the corners of the outline the plan predicts, one layer higher — then execute all
+    actions back to back: no re-observation, regrasp, retry or stage verification."""
+    if not state.detected:
+        raise FoldbotError(f"no cloth found before fold stage 1: {state.reason}")
+    if cfg.perception == "vision":
+        _require_in_view(state)
+    corners, plans = _corners(state), []
+    for stage in range(recipe_stages(cfg.recipe)):
+        if stage > 0:
+            outline = predicted_outline(cfg.recipe, stage - 1, corners)
+            if len(outline) > 4:  # an overhang of the mirrored part: its 4 dominant corners
+                hull = outline[ConvexHull(outline[:, :2]).vertices]
+                outline = hull[max_area_quad(hull[:, :2])]
+            if len(outline) != 4:
+                raise FoldbotError(
+                    f"open loop: the outline predicted after stage {stage} has {len(outline)} "
+                    "corners, 4 are needed to plan the next stage"
+                )
+            labels = label_corners(outline)
+            corners = {n: outline[i] + [0.0, 0.0, thickness] for n, i in labels.items()}
+        plans.append(plan_stage(cfg.recipe, stage, corners, cfg.motion.place_lift))
+        stage_logs.append(
+            {"stage": stage, "fold_line": list(plans[-1].fold_lines[0]), "verified": None}
+        )
+        fold_lines.append(plans[-1].fold_lines[0])
+    first = plans[0]
+    writer.write_image(
+        "overlay_initial.png",
+        draw_overlay(
+            obs,
+            state,
+            grasp_points=[a.grasp for a in first.actions],
+            place_points=[a.place for a in first.actions],
+            fold_line=_line_points(first.fold_lines[0], executor.world.layout.table_height),
+        ),
+    )
+    for plan in plans:
+        for action in plan.actions:
+            log(f"open loop: {action.label} → place")
+            t_sim, t_wall = executor.world.sim_time, time.perf_counter()
+            if recorder is not None:
+                recorder.overlay_args = {
+                    "grasp_points": [action.grasp],
+                    "place_points": [action.place],
+                    "fold_line": _line_points(action.fold_line, executor.world.layout.table_height),
+                }
+            outcome = _execute_action(executor, robot, action, cfg.motion)
+            action_logs.append(
+                {
+                    **action.as_dict(),
+                    "kind": "pick_and_place",
+                    "grasp_success": outcome["grasp_success"],
+                    "grasp_reason": outcome["grasp_reason"],
+                    "grasped_vertices": outcome["grasped_vertices"],
+                    "placed_error_m": None,
+                    "retries": 0,
+                    "attempts": [],
+                    "max_tracking_error_m": outcome["max_tracking_error"],
+                    "sim_seconds": executor.world.sim_time - t_sim,
+                    "wall_seconds": time.perf_counter() - t_wall,
+                }
+            )
 
 
 def _require_in_view(state: ClothState) -> None:
