@@ -17,8 +17,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy.spatial import ConvexHull
 
 from foldbot.errors import FoldbotError, UnreachableTargetError
+from foldbot.perception.keypoints import label_corners, max_area_quad
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState, fold_check_iou
 from foldbot.planning.actions import FoldAction, FoldPlan
@@ -40,6 +42,10 @@ class LoopConfig:
     place_lift: float = 0.004
     require_full_view: bool = True
     """Refuse to plan when the cloth's mask touches the image border (vision)."""
+    closed_loop: bool = True
+    """False: the open-loop baseline (see run_open_loop)."""
+    layer_thickness: float = 0.0
+    """Height of one cloth layer (m): where the open loop expects a folded stack's corners."""
 
 
 @dataclass
@@ -141,10 +147,14 @@ def require_in_view(state: ClothState) -> None:
 def run_fold(
     cfg: LoopConfig, cell: FoldCell, log: Callable[[str], None] = print, settle_s: float = 0.3
 ) -> FoldRecord:
-    """Fold the cloth on `cell` stage by stage in a closed loop; returns the record."""
+    """Fold the cloth on `cell` stage by stage in a closed loop (or, with
+    `cfg.closed_loop` False, the open-loop baseline); returns the record."""
     rec = FoldRecord()
     cell.park()
     state, obs = cell.observe()
+    if not cfg.closed_loop:
+        run_open_loop(cfg, cell, state, obs, rec, log)
+        return _finish(cell, rec)
     for stage in range(recipe_stages(cfg.recipe)):
         # From stage 2 on, the previous stage's closing observation (arm parked, cloth
         # settled) is where this stage starts, unless the cell asks for a fresh one.
@@ -195,10 +205,83 @@ def run_fold(
             }
         )
         log(f"stage {stage + 1} done: mask IoU with the predicted shape {iou:.2f}")
+    return _finish(cell, rec)
+
+
+def _finish(cell: FoldCell, rec: FoldRecord) -> FoldRecord:
     cell.park()
     cell.wait(0.5)
     rec.final_state, rec.final_obs = cell.observe()
     return rec
+
+
+def run_open_loop(
+    cfg: LoopConfig,
+    cell: FoldCell,
+    state: ClothState,
+    obs: Observation,
+    rec: FoldRecord,
+    log: Callable[[str], None] = print,
+) -> None:
+    """Open loop (the comparison baseline): plan every stage from the first observation — a later
+    stage on the corners of the outline the plan predicts, one layer higher — then execute all
+    actions back to back: no re-observation, regrasp, retry or stage verification."""
+    if not state.detected:
+        raise FoldbotError(f"no cloth found before fold stage 1: {state.reason}")
+    if cfg.require_full_view:
+        require_in_view(state)
+    corners, plans = corners_of(state), []
+    for stage in range(recipe_stages(cfg.recipe)):
+        if stage > 0:
+            outline = predicted_outline(cfg.recipe, stage - 1, corners)
+            if len(outline) > 4:  # an overhang of the mirrored part: its 4 dominant corners
+                hull = outline[ConvexHull(outline[:, :2]).vertices]
+                outline = hull[max_area_quad(hull[:, :2])]
+            if len(outline) != 4:
+                raise FoldbotError(
+                    f"open loop: the outline predicted after stage {stage} has {len(outline)} "
+                    "corners, 4 are needed to plan the next stage"
+                )
+            labels = label_corners(outline)
+            corners = {n: outline[i] + [0.0, 0.0, cfg.layer_thickness] for n, i in labels.items()}
+        plan, _predicted = cell.plan_stage(cfg.recipe, stage, corners, cfg.place_lift)
+        plans.append(plan)
+        rec.stages.append({"stage": stage, "fold_line": list(plan.fold_lines[0]), "verified": None})
+        rec.fold_lines.append(plan.fold_lines[0])
+    first = plans[0]
+    rec.initial_overlay = draw_overlay(
+        obs,
+        state,
+        grasp_points=[a.grasp for a in first.actions],
+        place_points=[a.place for a in first.actions],
+        fold_line=line_points(first.fold_lines[0], cell.table_height),
+    )
+    for plan in plans:
+        for action in plan.actions:
+            log(f"open loop: {action.label} → place")
+            t_sim, t_wall = cell.sim_time, time.perf_counter()
+            cell.show(
+                state,
+                grasp_points=[action.grasp],
+                place_points=[action.place],
+                fold_line=line_points(action.fold_line, cell.table_height),
+            )
+            outcome = execute_action(cell, action)
+            rec.actions.append(
+                {
+                    **action.as_dict(),
+                    "kind": "pick_and_place",
+                    "grasp_success": outcome["grasp_success"],
+                    "grasp_reason": outcome["grasp_reason"],
+                    "grasped_vertices": outcome["grasped_vertices"],
+                    "placed_error_m": None,
+                    "retries": 0,
+                    "attempts": [],
+                    "max_tracking_error_m": outcome["max_tracking_error"],
+                    "sim_seconds": cell.sim_time - t_sim,
+                    "wall_seconds": time.perf_counter() - t_wall,
+                }
+            )
 
 
 def nearest_keypoint(state: ClothState, point: np.ndarray, radius: float) -> np.ndarray | None:

@@ -81,6 +81,9 @@ class EpisodeConfig:
     corner, onto bare table, to exercise the failure → re-observe → retry path."""
     verify_iou: float = 0.8
     """A stage is verified when the perceived mask matches the predicted outline this well."""
+    closed_loop: bool = True
+    """False: open loop, for comparison: plan every stage once from the first observation and
+    execute all actions with no re-observation, regrasp, retry or stage verification."""
     video_fps: float = 10.0
     """Frames per simulated second in video.mp4 (0 = no video)."""
 
@@ -235,7 +238,7 @@ class SimCell(FoldCell):
             self.recorder.overlay_args = overlay
 
 
-def loop_config(cfg: EpisodeConfig) -> LoopConfig:
+def loop_config(cfg: EpisodeConfig, layer_thickness: float = 0.0) -> LoopConfig:
     """The closed loop's part of an episode configuration."""
     return LoopConfig(
         recipe=cfg.recipe,
@@ -247,6 +250,8 @@ def loop_config(cfg: EpisodeConfig) -> LoopConfig:
         verify_iou=cfg.verify_iou,
         place_lift=cfg.motion.place_lift,
         require_full_view=cfg.perception == "vision",
+        closed_loop=cfg.closed_loop,
+        layer_thickness=layer_thickness,
     )
 
 
@@ -271,6 +276,7 @@ def episode_result(
         "robot": cfg.robot,
         "seed": cfg.seed,
         "perception": cfg.perception,
+        "closed_loop": cfg.closed_loop,
         "grasp_points_source": "oracle" if cfg.perception == "oracle" else "vision",
         "towel": dataclasses.asdict(towel),
         "cloth_pose": {"x": x, "y": y, "yaw": yaw},
@@ -343,7 +349,7 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
         settle(world, cloth)
         initial = oracle.cloth_vertices()
         cell = SimCell(world, robot, executor, camera, estimator, cfg.motion, recorder)
-        record = run_fold(loop_config(cfg), cell, log)
+        record = run_fold(loop_config(cfg, cloth.thickness), cell, log)
         final = oracle.cloth_vertices()
         score = score_episode(initial, final, mesh.faces, record.fold_lines, cloth.thickness)
         if record.initial_overlay is not None:

@@ -1,52 +1,94 @@
-"""`foldbot bench`: run fold episodes over a range of seeds and summarise them.
+"""`foldbot bench`: run a benchmark suite of fold episodes and summarise them.
 
-Each episode is a `foldbot fold` run writing its own folder (DIR/seed_NNNN); finished episodes are
-not run again, so an interrupted run resumes. The summary (DIR/summary.json and a table on stdout)
-gives success rate, fold error, normalized performance, coverage and speed.
+    foldbot bench --suite NAME --out DIR [--workers N] [--ray ADDRESS]
+    foldbot bench --recipe R --seeds 0-19 [--perception P] [--size-range LO HI] --out DIR
+
+A suite (suites/NAME.toml, or a path to one) is the grid garment × recipe × perception × loop ×
+seed and states what the seed randomises; the second form is a one-recipe suite built from the
+options. Each episode runs in a fresh process and writes its own folder, DIR/episodes/<id>/;
+finished episodes are not run again, so an interrupted run resumes. `--ray auto` (a running
+cluster), `--ray ADDRESS` or `--ray local` runs the episodes as Ray tasks instead (pip install
+'foldbot[ray]'). DIR/summary.json, DIR/summary.md and DIR/errors.png hold the summary: success
+rate, fold error, SoftGym normalized performance, coverage, actions and retries, simulated and
+wall seconds, simulation speed, failures by cause, per group and overall, the vision/oracle and
+closed/open-loop comparisons, and a plain-PyBullet speed reference at Deformable Ravens' settings.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
+import shlex
 from pathlib import Path
 
-import numpy as np
-from tqdm import tqdm
+from foldbot.bench.report import write_report
+from foldbot.bench.runner import DEFAULT_TIMEOUT_S, run_suite
+from foldbot.bench.suite import Suite, load_suite, parse_seeds, suite_from_dict
+from foldbot.bench.summary import summarise
+from foldbot.errors import ConfigError
+from foldbot.pipeline import PERCEPTION_MODES
+from foldbot.planning.recipes import RECIPE_HELP, RECIPES
 
-from foldbot.commands.fold import add_recipe_and_perception
-from foldbot.errors import ConfigError, FoldbotError, OutputError
-from foldbot.io.episode import is_episode_dir
-from foldbot.pipeline import EpisodeConfig, run_episode
+__all__ = ["add_arguments", "parse_seeds", "run", "suite_from_args"]
 
-
-def parse_seeds(text: str) -> list[int]:
-    """'0-9' or '0,3,5' or '4' → sorted unique seeds."""
-    seeds: set[int] = set()
-    try:
-        for part in text.split(","):
-            if "-" in part:
-                lo, hi = (int(v) for v in part.split("-", 1))
-                if hi < lo:
-                    raise ValueError
-                seeds.update(range(lo, hi + 1))
-            else:
-                seeds.add(int(part))
-    except ValueError:
-        raise ConfigError(f"--seeds must look like '0-9' or '0,3,5', got {text!r}") from None
-    if not seeds or min(seeds) < 0:
-        raise ConfigError(f"--seeds must name seeds ≥ 0, got {text!r}")
-    return sorted(seeds)
+_LEGACY = ("recipe", "perception", "seeds", "size_range", "video_fps")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of `foldbot bench`."""
-    add_recipe_and_perception(parser)
-    parser.add_argument("--seeds", default="0-9", help="seeds to run, e.g. 0-19 or 0,4,7")
     parser.add_argument(
+        "--suite",
+        default=None,
+        help="suite name (a file in suites/, e.g. smoke, towel_full, towel_compare) or a .toml path",
+    )
+    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=max(1, (os.cpu_count() or 1)),
+        help="parallel episode processes (default: CPU count)",
+    )
+    parser.add_argument(
+        "--ray",
+        default=None,
+        metavar="ADDRESS",
+        help="run the episodes on Ray: 'auto' (running cluster), 'local', or a cluster address",
+    )
+    parser.add_argument(
+        "--retry-errors",
+        action="store_true",
+        help="run again the episodes that ended in an error (diverged, unreachable, …)",
+    )
+    parser.add_argument(
+        "--report-only",
+        action="store_true",
+        help="run nothing: summarise the episodes already finished in DIR (marked incomplete)",
+    )
+    parser.add_argument(
+        "--no-reference", action="store_true", help="skip the Deformable Ravens speed reference"
+    )
+    parser.add_argument(
+        "--timeout",
+        type=float,
+        default=DEFAULT_TIMEOUT_S,
+        help=f"stop an episode after this many wall seconds (default {DEFAULT_TIMEOUT_S:g})",
+    )
+    one = parser.add_argument_group("one-recipe suite (instead of --suite)")
+    one.add_argument(
+        "--recipe",
+        default=None,
+        choices=RECIPES,
+        help="fold recipe (default half): "
+        + "; ".join(f"{k}: {v}" for k, v in RECIPE_HELP.items()),
+    )
+    one.add_argument(
+        "--perception",
+        default=None,
+        choices=PERCEPTION_MODES,
+        help="keypoints from the RGB-D image (vision, default) or simulator ground truth (oracle)",
+    )
+    one.add_argument("--seeds", default=None, help="seeds to run, e.g. 0-19 or 0,4,7 (default 0-9)")
+    one.add_argument(
         "--size-range",
         nargs=2,
         type=float,
@@ -54,118 +96,132 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="draw each towel side from [LO, HI] m per seed (default: 0.30 m square)",
     )
-    parser.add_argument(
-        "--workers",
-        type=int,
-        default=max(1, (os.cpu_count() or 1)),
-        help="parallel episode processes (default: CPU count)",
+    one.add_argument(
+        "--video-fps", type=float, default=None, help="video per episode (default 0 = off)"
     )
-    parser.add_argument("--video-fps", type=float, default=0.0, help="video per episode (0 = off)")
-    parser.add_argument("--out", type=Path, required=True, help="output folder")
 
 
-def _episode(cfg: EpisodeConfig, out: Path) -> dict:
-    try:
-        return run_episode(cfg, out, overwrite=True, log=lambda *_: None)
-    except FoldbotError as exc:
-        return {"seed": cfg.seed, "error": f"{type(exc).__name__}: {exc}"}
-
-
-def summarise(results: list[dict]) -> dict:
-    """Aggregate per-episode results (failed runs count as failures, not scored)."""
-    scored = [r for r in results if "error" not in r]
-    err = np.array([r["fold_error_mm"] for r in scored])
-    perf = np.array([r["normalized_performance"] for r in scored])
-
-    def stats(a: np.ndarray) -> dict:
-        if a.size == 0:
-            return {}
-        return {
-            "mean": float(a.mean()),
-            "median": float(np.median(a)),
-            "p95": float(np.percentile(a, 95)),
-            "min": float(a.min()),
-            "max": float(a.max()),
-        }
-
-    sim = sum(r["sim_seconds"] for r in scored)
-    wall = sum(r["wall_seconds"] for r in scored)
-    return {
-        "episodes": len(results),
-        "success_rate": sum(bool(r.get("success")) for r in results) / max(1, len(results)),
-        "fold_error_mm": stats(err),
-        "normalized_performance": stats(perf),
-        "coverage_mean": float(np.mean([r["coverage"] for r in scored])) if scored else None,
-        "sim_seconds_per_episode": sim / max(1, len(scored)),
-        "wall_seconds_per_episode": wall / max(1, len(scored)),
-        "sim_speed": sim / wall if wall > 0 else None,
-        "errors": {str(r["seed"]): r["error"] for r in results if "error" in r},
+def suite_from_args(args: argparse.Namespace) -> Suite:
+    """The suite named by --suite, or the one-recipe suite the other options describe."""
+    given = [f"--{k.replace('_', '-')}" for k in _LEGACY if getattr(args, k) is not None]
+    if args.suite is not None:
+        if given:
+            raise ConfigError(
+                f"{', '.join(given)} cannot be combined with --suite; "
+                "a suite file states its recipes, perception, seeds and ranges"
+            )
+        return load_suite(args.suite)
+    recipe = args.recipe or "half"
+    perception = args.perception or "vision"
+    data: dict = {
+        "name": f"{recipe}_{perception}",
+        "description": f"{recipe} fold, {perception} perception (built from command-line options)",
+        "axes": {
+            "garment": ["towel"],
+            "recipe": [recipe],
+            "perception": [perception],
+            "loop": ["closed"],
+            "seeds": ",".join(map(str, parse_seeds(args.seeds or "0-9"))),
+        },
+        "episode": {"video_fps": args.video_fps or 0.0},
     }
+    if args.size_range is not None:
+        data["randomise"] = {"towel_side": list(args.size_range)}
+    return suite_from_dict(data)
+
+
+def _reference(suite: Suite, summary: dict) -> dict | None:
+    """Run the Ravens speed reference for the towel's (mid-range) size and the episodes'
+    mean simulated duration, and relate it to foldbot's measured speed."""
+    from foldbot.bench.ravens_reference import ravens_speed_reference
+
+    overall = summary["overall"]
+    duration, speed = overall["sim_seconds_per_fold"], overall["sim_speed"]
+    if not duration or not speed:
+        return None
+    rnd = suite.randomised
+    side = rnd["towel_side_m"]
+    w, h = (sum(side) / 2, sum(side) / 2) if side else tuple(rnd["towel_fixed_m"])
+    ref = ravens_speed_reference(w, h, min(duration, 120.0))
+    ref["foldbot_sim_speed"] = speed
+    ref["reference_to_foldbot_speed"] = ref["sim_speed"] / speed if ref["sim_speed"] else None
+    ref["foldbot_to_reference_speed"] = speed / ref["sim_speed"] if ref["sim_speed"] else None
+    return ref
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the missing episodes, then summarise all of them."""
-    seeds = parse_seeds(args.seeds)
-    if args.workers < 1:
-        raise ConfigError(f"--workers must be ≥ 1, got {args.workers}")
-    out: Path = args.out
+    suite = suite_from_args(args)
     try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputError(f"cannot create output folder {out}: {exc.strerror}") from exc
-    todo, results = [], []
-    for seed in seeds:
-        ep = out / f"seed_{seed:04d}"
-        if is_episode_dir(ep):
-            results.append(json.loads((ep / "result.json").read_text()))
-        else:
-            cfg = EpisodeConfig(
-                recipe=args.recipe,
-                perception=args.perception,
-                seed=seed,
-                video_fps=args.video_fps,
-                towel_size_range=None if args.size_range is None else tuple(args.size_range),
-            )
-            todo.append((cfg, ep))
-    t0 = time.perf_counter()
-    # One fresh process per episode: Bullet's soft-body solver keeps process-global random state,
-    # so an episode is reproducible (same seed, same result) only as the first in its process.
-    with ProcessPoolExecutor(max_workers=args.workers, max_tasks_per_child=1) as pool:
-        futures = [pool.submit(_episode, cfg, ep) for cfg, ep in todo]
-        for fut in tqdm(as_completed(futures), total=len(futures), desc="episodes", unit="ep"):
-            results.append(fut.result())
-    results.sort(key=lambda r: r["seed"])
-    summary = {
-        "recipe": args.recipe,
-        "towel_size_range": args.size_range,
-        "perception": args.perception,
-        "seeds": seeds,
-        "wall_seconds_total": time.perf_counter() - t0,
-        **summarise(results),
+        import matplotlib  # noqa: F401  (checked before any episode runs: errors.png needs it)
+    except ImportError:
+        raise ConfigError(
+            "foldbot bench needs matplotlib for errors.png; install it with "
+            "`pip install -e '.[bench]'` (or `pip install matplotlib`)"
+        ) from None
+    if args.timeout <= 0:
+        raise ConfigError(f"--timeout must be > 0 s, got {args.timeout}")
+    out: Path = args.out
+    records = run_suite(
+        suite,
+        out,
+        workers=args.workers,
+        ray_address=args.ray,
+        retry_errors=args.retry_errors,
+        timeout=args.timeout,
+        run=not args.report_only,
+    )
+    summary = summarise(suite, records)
+    cmd = ["foldbot", "bench"]
+    if args.suite is not None:
+        cmd += ["--suite", args.suite]
+    else:
+        cmd += ["--recipe", suite.axes["recipe"][0], "--perception", suite.axes["perception"][0]]
+        cmd += ["--seeds", args.seeds or "0-9"]
+        if args.size_range is not None:
+            cmd += ["--size-range", *map(str, args.size_range)]
+    summary["command"] = shlex.join([*cmd, "--out", str(out)])
+    if suite.ravens_speed and not args.no_reference:
+        summary["ravens_speed_reference"] = _reference(suite, summary)
+    labels = {
+        s.id: f"{s.recipe}\n{s.perception} {s.loop}"
+        + (f"\n{s.garment}" if len(suite.axes["garment"]) > 1 else "")
+        for s in suite.episodes
     }
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
-    _print_table(summary)
-    print(f"summary written to {out / 'summary.json'}")
+    paths = write_report(summary, records, labels, out)
+    _print_overview(summary)
+    print(f"summary written to {paths['json']}, {paths['md'].name}, {paths['png'].name}")
     return 0
 
 
-def _print_table(s: dict) -> None:
-    e, p = s["fold_error_mm"], s["normalized_performance"]
-    print(f"\n{s['recipe']} fold, {s['perception']} perception, {s['episodes']} episodes")
-    print(f"  success rate            {100 * s['success_rate']:.0f} %")
+def _print_overview(s: dict) -> None:
+    o = s["overall"]
+    e, p = o["fold_error_mm"], o["normalized_performance"]
+    print(
+        f"\n{s['suite']['name']}: {s['episodes_finished']} of {s['episodes_planned']} episodes, "
+        f"success {100 * (o['success_rate'] or 0):.0f} %"
+    )
     if e:
         print(
             f"  fold error (mm)         mean {e['mean']:.1f}  median {e['median']:.1f}  "
-            f"p95 {e['p95']:.1f}  max {e['max']:.1f}"
+            f"p95 {e['p95']:.1f}"
         )
+        print(f"  normalized performance  mean {p['mean']:.3f}  median {p['median']:.3f}")
         print(
-            f"  normalized performance  mean {p['mean']:.3f}  median {p['median']:.3f}  "
-            f"min {p['min']:.3f}"
+            f"  per episode             {o['actions_per_episode']:.1f} actions, "
+            f"{o['retries_per_episode']:.2f} retries, {o['sim_seconds_per_fold']:.1f} s simulated, "
+            f"{o['wall_seconds_per_episode']:.1f} s wall (sim speed {o['sim_speed']:.2f}× real time)"
         )
-        print(f"  coverage (mean)         {s['coverage_mean']:.2f}")
+    for g in s["groups"]:
+        e = g["fold_error_mm"]
         print(
-            f"  per episode             {s['sim_seconds_per_episode']:.1f} s simulated, "
-            f"{s['wall_seconds_per_episode']:.1f} s wall (sim speed {s['sim_speed']:.2f}× real time)"
+            f"  {g['recipe']:>9} {g['perception']:>6} {g['loop']:>6}: success "
+            f"{100 * (g['success_rate'] or 0):3.0f} %, fold error median "
+            f"{'–' if not e else format(e['median'], '.1f')} mm, failures {g['failures'] or 'none'}"
         )
-    for seed, err in s["errors"].items():
-        print(f"  seed {seed}: {err}")
+    ref = s.get("ravens_speed_reference")
+    if ref:
+        print(
+            f"  speed reference (plain PyBullet, Ravens settings): {ref['sim_speed']:.2f}× real "
+            f"time, {ref['reference_to_foldbot_speed']:.1f}× foldbot's"
+        )

@@ -1,0 +1,170 @@
+"""Write a run's summary: summary.json, summary.md (Markdown tables) and errors.png (the fold-error
+distributions per group), each through a temporary file and a rename: complete or absent."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+from foldbot.bench.summary import CAUSES
+from foldbot.io.episode import to_jsonable
+
+
+def _atomic_write(path: Path, data: bytes) -> None:
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    tmp.write_bytes(data)
+    os.replace(tmp, path)
+
+
+def _f(v: Any, fmt: str = ".1f", none: str = "–") -> str:
+    return none if v is None else format(v, fmt)
+
+
+def _pct(v: float | None) -> str:
+    return "–" if v is None else f"{100 * v:.0f} %"
+
+
+def _stat(s: dict | None, fmt: str = ".1f", keys: tuple[str, ...] = ("mean", "median", "p95")):
+    return "–" if not s else " / ".join(format(s[k], fmt) for k in keys)
+
+
+def _failures(f: dict[str, int]) -> str:
+    return ", ".join(f"{c} {n}" for c, n in f.items()) or "none"
+
+
+def _group_name(g: dict) -> str:
+    return f"{g['garment']} {g['recipe']}, {g['perception']}, {g['loop']} loop"
+
+
+def markdown(summary: dict) -> str:
+    """The summary as Markdown: overall and per-group tables, comparisons, failures, speed."""
+    s = summary["suite"]
+    lines = [f"# Benchmark `{s['name']}`", ""]
+    if s.get("description"):
+        lines += [s["description"], ""]
+    done, planned = summary["episodes_finished"], summary["episodes_planned"]
+    state = "complete" if summary["complete"] else "INCOMPLETE"
+    lines += [
+        f"Episodes: {done} of {planned} ({state}). Randomised per seed: {s['randomised']['text']}.",
+        "",
+    ]
+    if summary.get("command"):
+        lines += ["```bash", summary["command"], "```", ""]
+    header = (
+        "| group | episodes | success | fold error mm: mean / median / p95 "
+        "| normalized perf.: mean / median / p95 | coverage: mean | actions / retries per episode "
+        "| sim s per fold | wall s per episode | sim speed | failures by cause |"
+    )
+    lines += [header, "|" + "---|" * 11]
+    rows = [("**all**", summary["overall"])] + [(_group_name(g), g) for g in summary["groups"]]
+    for name, g in rows:
+        lines.append(
+            f"| {name} | {g['episodes']} | {_pct(g['success_rate'])} "
+            f"| {_stat(g['fold_error_mm'])} | {_stat(g['normalized_performance'], '.3f')} "
+            f"| {_f((g['coverage'] or {}).get('mean'), '.2f')} "
+            f"| {_f(g['actions_per_episode'])} / {_f(g['retries_per_episode'], '.2f')} "
+            f"| {_f(g['sim_seconds_per_fold'])} | {_f(g['wall_seconds_per_episode'])} "
+            f"| {_f(g['sim_speed'], '.2f')}× | {_failures(g['failures'])} |"
+        )
+    if summary["comparisons"]:
+        lines += [
+            "",
+            "## Comparisons (paired episodes: same garment, recipe, seed and other axis)",
+            "",
+            "| compared | recipe | other axis | paired episodes | success | fold error mm: median "
+            "| normalized perf.: mean | retries per episode |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
+        for c in summary["comparisons"]:
+            other = "loop" if c["axis"] == "perception" else "perception"
+            pair = f"{c['a']} / {c['b']}"
+
+            def two(v: list, fmt: str = ".1f") -> str:
+                return " / ".join(_f(x, fmt) for x in v)
+
+            lines.append(
+                f"| {pair} | {c['recipe']} | {other} {c[other]} | {c['paired_episodes']} "
+                f"| {' / '.join(_pct(x) for x in c['success_rate'])} "
+                f"| {two(c['fold_error_mm_median'])} | {two(c['normalized_performance_mean'], '.3f')} "
+                f"| {two(c['retries_per_episode'], '.2f')} |"
+            )
+    failed = summary["overall"]["failed_episodes"]
+    if failed:
+        lines += ["", "## Failures by cause", "", "| cause | episodes | ids |", "|---|---|---|"]
+        for cause, ids in failed.items():
+            shown = ", ".join(ids[:8]) + (f", … ({len(ids) - 8} more)" if len(ids) > 8 else "")
+            lines.append(f"| {cause} | {len(ids)} | {shown} |")
+        lines += ["", "Causes: " + ", ".join(CAUSES) + "."]
+    ref = summary.get("ravens_speed_reference")
+    if ref:
+        lines += [
+            "",
+            "## Speed reference",
+            "",
+            f"{ref['what']}, {ref['cloth_m'][0]:.2f} × {ref['cloth_m'][1]:.2f} m, "
+            f"{ref['sim_seconds']:.1f} s simulated: {_f(ref['sim_speed'], '.2f')}× real time. "
+            f"foldbot in this run: {_f(summary['overall']['sim_speed'], '.2f')}× real time. "
+            f"Ratio reference / foldbot: {_f(ref.get('reference_to_foldbot_speed'), '.2f')}.",
+        ]
+    lines += ["", "## The field's reference figures (shared/notes/metrics.md)", ""]
+    lines += ["| system | case | figure |", "|---|---|---|"]
+    lines += [
+        f"| {r['system']} | {r['case']} | {r['figure']} |" for r in summary["reference_figures"]
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def plot_errors(summary: dict, records_by_group: dict[str, list[float]], path: Path) -> None:
+    """Box plots (with every episode as a dot) of fold error per group, log scale, with the
+    FabricFlowNet one- and multi-step figures as dashed lines; written atomically as PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+    from matplotlib.ticker import FuncFormatter
+
+    names = [n for n, v in records_by_group.items() if v]
+    fig, ax = plt.subplots(figsize=(max(6.0, 1.1 * len(names) + 2), 4.5), dpi=100)
+    if names:
+        data = [records_by_group[n] for n in names]
+        ax.boxplot(data, showfliers=False, widths=0.5)
+        rng = np.random.default_rng(0)
+        for i, d in enumerate(data, start=1):
+            ax.scatter(i + rng.uniform(-0.15, 0.15, len(d)), d, s=10, alpha=0.6, color="tab:blue")
+        ax.set_xticks(range(1, len(names) + 1), names, rotation=30, ha="right", fontsize=8)
+        ax.set_yscale("log")
+        ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
+        ax.yaxis.set_minor_formatter(FuncFormatter(lambda v, _pos: ""))
+    for y, label in ((4.26, "FabricFlowNet one-step 4.26 mm"), (23.74, "multi-step 23.74 mm")):
+        ax.axhline(y, ls="--", lw=1, color="gray")
+        ax.text(0.55, y * 1.05, label, fontsize=7, color="gray")
+    ax.set_ylabel("fold error (mm, mean particle distance to goal)")
+    s = summary["suite"]
+    ax.set_title(
+        f"{s['name']}: fold error per group ({summary['episodes_finished']} episodes)", fontsize=10
+    )
+    fig.tight_layout()
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}.png")
+    fig.savefig(tmp)
+    plt.close(fig)
+    os.replace(tmp, path)
+
+
+def write_report(summary: dict, records: list[dict], groups_of: dict[str, str], out: Path) -> dict:
+    """Write summary.json, summary.md and errors.png into `out`; return their paths."""
+    errors: dict[str, list[float]] = {}
+    for name in dict.fromkeys(groups_of.values()):
+        errors[name] = []
+    for rec in records:
+        r = rec.get("result")
+        if r is not None and r.get("fold_error_mm") is not None and rec["id"] in groups_of:
+            errors[groups_of[rec["id"]]].append(float(r["fold_error_mm"]))
+    paths = {"json": out / "summary.json", "md": out / "summary.md", "png": out / "errors.png"}
+    plot_errors(summary, errors, paths["png"])
+    _atomic_write(paths["md"], markdown(summary).encode())
+    text = json.dumps(to_jsonable(summary), indent=2, allow_nan=False)
+    _atomic_write(paths["json"], text.encode())
+    return paths

@@ -1,0 +1,383 @@
+"""Benchmark suites: a TOML file that states exactly what runs and what the seed randomises.
+
+A suite is the grid garment × recipe × perception × loop × seed; every cell is one episode with a
+stable id such as `towel-half-vision-closed-s0007`. Suites live in the repository's `suites/`
+folder (`--suite NAME`) or anywhere (`--suite path/to/file.toml`). The format:
+
+```toml
+name = "smoke"                          # must match the file name for suites/NAME.toml
+description = "what the suite is for"
+
+[axes]                                  # every combination runs for every seed
+garment = ["towel"]
+recipe = ["half", "diagonal"]           # planning.recipes.RECIPES
+perception = ["vision", "oracle"]       # comparison axis: keypoints from RGB-D or ground truth
+loop = ["closed", "open"]               # comparison axis: re-observe after every action or not
+seeds = "0-1"                           # "0-49", "0,3,5" or a list of integers ≥ 0
+
+[towel]                                 # the towel's fixed settings
+resolution = 16                         # vertices along the longer side (4–40)
+width = 0.30                            # m; used when [randomise] towel_side is absent
+height = 0.30
+
+[randomise]                             # what the seed draws, uniformly, per episode
+towel_side = [0.25, 0.45]               # m, each side independently (optional)
+position_jitter = 0.03                  # m, centre offset in ±this along x and along y
+yaw_deg = 15                            # degrees, yaw in ±this
+
+[episode]
+retries = 1                             # closed loop: redo a failed grasp / off placement
+video_fps = 0                           # video.mp4 frames per simulated second (0 = none)
+
+[reference]
+ravens_speed = true                     # plain-PyBullet speed reference (ravens_reference.py)
+```
+
+Every key is checked: an unknown section or key, a wrong type or an out-of-range value is one
+ConfigError naming the file, the key, the value and what is allowed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from foldbot.errors import ConfigError
+from foldbot.garments.towel import MAX_RESOLUTION, MIN_RESOLUTION, TowelSpec
+from foldbot.pipeline import GARMENTS, PERCEPTION_MODES, EpisodeConfig
+from foldbot.planning.recipes import RECIPES
+
+SUITES_DIR = Path(__file__).resolve().parents[3] / "suites"
+"""The repository's suite folder (src/foldbot/bench/suite.py → <repo>/suites)."""
+LOOP_MODES = ("closed", "open")
+"""closed: re-observe after every action (retries, regrasp, stage checks); open: plan once."""
+
+_SCHEMA: dict[str, set[str]] = {
+    "": {"name", "description", "axes", "towel", "randomise", "episode", "reference"},
+    "axes": {"garment", "recipe", "perception", "loop", "seeds"},
+    "towel": {"resolution", "width", "height"},
+    "randomise": {"towel_side", "position_jitter", "yaw_deg"},
+    "episode": {"retries", "video_fps"},
+    "reference": {"ravens_speed"},
+}
+
+
+def parse_seeds(text: str | list[int]) -> list[int]:
+    """'0-9', '0,3,5', '4' or a list of integers → sorted unique seeds (all ≥ 0)."""
+    seeds: set[int] = set()
+    if isinstance(text, list):
+        if not all(isinstance(s, int) and not isinstance(s, bool) for s in text):
+            raise ConfigError(f"seeds must be integers ≥ 0, got {text!r}")
+        seeds.update(text)
+    else:
+        try:
+            for part in str(text).split(","):
+                if "-" in part.strip()[1:]:
+                    lo, hi = (int(v) for v in part.split("-", 1))
+                    if hi < lo:
+                        raise ValueError
+                    seeds.update(range(lo, hi + 1))
+                else:
+                    seeds.add(int(part))
+        except ValueError:
+            raise ConfigError(f"seeds must look like '0-9' or '0,3,5', got {text!r}") from None
+    if not seeds or min(seeds) < 0:
+        raise ConfigError(f"seeds must name at least one seed, all ≥ 0, got {text!r}")
+    return sorted(seeds)
+
+
+@dataclass(frozen=True)
+class EpisodeSpec:
+    """One benchmark episode: its grid cell, seed and randomisation ranges (JSON-able)."""
+
+    garment: str
+    recipe: str
+    perception: str
+    loop: str
+    seed: int
+    towel_width: float = 0.30
+    """m; ignored when towel_side_range is set."""
+    towel_height: float = 0.30
+    towel_resolution: int = 16
+    towel_side_range: tuple[float, float] | None = None
+    """m; each side drawn uniformly from it by the seed."""
+    position_jitter: float = 0.03
+    """m; the cloth centre is offset by a uniform draw in ±this along x and y."""
+    yaw_deg: float = 15.0
+    """degrees; the cloth yaw is a uniform draw in ±this."""
+    retries: int = 1
+    video_fps: float = 0.0
+
+    @property
+    def id(self) -> str:
+        """Stable id and folder name, e.g. towel-half-vision-closed-s0007."""
+        return f"{self.garment}-{self.recipe}-{self.perception}-{self.loop}-s{self.seed:04d}"
+
+    @property
+    def group(self) -> tuple[str, str, str, str]:
+        """(garment, recipe, perception, loop): the summary's grouping key."""
+        return (self.garment, self.recipe, self.perception, self.loop)
+
+    def to_config(self) -> EpisodeConfig:
+        """The pipeline's EpisodeConfig for this spec (validated by EpisodeConfig itself)."""
+        return EpisodeConfig(
+            garment=self.garment,
+            recipe=self.recipe,
+            perception=self.perception,
+            closed_loop=self.loop == "closed",
+            seed=self.seed,
+            towel=TowelSpec(
+                width=self.towel_width,
+                height=self.towel_height,
+                resolution=self.towel_resolution,
+            ),
+            towel_size_range=self.towel_side_range,
+            position_jitter=self.position_jitter,
+            yaw_range=math.radians(self.yaw_deg),
+            retries=self.retries,
+            video_fps=self.video_fps,
+        )
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain JSON-able fields (tuples as lists)."""
+        d = dataclasses.asdict(self)
+        if d["towel_side_range"] is not None:
+            d["towel_side_range"] = list(d["towel_side_range"])
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> EpisodeSpec:
+        """Inverse of as_dict."""
+        d = dict(d)
+        if d.get("towel_side_range") is not None:
+            d["towel_side_range"] = tuple(d["towel_side_range"])
+        return cls(**d)
+
+
+@dataclass(frozen=True)
+class Suite:
+    """A loaded, validated suite: its episodes (grid order) and what it randomises."""
+
+    name: str
+    description: str
+    episodes: tuple[EpisodeSpec, ...]
+    axes: dict[str, list]
+    randomised: dict[str, Any]
+    """What the seed draws, in words and numbers (for the summary)."""
+    ravens_speed: bool = True
+    source: str = ""
+    """The file it came from ('' for a suite built from command-line options)."""
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-able description (written to DIR/suite.json; resuming checks it)."""
+        return {
+            "name": self.name,
+            "description": self.description,
+            "source": self.source,
+            "axes": self.axes,
+            "randomised": self.randomised,
+            "ravens_speed": self.ravens_speed,
+            "episodes": {e.id: e.as_dict() for e in self.episodes},
+        }
+
+
+def available_suites() -> list[str]:
+    """Names of the suite files in the repository's suites/ folder."""
+    return sorted(p.stem for p in SUITES_DIR.glob("*.toml")) if SUITES_DIR.is_dir() else []
+
+
+def resolve_suite_path(name: str) -> Path:
+    """suites/NAME.toml, or NAME itself when it is a path to a .toml file."""
+    p = Path(name)
+    if p.suffix == ".toml" or "/" in name:
+        if not p.is_file():
+            raise ConfigError(f"suite file {name!r} does not exist")
+        return p
+    path = SUITES_DIR / f"{name}.toml"
+    if not path.is_file():
+        allowed = ", ".join(available_suites()) or "(none found)"
+        raise ConfigError(
+            f"unknown suite {name!r}; available in {SUITES_DIR}: {allowed} "
+            "(or give a path to a .toml file)"
+        )
+    return path
+
+
+def load_suite(name: str) -> Suite:
+    """Load and validate a suite by name (suites/NAME.toml) or path."""
+    path = resolve_suite_path(name)
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"suite file {path}: not valid TOML: {exc}") from None
+    suite = suite_from_dict(data, source=str(path))
+    if path.parent.resolve() == SUITES_DIR and suite.name != path.stem:
+        raise ConfigError(f"suite file {path}: name = {suite.name!r} must match the file name")
+    return suite
+
+
+def _get(
+    data: dict, section: str, key: str, kind: type | tuple[type, ...], default: Any, where: str
+):
+    table = data.get(section, {}) if section else data
+    if key not in table:
+        return default
+    value = table[key]
+    kinds = kind if isinstance(kind, tuple) else (kind,)
+    ok = isinstance(value, kinds) and not (isinstance(value, bool) and bool not in kinds)
+    if not ok:
+        names = " or ".join(k.__name__ for k in kinds)
+        raise ConfigError(
+            f"{where}: {section + '.' if section else ''}{key} = {value!r} must be a {names}"
+        )
+    return value
+
+
+def _choices(data: dict, key: str, allowed: tuple[str, ...], default: list[str], where: str):
+    values = _get(data, "axes", key, list, default, where)
+    if not values:
+        raise ConfigError(f"{where}: axes.{key} is empty; allowed values: {', '.join(allowed)}")
+    for v in values:
+        if v not in allowed:
+            raise ConfigError(
+                f"{where}: axes.{key} has unknown value {v!r}; allowed: {', '.join(allowed)}"
+            )
+    if len(set(values)) != len(values):
+        raise ConfigError(f"{where}: axes.{key} = {values!r} repeats a value")
+    return list(values)
+
+
+def _range(value: Any, key: str, lo: float, hi: float, where: str) -> float:
+    if not (isinstance(value, int | float) and not isinstance(value, bool)) or not (
+        lo <= value <= hi
+    ):
+        raise ConfigError(f"{where}: {key} = {value!r} must be a number in [{lo:g}, {hi:g}]")
+    return float(value)
+
+
+def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
+    """Validate a parsed suite (the TOML's tables) and expand it into episode specs."""
+    where = f"suite file {source}" if source else "suite"
+    for section, allowed in _SCHEMA.items():
+        table = data if not section else data.get(section, {})
+        if section and not isinstance(table, dict):
+            raise ConfigError(f"{where}: [{section}] must be a table")
+        for key in table:
+            if key not in allowed:
+                name = f"{section}.{key}" if section else key
+                raise ConfigError(
+                    f"{where}: unknown key {name!r}; allowed"
+                    f"{' in [' + section + ']' if section else ''}: {', '.join(sorted(allowed))}"
+                )
+    name = _get(data, "", "name", str, "", where)
+    if not name or not name.replace("_", "").replace("-", "").isalnum():
+        raise ConfigError(
+            f"{where}: name = {name!r} must be a non-empty word (letters, digits, _-)"
+        )
+    description = _get(data, "", "description", str, "", where)
+
+    garments = _choices(data, "garment", GARMENTS, ["towel"], where)
+    recipes = _choices(data, "recipe", RECIPES, ["half"], where)
+    perceptions = _choices(data, "perception", PERCEPTION_MODES, ["vision"], where)
+    loops = _choices(data, "loop", LOOP_MODES, ["closed"], where)
+    seeds_raw = _get(data, "axes", "seeds", (str, list, int), None, where)
+    if seeds_raw is None:
+        raise ConfigError(f'{where}: axes.seeds is required, e.g. seeds = "0-49"')
+    try:
+        seeds = parse_seeds([seeds_raw] if isinstance(seeds_raw, int) else seeds_raw)
+    except ConfigError as exc:
+        raise ConfigError(f"{where}: axes.{exc}") from None
+
+    towel = data.get("towel", {})
+    resolution = _get(data, "towel", "resolution", int, 16, where)
+    if not MIN_RESOLUTION <= resolution <= MAX_RESOLUTION:
+        raise ConfigError(
+            f"{where}: towel.resolution = {resolution!r} must be an integer in "
+            f"[{MIN_RESOLUTION}, {MAX_RESOLUTION}]"
+        )
+    width = _range(towel.get("width", 0.30), "towel.width", 0.05, 1.0, where)
+    height = _range(towel.get("height", 0.30), "towel.height", 0.05, 1.0, where)
+
+    rand = data.get("randomise", {})
+    side = rand.get("towel_side")
+    side_range = None
+    if side is not None:
+        if not (isinstance(side, list) and len(side) == 2):
+            raise ConfigError(
+                f"{where}: randomise.towel_side = {side!r} must be [lo, hi] in metres"
+            )
+        lo = _range(side[0], "randomise.towel_side[0]", 0.05, 1.0, where)
+        hi = _range(side[1], "randomise.towel_side[1]", 0.05, 1.0, where)
+        if hi < lo:
+            raise ConfigError(f"{where}: randomise.towel_side = {side!r} needs lo ≤ hi")
+        side_range = (lo, hi)
+    jitter = _range(rand.get("position_jitter", 0.03), "randomise.position_jitter", 0, 0.15, where)
+    yaw = _range(rand.get("yaw_deg", 15.0), "randomise.yaw_deg", 0, 180, where)
+
+    ep = data.get("episode", {})
+    retries = _get(data, "episode", "retries", int, 1, where)
+    if not 0 <= retries <= 10:
+        raise ConfigError(f"{where}: episode.retries = {retries!r} must be an integer in [0, 10]")
+    video_fps = _range(ep.get("video_fps", 0.0), "episode.video_fps", 0, 60, where)
+    ravens = _get(data, "reference", "ravens_speed", bool, True, where)
+
+    specs = []
+    for garment in garments:
+        for recipe in recipes:
+            for perception in perceptions:
+                for loop in loops:
+                    for seed in seeds:
+                        specs.append(
+                            EpisodeSpec(
+                                garment=garment,
+                                recipe=recipe,
+                                perception=perception,
+                                loop=loop,
+                                seed=seed,
+                                towel_width=width,
+                                towel_height=height,
+                                towel_resolution=resolution,
+                                towel_side_range=side_range,
+                                position_jitter=jitter,
+                                yaw_deg=yaw,
+                                retries=retries,
+                                video_fps=video_fps,
+                            )
+                        )
+    for spec in specs[:1]:
+        spec.to_config()  # anything EpisodeConfig refuses is refused here, before any run
+    randomised = {
+        "towel_side_m": list(side_range) if side_range else None,
+        "towel_fixed_m": None if side_range else [width, height],
+        "towel_resolution": resolution,
+        "position_jitter_m": jitter,
+        "yaw_deg": yaw,
+        "text": (
+            (
+                f"towel sides uniform in [{side_range[0]:g}, {side_range[1]:g}] m each"
+                if side_range
+                else f"towel {width:g} × {height:g} m (fixed)"
+            )
+            + f", {resolution} vertices along the longer side; centre ±{jitter * 100:g} cm in x"
+            f" and y; yaw ±{yaw:g}°"
+        ),
+    }
+    return Suite(
+        name=name,
+        description=description,
+        episodes=tuple(specs),
+        axes={
+            "garment": garments,
+            "recipe": recipes,
+            "perception": perceptions,
+            "loop": loops,
+            "seeds": seeds,
+        },
+        randomised=randomised,
+        ravens_speed=ravens,
+        source=source,
+    )

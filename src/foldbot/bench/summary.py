@@ -1,0 +1,253 @@
+"""The field's metrics over a benchmark run: per group (garment × recipe × perception × loop),
+overall, and side by side for the comparison axes (vision vs oracle, closed vs open loop).
+
+Every figure comes from the episodes' records (result.json, or the error that ended an episode):
+- success rate: successes / all episodes; an episode that ended in an error counts as a failure.
+- fold error (mm), SoftGym normalized performance (first fold) and coverage: over scored episodes.
+- actions and retries per episode; simulated robot seconds per fold (one fold = one episode's
+  whole recipe); wall seconds per episode; simulation speed = Σ simulated s / Σ wall s.
+- failures grouped by cause (`failure_cause`).
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections import defaultdict
+from typing import Any
+
+import numpy as np
+
+from foldbot.bench.suite import Suite
+
+CAUSES = (
+    "fold inaccurate",
+    "grasp failed",
+    "diverged",
+    "unreachable",
+    "no cloth found",
+    "cloth out of view",
+    "planning failed",
+    "perception failed",
+    "timeout",
+    "crashed",
+)
+"""Failure causes, most benign first. 'fold inaccurate': scored, every grasp held, but below the
+success thresholds (normalized ≥ 0.8 and fold error ≤ 0.05·√area); 'grasp failed': scored, an
+action ended without holding the cloth. The others ended the episode before it could be scored."""
+
+COMPARISONS = (("perception", "vision", "oracle"), ("loop", "closed", "open"))
+"""(axis, a, b): compared wherever a suite runs both values."""
+
+REFERENCE_FIGURES = (
+    ("FabricFlowNet", "square towel, one-step folds", "4.26 mm mean particle error"),
+    ("FabricFlowNet", "square towel, multi-step folds", "23.74 mm mean particle error"),
+    ("FabricFlowNet", "rectangular towel, one-step / multi-step", "4.25 mm / 16.79 mm"),
+    ("FabricFlowNet", "T-shirt, one-step / multi-step", "24.46 mm / 45.97 mm"),
+    ("FlingBot", "flattening, unseen cloths", "> 80 % coverage within 3 actions"),
+    ("Deformable Ravens", "cloth-flat", "success = coverage ≥ 0.85 within 10 actions"),
+    ("SpeedFolding (real robot)", "T-shirts", "93 % success, < 120 s per fold"),
+)
+"""The field's figures (shared/notes/metrics.md), reported beside ours."""
+
+
+def failure_cause(record: dict) -> str | None:
+    """Why an episode did not succeed (one of CAUSES, or 'other error (Type)'); None if it did."""
+    if "result" in record:
+        r = record["result"]
+        if r.get("success"):
+            return None
+        if any(not a.get("grasp_success", True) for a in r.get("actions", [])):
+            return "grasp failed"
+        return "fold inaccurate"
+    kind, msg = record.get("error_type", ""), record.get("error", "")
+    by_type = {
+        "SimulationDivergedError": "diverged",
+        "UnreachableTargetError": "unreachable",
+        "PerceptionError": "perception failed",
+        "Timeout": "timeout",
+        "Crashed": "crashed",
+    }
+    if kind in by_type:
+        return by_type[kind]
+    if "no cloth found" in msg:
+        return "no cloth found"
+    if "beyond the camera's view" in msg:
+        return "cloth out of view"
+    if "degenerate corner quad" in msg or "open loop: the outline" in msg:
+        return "planning failed"
+    return f"other error ({kind or 'unknown'})"
+
+
+def _finite(values: list[Any]) -> np.ndarray:
+    a = np.array([v for v in values if v is not None], dtype=float)
+    return a[np.isfinite(a)]
+
+
+def stats(values: list[Any]) -> dict[str, float] | None:
+    """mean, median, p95, min, max of the finite values; None when there are none."""
+    a = _finite(values)
+    if a.size == 0:
+        return None
+    return {
+        "mean": float(a.mean()),
+        "median": float(np.median(a)),
+        "p95": float(np.percentile(a, 95)),
+        "min": float(a.min()),
+        "max": float(a.max()),
+    }
+
+
+def _mean(values: list[Any]) -> float | None:
+    a = _finite(values)
+    return float(a.mean()) if a.size else None
+
+
+def group_stats(records: list[dict]) -> dict[str, Any]:
+    """Every summary figure over a list of records."""
+    scored = [r["result"] for r in records if "result" in r]
+    n = len(records)
+    successes = sum(bool(r.get("success")) for r in scored)
+    sim = sum(r.get("sim_seconds") or 0.0 for r in scored)
+    wall = sum(r.get("wall_seconds") or 0.0 for r in scored)
+    causes: dict[str, list[str]] = defaultdict(list)
+    for rec in records:
+        cause = failure_cause(rec)
+        if cause is not None:
+            causes[cause].append(rec["id"])
+    order = {c: i for i, c in enumerate(CAUSES)}
+    failures = dict(sorted(causes.items(), key=lambda kv: (order.get(kv[0], len(order)), kv[0])))
+    return {
+        "episodes": n,
+        "scored": len(scored),
+        "successes": successes,
+        "success_rate": successes / n if n else None,
+        "fold_error_mm": stats([r.get("fold_error_mm") for r in scored]),
+        "normalized_performance": stats([r.get("normalized_performance") for r in scored]),
+        "coverage": stats([r.get("coverage") for r in scored]),
+        "actions_per_episode": _mean([len(r.get("actions", [])) for r in scored]),
+        "retries_per_episode": _mean(
+            [sum(a.get("retries", 0) for a in r.get("actions", [])) for r in scored]
+        ),
+        "sim_seconds_per_fold": _mean([r.get("sim_seconds") for r in scored]),
+        "wall_seconds_per_episode": _mean([r.get("wall_seconds") for r in scored]),
+        "sim_speed": sim / wall if wall > 0 else None,
+        "failures": {c: len(ids) for c, ids in failures.items()},
+        "failed_episodes": failures,
+    }
+
+
+def _pick(s: dict, key: str, sub: str | None = None) -> float | None:
+    v = s.get(key)
+    if sub is not None:
+        v = None if v is None else v.get(sub)
+    return v
+
+
+def comparisons(suite: Suite, records: list[dict]) -> list[dict]:
+    """Side by side on paired episodes (same garment, recipe, seed and other axis): vision vs
+    oracle perception and closed vs open loop, per recipe and pooled over recipes ('all')."""
+    specs = {s.id: s for s in suite.episodes}
+    by_cell: dict[tuple, dict] = {}
+    for rec in records:
+        s = specs.get(rec["id"])
+        if s is not None:
+            by_cell[(s.garment, s.recipe, s.perception, s.loop, s.seed)] = rec
+    rows = []
+    for axis, a, b in COMPARISONS:
+        if not {a, b} <= set(suite.axes[axis]):
+            continue
+        other = "loop" if axis == "perception" else "perception"
+        for garment, other_value in itertools.product(suite.axes["garment"], suite.axes[other]):
+            pooled: dict[str, list[dict]] = {a: [], b: []}
+            for recipe in [*suite.axes["recipe"], "all"]:
+                sides: dict[str, list[dict]] = {a: [], b: []}
+                if recipe == "all":
+                    sides = pooled
+                else:
+                    for seed in suite.axes["seeds"]:
+                        cells = {}
+                        for value in (a, b):
+                            key = {"perception": value, "loop": other_value}
+                            if axis == "loop":
+                                key = {"perception": other_value, "loop": value}
+                            cells[value] = by_cell.get(
+                                (garment, recipe, key["perception"], key["loop"], seed)
+                            )
+                        if cells[a] is not None and cells[b] is not None:
+                            for value in (a, b):
+                                sides[value].append(cells[value])
+                                pooled[value].append(cells[value])
+                if recipe == "all" and len(suite.axes["recipe"]) == 1:
+                    continue
+                sa, sb = group_stats(sides[a]), group_stats(sides[b])
+                rows.append(
+                    {
+                        "axis": axis,
+                        "a": a,
+                        "b": b,
+                        "garment": garment,
+                        "recipe": recipe,
+                        other: other_value,
+                        "paired_episodes": len(sides[a]),
+                        "success_rate": [sa["success_rate"], sb["success_rate"]],
+                        "fold_error_mm_mean": [
+                            _pick(sa, "fold_error_mm", "mean"),
+                            _pick(sb, "fold_error_mm", "mean"),
+                        ],
+                        "fold_error_mm_median": [
+                            _pick(sa, "fold_error_mm", "median"),
+                            _pick(sb, "fold_error_mm", "median"),
+                        ],
+                        "normalized_performance_mean": [
+                            _pick(sa, "normalized_performance", "mean"),
+                            _pick(sb, "normalized_performance", "mean"),
+                        ],
+                        "retries_per_episode": [
+                            sa["retries_per_episode"],
+                            sb["retries_per_episode"],
+                        ],
+                    }
+                )
+    return rows
+
+
+def summarise(suite: Suite, records: list[dict]) -> dict[str, Any]:
+    """The run's summary (summary.json): overall, per group, comparisons, per-episode lines."""
+    specs = {s.id: s for s in suite.episodes}
+    groups: dict[tuple, list[dict]] = defaultdict(list)
+    for rec in records:
+        if rec["id"] in specs:
+            groups[specs[rec["id"]].group].append(rec)
+    group_rows = []
+    for key in itertools.product(
+        *(suite.axes[k] for k in ("garment", "recipe", "perception", "loop"))
+    ):
+        if key in groups:
+            g = dict(zip(("garment", "recipe", "perception", "loop"), key, strict=True))
+            group_rows.append({**g, **group_stats(groups[key])})
+    episodes = []
+    for rec in records:
+        r = rec.get("result", {})
+        episodes.append(
+            {
+                "id": rec["id"],
+                "success": bool(r.get("success", False)),
+                "fold_error_mm": r.get("fold_error_mm"),
+                "normalized_performance": r.get("normalized_performance"),
+                "cause": failure_cause(rec),
+                **({"error": rec["error"].splitlines()[0]} if "error" in rec else {}),
+            }
+        )
+    return {
+        "suite": {k: v for k, v in suite.as_dict().items() if k != "episodes"},
+        "episodes_planned": len(suite.episodes),
+        "episodes_finished": len(records),
+        "complete": len(records) == len(suite.episodes),
+        "overall": group_stats([r for r in records if r["id"] in specs]),
+        "groups": group_rows,
+        "comparisons": comparisons(suite, records),
+        "reference_figures": [
+            {"system": s, "case": c, "figure": f} for s, c, f in REFERENCE_FIGURES
+        ],
+        "episodes": episodes,
+    }

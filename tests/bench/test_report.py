@@ -1,0 +1,55 @@
+"""summary.json, summary.md and errors.png from a synthetic run; nothing half-written is left."""
+
+import json
+
+from foldbot.bench.report import markdown, write_report
+from foldbot.bench.suite import suite_from_dict
+from foldbot.bench.summary import summarise
+
+
+def test_report_files(tmp_path, tiny_suite_data):
+    suite = suite_from_dict(tiny_suite_data(perception=["vision", "oracle"], seeds="0-2"))
+    records = []
+    for e in suite.episodes:
+        err = 5.0 + e.seed if e.perception == "oracle" else 12.0 + e.seed
+        records.append(
+            {
+                "id": e.id,
+                "result": {
+                    "success": err < 13,
+                    "fold_error_mm": err,
+                    "normalized_performance": 0.85,
+                    "coverage": 0.5,
+                    "sim_seconds": 10.0,
+                    "wall_seconds": 25.0,
+                    "actions": [{"retries": 0, "grasp_success": True}] * 2,
+                },
+            }
+        )
+    records[-1] = {"id": records[-1]["id"], "error_type": "Timeout", "error": "no result"}
+    summary = summarise(suite, records)
+    summary["command"] = "foldbot bench --suite tiny --out X"
+    labels = {e.id: f"{e.recipe} {e.perception}" for e in suite.episodes}
+    paths = write_report(summary, records, labels, tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "errors.png",
+        "summary.json",
+        "summary.md",
+    ]
+    assert paths["png"].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    stored = json.loads(paths["json"].read_text())
+    assert stored["overall"]["episodes"] == 6 and stored["overall"]["failures"] == {
+        "fold inaccurate": 2,
+        "timeout": 1,
+    }
+    md = paths["md"].read_text()
+    assert "| **all** | 6 | 50 % |" in md
+    assert "towel half, oracle, closed loop" in md and "vision / oracle" in md
+    assert "foldbot bench --suite tiny --out X" in md
+    assert "FabricFlowNet" in md and "timeout" in md
+
+
+def test_markdown_says_incomplete(tiny_suite_data):
+    suite = suite_from_dict(tiny_suite_data(seeds="0-1"))
+    md = markdown(summarise(suite, []))
+    assert "0 of 2 (INCOMPLETE)" in md

@@ -1,0 +1,140 @@
+"""Suite files: the repository's suites load, and every bad value gets one clear error."""
+
+import math
+
+import pytest
+
+from foldbot.bench.suite import (
+    SUITES_DIR,
+    EpisodeSpec,
+    available_suites,
+    load_suite,
+    parse_seeds,
+    suite_from_dict,
+)
+from foldbot.errors import ConfigError
+
+
+def test_repository_suites_are_listed():
+    assert {"smoke", "towel_full", "towel_compare"} <= set(available_suites())
+
+
+def test_smoke_suite_is_tiny_and_covers_both_comparisons():
+    suite = load_suite("smoke")
+    assert 1 <= len(suite.episodes) <= 8
+    assert {e.towel_resolution for e in suite.episodes} == {6}
+    assert {e.video_fps for e in suite.episodes} == {0.0}
+    assert set(suite.axes["perception"]) == {"vision", "oracle"}
+    assert set(suite.axes["loop"]) == {"closed", "open"}
+
+
+def test_full_towel_suite_has_50_randomised_seeds_per_recipe():
+    suite = load_suite("towel_full")
+    recipes = {"half", "quarter", "diagonal", "thirds"}
+    assert recipes <= set(suite.axes["recipe"])
+    for recipe in recipes:
+        eps = [e for e in suite.episodes if e.recipe == recipe]
+        assert len({e.seed for e in eps}) >= 50
+        assert {e.perception for e in eps} == {"vision"}
+        assert {e.towel_side_range for e in eps} == {(0.25, 0.45)}
+    assert suite.randomised["towel_side_m"] == [0.25, 0.45]
+
+
+def test_compare_suite_pairs_every_cell():
+    suite = load_suite("towel_compare")
+    cells = {(e.recipe, e.perception, e.loop) for e in suite.episodes}
+    assert len(cells) == 2 * 2 * 2
+    assert len(suite.episodes) == 8 * len(suite.axes["seeds"])
+
+
+def test_ids_are_stable_unique_and_round_trip(tiny_suite_data):
+    suite = suite_from_dict(tiny_suite_data(perception=["vision", "oracle"], seeds="3-4"))
+    ids = [e.id for e in suite.episodes]
+    assert ids == [
+        "towel-half-vision-closed-s0003",
+        "towel-half-vision-closed-s0004",
+        "towel-half-oracle-closed-s0003",
+        "towel-half-oracle-closed-s0004",
+    ]
+    for e in suite.episodes:
+        assert EpisodeSpec.from_dict(e.as_dict()) == e
+
+
+def test_spec_maps_onto_the_episode_config(tiny_suite_data):
+    data = tiny_suite_data(loop=["open"])
+    data["randomise"] = {"towel_side": [0.25, 0.35], "position_jitter": 0.02, "yaw_deg": 10}
+    cfg = load_one(data).to_config()
+    assert cfg.closed_loop is False
+    assert cfg.towel_size_range == (0.25, 0.35)
+    assert cfg.position_jitter == 0.02
+    assert cfg.yaw_range == pytest.approx(math.radians(10))
+    assert cfg.towel.resolution == 6 and cfg.video_fps == 0
+
+
+def load_one(data):
+    (spec,) = suite_from_dict(data).episodes
+    return spec
+
+
+def test_seeds():
+    assert parse_seeds("0-3") == [0, 1, 2, 3]
+    assert parse_seeds("5,1,1") == [1, 5]
+    assert parse_seeds([2, 0]) == [0, 2]
+    for bad in ("3-1", "a", "", "-2", [1.5]):
+        with pytest.raises(ConfigError, match="seeds"):
+            parse_seeds(bad)
+
+
+def test_unknown_suite_name_lists_the_available_ones():
+    with pytest.raises(ConfigError) as exc:
+        load_suite("no_such_suite")
+    msg = str(exc.value)
+    assert "no_such_suite" in msg and "smoke" in msg and "towel_full" in msg
+
+
+@pytest.mark.parametrize(
+    ("edit", "needles"),
+    [
+        (lambda d: d.update(colour="red"), ["'colour'", "allowed"]),
+        (lambda d: d["axes"].update(recipe=["half", "origami"]), ["origami", "thirds"]),
+        (lambda d: d["axes"].update(perception=["lidar"]), ["lidar", "oracle"]),
+        (lambda d: d["axes"].update(loop=["sometimes"]), ["sometimes", "open"]),
+        (lambda d: d["axes"].update(garment=["sock"]), ["sock", "towel"]),
+        (lambda d: d["axes"].update(recipe=[]), ["axes.recipe", "empty"]),
+        (lambda d: d["axes"].update(recipe="half"), ["axes.recipe", "list"]),
+        (lambda d: d["axes"].update(seeds="9-2"), ["seeds", "9-2"]),
+        (lambda d: d["axes"].pop("seeds"), ["axes.seeds", "required"]),
+        (lambda d: d["towel"].update(resolution=99), ["towel.resolution", "99"]),
+        (lambda d: d["towel"].update(width=2.0), ["towel.width", "2.0"]),
+        (lambda d: d.update(randomise={"towel_side": [0.4, 0.2]}), ["towel_side", "lo ≤ hi"]),
+        (lambda d: d.update(randomise={"towel_side": 0.3}), ["towel_side", "[lo, hi]"]),
+        (lambda d: d.update(randomise={"yaw_deg": -5}), ["yaw_deg", "-5"]),
+        (lambda d: d.update(randomise={"spin": 1}), ["randomise.spin", "yaw_deg"]),
+        (lambda d: d["episode"].update(retries=-1), ["episode.retries", "-1"]),
+        (lambda d: d.update(reference={"ravens_speed": "yes"}), ["ravens_speed", "bool"]),
+        (lambda d: d.update(name=""), ["name"]),
+    ],
+)
+def test_bad_fields_get_a_clear_error(tiny_suite_data, edit, needles):
+    data = tiny_suite_data()
+    edit(data)
+    with pytest.raises(ConfigError) as exc:
+        suite_from_dict(data, source="x.toml")
+    msg = str(exc.value)
+    assert "x.toml" in msg
+    for needle in needles:
+        assert needle in msg
+
+
+def test_bad_toml_and_name_mismatch(tmp_path):
+    bad = tmp_path / "broken.toml"
+    bad.write_text("name = [unclosed\n")
+    with pytest.raises(ConfigError, match="not valid TOML"):
+        load_suite(str(bad))
+    with pytest.raises(ConfigError, match="does not exist"):
+        load_suite(str(tmp_path / "missing.toml"))
+
+
+def test_repository_suite_names_match_their_files():
+    for path in SUITES_DIR.glob("*.toml"):
+        assert load_suite(path.stem).name == path.stem

@@ -1,0 +1,120 @@
+"""`foldbot bench` from the command line: the smoke suite end to end, resume, clear errors."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from foldbot.cli import build_parser, main
+from foldbot.commands.bench import suite_from_args
+
+FIGURES = (
+    "success_rate",
+    "fold_error_mm",
+    "normalized_performance",
+    "coverage",
+    "actions_per_episode",
+    "retries_per_episode",
+    "sim_seconds_per_fold",
+    "wall_seconds_per_episode",
+    "sim_speed",
+    "failures",
+)
+
+
+def bench(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "foldbot.cli", "bench", *args],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
+
+
+@pytest.fixture(scope="module")
+def smoke_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("bench") / "smoke"
+    proc = bench("--suite", "smoke", "--out", str(out), "--workers", "2")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return out, proc
+
+
+def test_smoke_suite_end_to_end(smoke_run):
+    out, proc = smoke_run
+    assert {"suite.json", "summary.json", "summary.md", "errors.png"} <= {
+        p.name for p in out.iterdir()
+    }
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["complete"] and summary["episodes_finished"] == 4
+    for group in [summary["overall"], *summary["groups"]]:
+        assert set(FIGURES) <= group.keys()
+    assert {(g["perception"], g["loop"]) for g in summary["groups"]} == {
+        ("vision", "closed"),
+        ("vision", "open"),
+        ("oracle", "closed"),
+        ("oracle", "open"),
+    }
+    assert {c["axis"] for c in summary["comparisons"]} == {"perception", "loop"}
+    ref = summary["ravens_speed_reference"]
+    assert ref["vertices"] == 100 and ref["sim_speed"] > 0
+    assert ref["sim_seconds"] == pytest.approx(summary["overall"]["sim_seconds_per_fold"], rel=0.01)
+    assert ref["reference_to_foldbot_speed"] == pytest.approx(
+        ref["sim_speed"] / summary["overall"]["sim_speed"]
+    )
+    for e in summary["episodes"]:
+        ep = out / "episodes" / e["id"]
+        result = json.loads((ep / "result.json").read_text())
+        assert (ep / "cloth.npz").is_file()
+        assert result["closed_loop"] is ("-closed-" in e["id"])
+        assert result["fold_error_mm"] == e["fold_error_mm"]
+    assert "smoke: 4 of 4 episodes" in proc.stdout
+    assert (out / "errors.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_smoke_suite_resumes_without_rerunning(smoke_run):
+    out, _ = smoke_run
+    stamps = {p: p.stat().st_mtime_ns for p in out.glob("episodes/*/result.json")}
+    proc = bench("--suite", "smoke", "--out", str(out), "--no-reference")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert {p: p.stat().st_mtime_ns for p in out.glob("episodes/*/result.json")} == stamps
+    assert "ravens_speed_reference" not in json.loads((out / "summary.json").read_text())
+
+
+def test_unknown_suite_lists_the_available_ones(tmp_path, capsys):
+    out = tmp_path / "b"
+    assert main(["bench", "--suite", "nope", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "nope" in err and "smoke" in err and "towel_full" in err and "Traceback" not in err
+    assert not out.exists()
+
+
+def test_suite_and_one_recipe_options_do_not_mix(tmp_path, capsys):
+    assert (
+        main(["bench", "--suite", "smoke", "--recipe", "half", "--out", str(tmp_path / "b")]) == 2
+    )
+    assert "--recipe cannot be combined with --suite" in capsys.readouterr().err
+
+
+def test_one_recipe_options_build_a_suite():
+    args = build_parser().parse_args(
+        ["bench", "--recipe", "diagonal", "--seeds", "0-19", "--size-range", "0.25", "0.45"]
+        + ["--perception", "oracle", "--out", "x"]
+    )
+    suite = suite_from_args(args)
+    assert len(suite.episodes) == 20
+    e = suite.episodes[0]
+    assert (e.recipe, e.perception, e.loop, e.towel_side_range) == (
+        "diagonal",
+        "oracle",
+        "closed",
+        (0.25, 0.45),
+    )
+    assert e.towel_resolution == 16 and e.video_fps == 0.0
+
+
+def test_help_mentions_suites(capsys):
+    with pytest.raises(SystemExit):
+        main(["bench", "--help"])
+    out = capsys.readouterr().out
+    assert "--suite" in out and "--ray" in out
