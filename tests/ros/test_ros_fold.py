@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import free_port, requires_ros
+from ros_helpers import free_port, requires_ros
 
 from foldbot.io.episode import REQUIRED_RESULT_KEYS, rescore
 
