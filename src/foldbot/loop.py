@@ -260,12 +260,7 @@ def run_open_loop(
         for action in plan.actions:
             log(f"open loop: {action.label} → place")
             t_sim, t_wall = cell.sim_time, time.perf_counter()
-            cell.show(
-                state,
-                grasp_points=[action.grasp],
-                place_points=[action.place],
-                fold_line=line_points(action.fold_line, cell.table_height),
-            )
+            _show_action(cell, state, action)
             outcome = execute_action(cell, action)
             rec.actions.append(
                 {
@@ -333,12 +328,7 @@ def closed_loop_action(
             outward = action.grasp[:2] - state.keypoint_array().mean(axis=0)[:2]
             outward = outward / max(np.linalg.norm(outward), 1e-9) * cfg.fault_grasp_offset
             action = dataclasses.replace(action, grasp=action.grasp + [*outward, 0.0])
-        cell.show(
-            state,
-            grasp_points=[action.grasp],
-            place_points=[action.place],
-            fold_line=line_points(action.fold_line, cell.table_height),
-        )
+        _show_action(cell, state, action)
         outcome = execute_action(cell, action)
         placed_error = None
         cell.park()
@@ -383,6 +373,16 @@ def closed_loop_action(
         "sim_seconds": cell.sim_time - t_sim,
         "wall_seconds": time.perf_counter() - t_wall,
     }, state
+
+
+def _show_action(cell: FoldCell, state: ClothState, action: FoldAction) -> None:
+    """The video's overlay while an action runs: its grasp and place points and fold line."""
+    cell.show(
+        state,
+        grasp_points=[action.grasp],
+        place_points=[action.place],
+        fold_line=line_points(action.fold_line, cell.table_height),
+    )
 
 
 def execute_action(cell: FoldCell, action: FoldAction) -> dict:
