@@ -1,6 +1,7 @@
 """The runner on real (tiny) episodes: resume, error records, changed settings, open loop."""
 
 import json
+import sys
 
 import pytest
 
@@ -69,3 +70,13 @@ def test_open_loop_runs_without_reobserving(tmp_path, tiny_suite_data):
     assert all(a["retries"] == 0 and a["attempts"] == [] for a in r["actions"])
     assert all(stage["verified"] is None for stage in r["stages"])
     assert 0.0 <= r["coverage"] <= 1.0 and r["fold_error_mm"] > 0
+
+
+def test_ray_missing_is_a_clear_error_before_anything_is_written(
+    tmp_path, monkeypatch, tiny_suite_data
+):
+    monkeypatch.setitem(sys.modules, "ray", None)  # as if the optional extra were not installed
+    out = tmp_path / "b"
+    with pytest.raises(ConfigError, match=r"pip install -e '\.\[ray\]'"):
+        run_suite(suite_from_dict(tiny_suite_data()), out, ray_address="auto")
+    assert not out.exists()

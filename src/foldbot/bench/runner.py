@@ -37,6 +37,8 @@ from foldbot.io.episode import RESULT_FILE, is_episode_dir
 
 EPISODES = "episodes"
 SUITE_FILE = "suite.json"
+SINGLE_THREAD_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+"""Set in every episode process: no BLAS/OpenMP thread pools beside the episode's one core."""
 DEFAULT_TIMEOUT_S = 3600.0
 """An episode still running after this long is stopped and recorded as a timeout."""
 
@@ -74,7 +76,9 @@ def run_episode_process(spec: EpisodeSpec, out_dir: Path, timeout: float | None)
             str(out_dir),
             str(record_path),
         ]
-        env = {**os.environ, "PYTHONWARNINGS": "ignore"}
+        # One core per episode, and the same numeric set-up locally and on Ray (which sets
+        # OMP_NUM_THREADS=1 in its workers): the episode is the same wherever it runs.
+        env = {**os.environ, "PYTHONWARNINGS": "ignore", **SINGLE_THREAD_ENV}
         try:
             proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
         except subprocess.TimeoutExpired:
@@ -205,6 +209,7 @@ def run_suite(
     """
     if workers < 1:
         raise ConfigError(f"--workers must be ≥ 1, got {workers}")
+    ray = connect_ray(ray_address) if run and ray_address is not None else None
     prepare_output(out, suite)
     records: dict[str, dict] = {}
     todo: list[EpisodeSpec] = []
@@ -239,8 +244,8 @@ def run_suite(
             on_record(record)
 
     try:
-        if todo and ray_address is not None:
-            _run_ray(todo, out, ray_address, timeout, finish)
+        if todo and ray is not None:
+            _run_ray(ray, todo, out, timeout, finish)
         elif todo:
             with ThreadPoolExecutor(max_workers=workers) as pool:
                 futures = {
@@ -255,14 +260,13 @@ def run_suite(
 
 
 def _run_ray(
+    ray: Any,
     todo: Iterable[EpisodeSpec],
     out: Path,
-    address: str,
     timeout: float | None,
     finish: Callable[[EpisodeSpec, dict], None],
 ) -> None:
     """Submit every episode as a Ray task (1 CPU each) and collect them as they finish."""
-    ray = connect_ray(address)
     task = ray.remote(num_cpus=1, max_retries=0)(_ray_episode)
     pending = {task.remote(spec.as_dict(), timeout): spec for spec in todo}
     while pending:
