@@ -105,3 +105,18 @@ def test_fold_action_round_trip():
     np.testing.assert_array_equal(a.grasp, b.grasp)
     np.testing.assert_array_equal(a.place, b.place)
     assert a.fold_line == b.fold_line and a.label == b.label
+
+
+def test_corners_from_pose_array_need_all_four():
+    kp = {
+        label: (np.array([i, -i, 0.76]), 1.0)
+        for i, label in enumerate(("near_left", "near_right", "far_right", "far_left"))
+    }
+    state = ClothState(True, "", kp, np.zeros((2, 2), bool))
+    msg = convert.keypoints_msg(state, 0.0, "world")
+    corners = convert.corners_of_pose_array(msg)
+    for label, (xyz, _c) in kp.items():
+        np.testing.assert_array_equal(corners[label], xyz)
+    msg.poses.pop()
+    with pytest.raises(FoldbotError, match="got 3 poses"):
+        convert.corners_of_pose_array(msg)

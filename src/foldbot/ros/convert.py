@@ -142,6 +142,19 @@ def keypoints_msg(state: ClothState, seconds: float, frame_id: str) -> PoseArray
     return msg
 
 
+def corners_of_pose_array(msg: PoseArray) -> dict[str, np.ndarray]:
+    """Corner positions by label from a `keypoints_msg` PoseArray (all four corners needed)."""
+    if len(msg.poses) != len(CORNER_LABELS):
+        raise FoldbotError(
+            f"keypoints PoseArray must hold the {len(CORNER_LABELS)} corners "
+            f"{', '.join(CORNER_LABELS)} in that order, got {len(msg.poses)} poses"
+        )
+    return {
+        label: np.array([p.position.x, p.position.y, p.position.z])
+        for label, p in zip(CORNER_LABELS, msg.poses, strict=True)
+    }
+
+
 def state_from(json_text: str, mask: np.ndarray) -> ClothState:
     """Rebuild a ClothState from `state_json` and its mask image (nonzero = cloth)."""
     d = json.loads(json_text)

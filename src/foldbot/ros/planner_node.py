@@ -1,5 +1,5 @@
-"""The planner node: perceived corners → fold plan (planning.recipes) → joint trajectories
-(IK on every waypoint, ruckig time law: control.executor), on request.
+"""The planner node: perceived corners (cloth/keypoints) → fold plan (planning.recipes) → joint
+trajectories (IK on every waypoint, ruckig time law: control.executor), on request.
 
 It keeps its own kinematic model of the cell (the same URDF in a private, never-stepped PyBullet
 world) for IK; it sees no cloth. Requests and responses are JSON on planner/request and
@@ -10,9 +10,13 @@ from __future__ import annotations
 
 import json
 import sys
+import threading
+import time
+from collections import OrderedDict
 
 import numpy as np
 import rospy
+from geometry_msgs.msg import PoseArray
 from std_msgs.msg import String
 
 from foldbot.control.executor import ArmExecutor
@@ -103,14 +107,41 @@ class MotionPlanner:
 
 
 class PlannerNode:
-    def __init__(self, fold_args: str) -> None:
+    """MotionPlanner on topics; a stage is planned from the perceived corners on cloth/keypoints
+    (the frame named by the request's `keypoints_stamp`) or from corners the request carries."""
+
+    def __init__(self, fold_args: str, wait_s: float = 60.0) -> None:
         self.planner = MotionPlanner(fold_args)
+        self.wait_s = wait_s
+        self.keypoints: OrderedDict[float, PoseArray] = OrderedDict()
+        self.arrived = threading.Condition()
         self.pub = rospy.Publisher(TOPICS["plan_response"], String, queue_size=10)
+        rospy.Subscriber(TOPICS["keypoints"], PoseArray, self._on_keypoints, queue_size=100)
         rospy.Subscriber(TOPICS["plan_request"], String, self._on_request)
+
+    def _on_keypoints(self, msg: PoseArray) -> None:
+        with self.arrived:
+            self.keypoints[round(msg.header.stamp.to_sec(), 6)] = msg
+            while len(self.keypoints) > 64:
+                self.keypoints.popitem(last=False)
+            self.arrived.notify_all()
+
+    def perceived_corners(self, stamp: float) -> dict[str, list[float]]:
+        """The corners perception published for the frame at `stamp`."""
+        key, deadline = round(stamp, 6), time.monotonic() + self.wait_s
+        with self.arrived:
+            while key not in self.keypoints:
+                if time.monotonic() > deadline or rospy.is_shutdown():
+                    raise FoldbotError(f"no cloth/keypoints for the frame at t = {stamp:.3f} s")
+                self.arrived.wait(0.5)
+            msg = self.keypoints[key]
+        return {k: v.tolist() for k, v in convert.corners_of_pose_array(msg).items()}
 
     def _on_request(self, msg: String) -> None:
         req = json.loads(msg.data)
         try:
+            if req.get("kind") == "stage" and "keypoints_stamp" in req:
+                req["corners"] = self.perceived_corners(float(req["keypoints_stamp"]))
             out = {"id": req.get("id"), "ok": True, **self.planner.handle(req)}
         except FoldbotError as exc:
             out = {

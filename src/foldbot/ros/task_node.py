@@ -28,7 +28,7 @@ from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
 
 from foldbot import errors
 from foldbot.io.episode import EpisodeWriter
-from foldbot.loop import FoldCell, StepLog, run_fold
+from foldbot.loop import FoldCell, StepLog, corners_of, run_fold
 from foldbot.metrics import score_episode
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState
@@ -49,6 +49,10 @@ def _raise_remote(reply: dict, what: str) -> None:
     if not (isinstance(cls, type) and issubclass(cls, errors.FoldbotError)):
         cls = errors.FoldbotError
     raise cls(f"{what}: {reply.get('error', 'failed')}")
+
+
+def _same_corners(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> bool:
+    return a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
 
 
 class _Inbox:
@@ -250,13 +254,13 @@ class RosCell(FoldCell):
     def plan_stage(
         self, recipe: str, stage: int, corners: dict[str, np.ndarray], place_lift: float
     ) -> tuple[FoldPlan, np.ndarray]:
-        reply = self._plan(
-            "stage",
-            recipe=recipe,
-            stage=stage,
-            corners={k: [float(x) for x in v] for k, v in corners.items()},
-            place_lift=place_lift,
-        )
+        seen = self.latest_state
+        if seen is not None and _same_corners(corners, corners_of(seen)):
+            # Perceived corners: the planner takes them from cloth/keypoints itself.
+            source = {"keypoints_stamp": seen.stamp}
+        else:  # e.g. the open loop's predicted corners of a later stage
+            source = {"corners": {k: [float(x) for x in v] for k, v in corners.items()}}
+        reply = self._plan("stage", recipe=recipe, stage=stage, place_lift=place_lift, **source)
         plan = FoldPlan(
             recipe=recipe,
             fold_lines=tuple(tuple(line) for line in reply["fold_lines"]),
