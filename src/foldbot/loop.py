@@ -46,6 +46,8 @@ class LoopConfig:
     """False: the open-loop baseline (see run_open_loop)."""
     layer_thickness: float = 0.0
     """Height of one cloth layer (m): where the open loop expects a folded stack's corners."""
+    stack_grasp_height: float = 0.004
+    """A stack (FoldAction.layers > 1) is grasped this high above the perceived table (m)."""
 
 
 @dataclass
@@ -289,17 +291,74 @@ def nearest_keypoint(state: ClothState, point: np.ndarray, radius: float) -> np.
     return pts[k] if d[k] <= radius else None
 
 
+def moving_side_tip(
+    state: ClothState, line: tuple[float, float, float, float], near: np.ndarray, band: float
+) -> np.ndarray | None:
+    """The perceived outline's point on the moving side of `line` that lies farthest from it (within
+    `band`, the one nearest `near`), or None when no cloth is left there.
+
+    Once the stage's first corner is folded, the cloth still on the moving side is the part that
+    hangs on the corner not yet carried, so its farthest point from the line is that corner, even
+    where the first carry dragged it into a shape the four-corner detector fits poorly."""
+    outline = np.asarray(state.outline_world, dtype=float).reshape(-1, 3)
+    if not state.detected or len(outline) < 3:
+        return None
+    x, y, dx, dy = line
+    normal = np.array([-dy, dx]) / max(float(np.hypot(dx, dy)), 1e-12)
+    s = (outline[:, :2] - [x, y]) @ normal
+    if s.max() <= band:
+        return None
+    cand = outline[s >= s.max() - band]
+    k = int(np.argmin(np.linalg.norm(cand[:, :2] - near[:2], axis=1)))
+    return cand[k]
+
+
 def regrasp_point(
-    state: ClothState, label: str, planned: np.ndarray, radius: float, label_radius: float
+    state: ClothState,
+    label: str,
+    planned: np.ndarray,
+    radius: float,
+    label_radius: float,
+    line: tuple[float, float, float, float] | None = None,
+    tip_gap: float = 0.015,
 ) -> np.ndarray | None:
     """Where to grasp a corner now: the keypoint with the planned label if it lies within
     `label_radius` of the plan (a fold drags the other corners by up to ~15 cm), else the
-    keypoint nearest the plan within `radius`."""
+    keypoint nearest the plan within `radius`.
+
+    With the stage's fold `line` given, a corner still on the moving side is checked against the
+    outline: where the moving side's tip nearest that keypoint lies more than `tip_gap` from it, the
+    keypoint is a poor fit of a dragged corner and the tip is taken instead, at the planned height
+    (the corner not yet carried lies in one layer on the table)."""
+    seen = None
     if state.detected and label in state.keypoints:
         xyz = np.asarray(state.keypoints[label][0])
         if np.linalg.norm(xyz[:2] - planned[:2]) <= label_radius:
-            return xyz
-    return nearest_keypoint(state, planned, radius)
+            seen = xyz
+    if seen is None:
+        seen = nearest_keypoint(state, planned, radius)
+    if line is None:
+        return seen
+    x, y, dx, dy = line
+    if (planned[1] - y) * dx - (planned[0] - x) * dy <= 0.01 * float(np.hypot(dx, dy)):
+        return seen  # not a corner still to be carried (e.g. one placed off, to be re-placed)
+    near = planned if seen is None else seen
+    tip = moving_side_tip(state, line, near, band=0.01)
+    if tip is None or np.linalg.norm(tip[:2] - planned[:2]) > label_radius:
+        return seen
+    if seen is None or np.linalg.norm(tip[:2] - seen[:2]) > tip_gap:
+        return np.array([tip[0], tip[1], planned[2]])
+    return seen
+
+
+def stack_grasp_point(state: ClothState, point: np.ndarray, height: float) -> np.ndarray:
+    """`point` lowered to `height` above the perceived table plane under it, so the jaws close
+    under every layer of a stack (unchanged without a usable table plane)."""
+    a, b, c, d = (float(v) for v in np.asarray(state.table_plane, dtype=float).reshape(4))
+    if c < 0.5:
+        return np.asarray(point, dtype=float)
+    z_table = -(a * point[0] + b * point[1] + d) / c
+    return np.array([point[0], point[1], min(float(point[2]), z_table + height)])
 
 
 def closed_loop_action(
@@ -320,10 +379,19 @@ def closed_loop_action(
     while True:
         # Earlier actions move the cloth: grasp the corner where it is now.
         seen = regrasp_point(
-            state, planned.label, action.grasp, cfg.regrasp_radius, cfg.regrasp_label_radius
+            state,
+            planned.label,
+            action.grasp,
+            cfg.regrasp_radius,
+            cfg.regrasp_label_radius,
+            line=action.fold_line,
         )
         if seen is not None:
             action = dataclasses.replace(action, grasp=seen)
+        if planned.layers > 1 and not (attempts and attempts[-1]["grasp_success"]):
+            action = dataclasses.replace(
+                action, grasp=stack_grasp_point(state, action.grasp, cfg.stack_grasp_height)
+            )
         if inject_fault and not attempts:
             outward = action.grasp[:2] - state.keypoint_array().mean(axis=0)[:2]
             outward = outward / max(np.linalg.norm(outward), 1e-9) * cfg.fault_grasp_offset

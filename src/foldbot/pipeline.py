@@ -252,6 +252,7 @@ def loop_config(cfg: EpisodeConfig, layer_thickness: float = 0.0) -> LoopConfig:
         require_full_view=cfg.perception == "vision",
         closed_loop=cfg.closed_loop,
         layer_thickness=layer_thickness,
+        stack_grasp_height=cfg.motion.stack_grasp_height,
     )
 
 

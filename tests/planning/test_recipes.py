@@ -455,3 +455,27 @@ def test_half_long_carries_the_far_apart_corners(width_x, width_y, expected_movi
     a, b = (a.grasp for a in plan.actions)
     expected = width_x if width_x > 1.1 * width_y else width_y
     assert np.linalg.norm(a - b) == pytest.approx(expected)
+
+
+def test_stage_grasp_layers_reach_the_actions(monkeypatch):
+    for recipe in RECIPES:  # none is marked yet: every grasp holds the top layer
+        plans, _, _ = run_recipe(recipe, towel(depth=0.36, width=0.3))
+        assert all(a.layers == 1 for plan in plans for a in plan.actions)
+    monkeypatch.setitem(recipes_module._GRASP_LAYERS, ("quarter", 1), 2)
+    plans, _, _ = run_recipe("quarter", towel(depth=0.36, width=0.3))
+    assert [a.layers for a in plans[0].actions] == [1, 1]
+    assert [a.layers for a in plans[1].actions] == [2, 2]
+
+
+def test_a_corner_is_released_above_a_thicker_stack_at_its_place():
+    """Thirds, second stage: the near third's single-layer corners land on the crease ends of the
+    first fold, which stand higher: each is released above the higher of the two."""
+    c = towel(depth=0.36, width=0.3)
+    outline = predicted_outline("thirds", 0, c)
+    corners = perceive(outline)
+    for name in ("far_left", "far_right"):  # the first stage's crease ends: two layers
+        corners[name] = corners[name] + [0.0, 0.0, 0.012]
+    plan = plan_stage("thirds", 1, corners, place_lift=0.004)
+    for action in plan.actions:
+        assert action.label.startswith("near_")
+        assert action.place[2] == pytest.approx(corners[action.label][2] + 0.012 + 0.004)

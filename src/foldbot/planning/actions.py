@@ -16,10 +16,15 @@ class FoldAction:
     fold_line: tuple[float, float, float, float]  # [x, y, dx, dy] the fold this action serves
     label: str = ""
     """What is picked (e.g. the keypoint name)."""
+    layers: int = 1
+    """Cloth layers stacked at the grasp point that the grasp must hold together (a corner of a
+    folded stack): with more than one, the jaws close down at the table, under the whole stack,
+    instead of just under the perceived top surface."""
 
     def as_dict(self) -> dict:
         return {
             "label": self.label,
+            "layers": self.layers,
             "grasp": [float(v) for v in self.grasp],
             "place": [float(v) for v in self.place],
             "fold_line": [float(v) for v in self.fold_line],

@@ -22,10 +22,18 @@ class MotionConfig:
     """Peak height of the carry arc above the straight line, per metre of carried distance."""
     min_arc_height: float = 0.05
     """Lowest carry-arc peak (m)."""
+    stack_grasp_height: float = 0.004
+    """For a grasp that must hold a folded stack (`FoldAction.layers` > 1): the grasp point's height
+    above the perceived table (m), i.e. where a single layer's corner is, so the closing jaws reach
+    under every layer."""
     place_lift: float = 0.004
     """A carried point is released this high above the height it was grasped at (m)."""
     place_height: float = 0.01
     """Height above the place point at which the arc ends before the final lowering (m)."""
+    place_slide: float = 0.0
+    """Lower-then-slide placement: the carried point comes down this far short of its place point
+    (back along the carry direction) and is then slid out onto it, pulling the laid layer taut
+    from the crease (m; 0 = lower straight onto the place point)."""
     retreat_height: float = 0.08
     """Rise after releasing (m)."""
     cartesian_speed: float = 0.25
@@ -68,13 +76,32 @@ def action_segments(action: FoldAction, current: np.ndarray, cfg: MotionConfig) 
     grasp_tcp = action.grasp + up * cfg.grasp_depth
     pre_grasp = action.grasp + up * cfg.approach_height
     place_tcp = action.place + up * cfg.grasp_depth
-    pre_place = action.place + up * cfg.place_height
-    return [
+    carry = np.array([*(action.place[:2] - action.grasp[:2]), 0.0])
+    dist = float(np.linalg.norm(carry))
+    slide = min(cfg.place_slide, 0.5 * dist)
+    touch_tcp = place_tcp - (carry / dist * slide if slide > 0 else 0.0)
+    pre_place = touch_tcp + up * (cfg.place_height - cfg.grasp_depth)
+    segments = [
         Segment("approach", line_path(current, pre_grasp), cfg.free_speed),
         Segment("descend", line_path(pre_grasp, grasp_tcp, 0.005), cfg.free_speed / 3, "close"),
         Segment("carry", carry_arc(grasp_tcp, pre_place, cfg), cfg.cartesian_speed),
-        Segment("lower", line_path(pre_place, place_tcp, 0.003), cfg.cartesian_speed / 3, "open"),
+    ]
+    if slide > 0:
+        segments += [
+            Segment("lower", line_path(pre_place, touch_tcp, 0.003), cfg.cartesian_speed / 3),
+            Segment(
+                "slide", line_path(touch_tcp, place_tcp, 0.003), cfg.cartesian_speed / 3, "open"
+            ),
+        ]
+    else:
+        segments.append(
+            Segment(
+                "lower", line_path(pre_place, place_tcp, 0.003), cfg.cartesian_speed / 3, "open"
+            )
+        )
+    segments.append(
         Segment(
             "retreat", line_path(place_tcp, place_tcp + up * cfg.retreat_height), cfg.free_speed
-        ),
-    ]
+        )
+    )
+    return segments

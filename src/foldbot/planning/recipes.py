@@ -195,6 +195,11 @@ def _diagonal(c: dict[str, np.ndarray]) -> _Fold:
     return right if dx_right < dx_left - 1e-12 else left
 
 
+_GRASP_LAYERS: dict[tuple[str, int], int] = {}
+"""Layers at the corners a stage grasps, where more than one (`FoldAction.layers`: the closed loop
+then closes the jaws at the table, under the whole stack). Empty for now: for quarter's second
+stage, (quarter, 1) → 2 folded worse than a top-layer grasp in a first trial (seeds 0–3)."""
+
 _STAGES: dict[str, tuple[Callable[[dict[str, np.ndarray]], _Fold], ...]] = {
     "half": (_half_x,),
     "half_y": (_half_y,),
@@ -229,14 +234,22 @@ def plan_stage(
     recipe: str, stage_index: int, corners: dict[str, np.ndarray], place_lift: float = 0.004
 ) -> FoldPlan:
     """Plan one stage of a recipe on the corners perceived at its start: its one fold line and the
-    one-gripper pick-and-place actions (grasp a corner, release at its mirror, lifted)."""
+    one-gripper pick-and-place actions (grasp a corner, release at its mirror, lifted).
+
+    The release height is `place_lift` above the higher of the grasped corner and the corner
+    nearest the place point, so a corner laid onto a thicker stack (thirds' second stage) is not
+    pushed into it."""
     fold = _stage_fold(recipe, stage_index, corners)
     c = _require_corners(corners)
+    layers = _GRASP_LAYERS.get((recipe, int(stage_index)), 1)
     actions = []
     for name in fold.moving:
         place = _mirror(c[name], fold.line)
-        place[2] = c[name][2] + place_lift
-        actions.append(FoldAction(grasp=c[name], place=place, fold_line=fold.line, label=name))
+        target = min(CORNER_NAMES, key=lambda n: float(np.linalg.norm(c[n][:2] - place[:2])))
+        place[2] = max(c[name][2], c[target][2]) + place_lift
+        actions.append(
+            FoldAction(grasp=c[name], place=place, fold_line=fold.line, label=name, layers=layers)
+        )
     return FoldPlan(recipe=recipe, fold_lines=(fold.line,), actions=tuple(actions))
 
 

@@ -1,0 +1,39 @@
+import numpy as np
+import pytest
+
+from foldbot.planning.actions import FoldAction
+from foldbot.planning.motion import MotionConfig, action_segments
+
+ACTION = FoldAction(
+    grasp=np.array([0.60, 0.10, 0.755]),
+    place=np.array([0.30, 0.10, 0.759]),
+    fold_line=(0.45, -0.2, 0.0, 0.4),
+    label="far_left",
+)
+START = np.array([0.3, 0.0, 1.0])
+
+
+def test_default_placement_lowers_straight_onto_the_place_point():
+    cfg = MotionConfig()
+    segs = action_segments(ACTION, START, cfg)
+    assert [s.name for s in segs] == ["approach", "descend", "carry", "lower", "retreat"]
+    assert [s.gripper for s in segs] == [None, "close", None, "open", None]
+    place_tcp = ACTION.place + [0, 0, cfg.grasp_depth]
+    assert segs[2].points[-1] == pytest.approx(ACTION.place + [0, 0, cfg.place_height])
+    assert segs[3].points[-1] == pytest.approx(place_tcp)
+
+
+def test_slide_placement_comes_down_short_and_slides_out_onto_the_place_point():
+    cfg = MotionConfig(place_slide=0.02)
+    segs = action_segments(ACTION, START, cfg)
+    assert [s.name for s in segs] == ["approach", "descend", "carry", "lower", "slide", "retreat"]
+    assert [s.gripper for s in segs] == [None, "close", None, None, "open", None]
+    place_tcp = ACTION.place + [0, 0, cfg.grasp_depth]
+    touch = place_tcp + [0.02, 0.0, 0.0]  # 2 cm back toward the fold line (the carry runs −x)
+    assert segs[3].points[-1] == pytest.approx(touch)
+    assert segs[4].points[0] == pytest.approx(touch)
+    assert segs[4].points[-1] == pytest.approx(place_tcp)
+    # The slide runs at the table: constant height, straight along the carry direction.
+    assert np.ptp(segs[4].points[:, 2]) == pytest.approx(0.0)
+    assert np.allclose(segs[4].points[:, 1], place_tcp[1])
+    assert segs[5].points[0] == pytest.approx(place_tcp)

@@ -1,0 +1,96 @@
+"""The closed loop's grasp-point helpers (foldbot.loop): where to grasp a corner that earlier actions
+moved, and how low to grasp a folded stack. Pure geometry on hand-made perception states."""
+
+import numpy as np
+import pytest
+
+from foldbot.loop import moving_side_tip, regrasp_point, stack_grasp_point
+from foldbot.perception.state import ClothState
+
+TABLE_Z = 0.75
+# Fold line x = 0.45 pointing −y: its left (moving) side is x > 0.45, the far side.
+LINE = (0.45, 0.15, 0.0, -0.3)
+
+
+def state(outline_xy, keypoints, table_z=TABLE_Z):
+    outline = np.column_stack([np.asarray(outline_xy, float), np.full(len(outline_xy), 0.76)])
+    return ClothState(
+        detected=True,
+        keypoints={k: (np.asarray(v, float), 0.5) for k, v in keypoints.items()},
+        mask=np.zeros((4, 4), bool),
+        outline_world=outline,
+        table_plane=np.array([0.0, 0.0, 1.0, -table_z]),
+    )
+
+
+def dragged_towel():
+    """After the first carry of a half fold: far_left is folded onto near_left; the far_right
+    corner was dragged to (0.56, −0.06), the tip of a tent of cloth still on the far side."""
+    outline = [
+        (0.30, 0.15),  # folded far_left over near_left
+        (0.30, -0.15),  # near_right
+        (0.45, -0.15),
+        (0.56, -0.06),  # the dragged far_right: the tent's tip
+        (0.45, 0.05),
+    ]
+    keypoints = {
+        "near_left": (0.30, 0.15, 0.757),
+        "near_right": (0.30, -0.15, 0.755),
+        # The corner detector fits a quad to the pentagon: its far_right is 3.5 cm off the tip.
+        "far_right": (0.535, -0.085, 0.757),
+        "far_left": (0.45, 0.05, 0.757),
+    }
+    return state(outline, keypoints)
+
+
+def test_moving_side_tip_is_the_farthest_point_from_the_fold_line():
+    tip = moving_side_tip(dragged_towel(), LINE, near=np.array([0.6, -0.15, 0.0]), band=0.01)
+    assert tip[:2] == pytest.approx([0.56, -0.06])
+
+
+def test_no_tip_when_nothing_is_left_on_the_moving_side():
+    folded = state([(0.30, 0.15), (0.30, -0.15), (0.45, -0.15), (0.45, 0.15)], {})
+    assert moving_side_tip(folded, LINE, near=np.array([0.6, 0.0, 0.0]), band=0.01) is None
+
+
+def test_dragged_corner_is_grasped_at_the_tip_at_its_planned_height():
+    planned = np.array([0.62, -0.15, 0.755])  # where far_right was before the first carry
+    point = regrasp_point(dragged_towel(), "far_right", planned, 0.06, 0.25, line=LINE)
+    assert point == pytest.approx([0.56, -0.06, 0.755])
+    # Without the fold line: the labelled keypoint, as before.
+    point = regrasp_point(dragged_towel(), "far_right", planned, 0.06, 0.25)
+    assert point == pytest.approx([0.535, -0.085, 0.757])
+
+
+def test_a_well_fitted_corner_keeps_its_refined_keypoint():
+    """A flat towel: the moving side's far edge is level with the line, and the labelled corner
+    lies on it, so the refined keypoint stays (not an outline pixel)."""
+    outline = [(0.30, 0.15), (0.30, -0.15), (0.60, -0.15), (0.60, 0.15)]
+    keypoints = {
+        "near_left": (0.30, 0.15, 0.755),
+        "near_right": (0.30, -0.15, 0.755),
+        "far_right": (0.602, -0.152, 0.755),
+        "far_left": (0.602, 0.152, 0.755),
+    }
+    planned = np.array([0.60, 0.15, 0.755])
+    point = regrasp_point(state(outline, keypoints), "far_left", planned, 0.06, 0.25, line=LINE)
+    assert point == pytest.approx([0.602, 0.152, 0.755])
+
+
+def test_a_corner_to_re_place_on_the_staying_side_ignores_the_tip():
+    """Re-grasping a corner placed off its place point (it lies on the staying side) must not
+    jump to the other corner's tent."""
+    planned = np.array([0.31, 0.14, 0.767])
+    point = regrasp_point(dragged_towel(), "near_left", planned, 0.06, 0.25, line=LINE)
+    assert point == pytest.approx([0.30, 0.15, 0.757])
+
+
+def test_stack_grasp_point_goes_down_to_the_table():
+    s = dragged_towel()
+    top = np.array([0.47, 0.2, 0.772])  # top of a two-layer stack
+    assert stack_grasp_point(s, top, 0.004) == pytest.approx([0.47, 0.2, TABLE_Z + 0.004])
+    # Never raised, and left alone without a usable table plane.
+    low = np.array([0.47, 0.2, 0.751])
+    assert stack_grasp_point(s, low, 0.004) == pytest.approx(low)
+    flat = ClothState(detected=True, table_plane=np.zeros(4))
+    assert stack_grasp_point(flat, top, 0.004) == pytest.approx(top)
