@@ -164,17 +164,17 @@ def test_infeasible_action_is_rejected_before_the_arm_moves(tmp_path):
 
 
 def test_towel_size_is_drawn_from_the_seed_within_range():
-    from foldbot.pipeline import _seeded_pose, _seeded_towel
+    from foldbot.pipeline import seeded_pose, seeded_towel
 
     sizes = set()
     for seed in range(20):
         cfg = EpisodeConfig(seed=seed, towel_size_range=(0.25, 0.45))
-        towel = _seeded_towel(cfg)
+        towel = seeded_towel(cfg)
         assert 0.25 <= towel.width <= 0.45 and 0.25 <= towel.height <= 0.45
-        assert towel == _seeded_towel(cfg)  # same seed, same towel
+        assert towel == seeded_towel(cfg)  # same seed, same towel
         # Size randomisation leaves the seed's pose as it was.
         plain = EpisodeConfig(seed=seed)
-        assert _seeded_pose(cfg, (0.45, 0.0)) == _seeded_pose(plain, (0.45, 0.0))
+        assert seeded_pose(cfg, (0.45, 0.0)) == seeded_pose(plain, (0.45, 0.0))
         sizes.add((round(towel.width, 4), round(towel.height, 4)))
     assert len(sizes) == 20
     with pytest.raises(ConfigError, match="towel_size_range"):

@@ -146,7 +146,7 @@ class _VideoRecorder:
         self.writer.add_frame(frame)
 
 
-def _seeded_towel(cfg: EpisodeConfig) -> TowelSpec:
+def seeded_towel(cfg: EpisodeConfig) -> TowelSpec:
     """The towel of this episode: `cfg.towel`, or with sides drawn from `towel_size_range`."""
     if cfg.towel_size_range is None:
         return cfg.towel
@@ -157,9 +157,10 @@ def _seeded_towel(cfg: EpisodeConfig) -> TowelSpec:
     return dataclasses.replace(cfg.towel, width=width, height=height)
 
 
-def _seeded_pose(
+def seeded_pose(
     cfg: EpisodeConfig, center: tuple[float, float]
 ) -> tuple[tuple[float, float], float]:
+    """The cloth's centre (x, y) and yaw (rad) on the table for this episode's seed."""
     rng = np.random.default_rng(cfg.seed)
     dx, dy = rng.uniform(-cfg.position_jitter, cfg.position_jitter, size=2)
     yaw = float(rng.uniform(-cfg.yaw_range, cfg.yaw_range))
@@ -315,8 +316,8 @@ def build_sim_cell(cfg: EpisodeConfig, world: SimWorld) -> SimCellParts:
     """Arm, cloth (seeded size and pose), divergence monitor, camera, oracle and executor."""
     layout = world.layout
     robot = make_robot(cfg.robot, world.client, layout)
-    center, yaw = _seeded_pose(cfg, layout.workspace_center_xy)
-    towel = _seeded_towel(cfg)
+    center, yaw = seeded_pose(cfg, layout.workspace_center_xy)
+    towel = seeded_towel(cfg)
     mesh = make_towel(towel)
     cloth = SoftCloth(world.client, mesh, cfg.cloth, layout.table_height, center, yaw)
     world.add_step_hook(DivergenceMonitor(cloth, layout.workspace_center_xy, radius=1.0))

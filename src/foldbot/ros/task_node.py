@@ -32,7 +32,7 @@ from foldbot.loop import FoldCell, StepLog, corners_of, run_fold
 from foldbot.metrics import score_episode
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState
-from foldbot.pipeline import _seeded_pose, _seeded_towel, episode_result, loop_config
+from foldbot.pipeline import episode_result, loop_config, seeded_pose, seeded_towel
 from foldbot.planning.actions import FoldAction, FoldPlan
 from foldbot.ros import CAMERA_FRAME, TOPICS, WORLD_FRAME, convert
 from foldbot.ros.node_args import FOLD_ARGS_PARAM, parse_fold_args
@@ -357,8 +357,8 @@ def run_task(fold_args: str, log=rospy.loginfo) -> dict:
             writer.write_cloth(faces, initial, final, float(mesh["thickness"]))
             result = episode_result(
                 cfg,
-                _seeded_towel(cfg),
-                _seeded_pose(cfg, layout.workspace_center_xy),
+                seeded_towel(cfg),
+                seeded_pose(cfg, layout.workspace_center_xy),
                 score,
                 record,
                 cell.sim_time,
