@@ -136,6 +136,19 @@ def corners_of(state: ClothState) -> dict[str, np.ndarray]:
     return {name: xyz for name, (xyz, _conf) in state.keypoints.items()}
 
 
+def plan_overlay(
+    obs: Observation, state: ClothState, plan: FoldPlan, table_height: float
+) -> np.ndarray:
+    """The perception overlay with a stage plan's grasp and place points and its fold line."""
+    return draw_overlay(
+        obs,
+        state,
+        grasp_points=[a.grasp for a in plan.actions],
+        place_points=[a.place for a in plan.actions],
+        fold_line=line_points(plan.fold_lines[0], table_height),
+    )
+
+
 def require_in_view(state: ClothState) -> None:
     """Refuse to plan from a cloth the camera sees only in part (its mask touches the border)."""
     m = state.mask
@@ -171,13 +184,7 @@ def run_fold(
         plan, predicted = cell.plan_stage(cfg.recipe, stage, corners, cfg.place_lift)
         rec.fold_lines.append(plan.fold_lines[0])
         if stage == 0:
-            rec.initial_overlay = draw_overlay(
-                obs,
-                state,
-                grasp_points=[a.grasp for a in plan.actions],
-                place_points=[a.place for a in plan.actions],
-                fold_line=line_points(plan.fold_lines[0], cell.table_height),
-            )
+            rec.initial_overlay = plan_overlay(obs, state, plan, cell.table_height)
         for i, planned in enumerate(plan.actions):
             log(f"stage {stage + 1}, action {i + 1}/{len(plan.actions)}: {planned.label} → place")
             entry, latest = closed_loop_action(
@@ -251,13 +258,7 @@ def run_open_loop(
         rec.stages.append({"stage": stage, "fold_line": list(plan.fold_lines[0]), "verified": None})
         rec.fold_lines.append(plan.fold_lines[0])
     first = plans[0]
-    rec.initial_overlay = draw_overlay(
-        obs,
-        state,
-        grasp_points=[a.grasp for a in first.actions],
-        place_points=[a.place for a in first.actions],
-        fold_line=line_points(first.fold_lines[0], cell.table_height),
-    )
+    rec.initial_overlay = plan_overlay(obs, state, first, cell.table_height)
     for plan in plans:
         for action in plan.actions:
             log(f"open loop: {action.label} → place")
