@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from foldbot.commands import eval_perception
-from foldbot.commands.eval_perception import folded_towel, sample_scene
+from foldbot.commands.eval_perception import folded_towel, sample_garment_scene, sample_scene
+from foldbot.garments import GARMENT_KEYPOINTS
 from foldbot.garments.towel import TowelSpec
 
 
@@ -84,3 +86,57 @@ def test_folded_towel_mesh() -> None:
     v = mesh.vertices
     assert np.ptp(v[:, 0]) == pytest.approx(0.3) and np.ptp(v[:, 1]) == pytest.approx(0.1)
     assert set(np.round(v[:, 2], 6)) == {0.0, 0.01}
+
+
+def test_tshirt_scenes_write_per_keypoint_figures(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    out = tmp_path / "eval"
+    args = _args(
+        "--garment", "tshirt", "--scenes", "2", "--seed", "1", "--out", str(out),
+        "--save-overlays", "1", "--width", "320", "--height", "240", "--edge-length", "0.04",
+    )  # fmt: skip
+    assert eval_perception.run(args) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["garment"] == "tshirt" and summary["scenes"] == 2
+    assert set(summary["by_keypoint"]) == set(GARMENT_KEYPOINTS["tshirt"])
+    for figures in summary["by_keypoint"].values():
+        assert figures["detection_rate"] == 1.0
+        assert set(figures["error_mm"]) >= {"median", "mean", "p95", "max"}
+    assert summary["detection_rate"] == 1.0 and summary["keypoint_detection_rate"] == 1.0
+    assert summary["keypoint_error_mm"]["max"] < 10.0  # 320×240: 2.5 mm pixels
+    assert summary["mask_iou"] > 0.95
+    row = summary["rows"][0]
+    assert row["scene"]["spec"]["edge_length"] == 0.04 and row["missing"] == []
+    assert len(list((out / "overlays").glob("scene_*.png"))) == 1
+    printed = capsys.readouterr().out
+    assert "left_sleeve" in printed and "overall" in printed and "mean mm" in printed
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--garment", "pants", "--folded-fraction", "0.5"], "--folded-fraction must be 0"),
+        (["--garment", "tshirt", "--edge-length", "0.5"], "edge_length"),
+        (["--garment", "pants", "--arm-fraction", "2"], "--arm-fraction"),
+    ],
+)
+def test_bad_garment_arguments_write_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture, argv: list[str], message: str
+) -> None:
+    out = tmp_path / "eval"
+    assert eval_perception.run(_args("--out", str(out), *argv)) == 2
+    assert message in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("garment", ["tshirt", "pants"])
+def test_garment_scene_sampling_is_reproducible_and_in_range(garment: str) -> None:
+    a = [sample_garment_scene(np.random.default_rng([5, i]), i, garment) for i in range(20)]
+    b = [sample_garment_scene(np.random.default_rng([5, i]), i, garment) for i in range(20)]
+    assert a == b
+    for s in a:
+        assert abs(s.yaw - math.pi / 2) <= math.radians(15)
+        assert abs(s.x - 0.45) <= 0.03 and abs(s.y) <= 0.03
+        assert s.arm_target is None and s.state == "flat"
+    assert len({s.spec for s in a}) == 20

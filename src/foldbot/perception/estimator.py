@@ -8,9 +8,9 @@ import cv2
 import numpy as np
 
 from foldbot.errors import ConfigError
-from foldbot.perception.geometry import pixel_rays, polygon_area
+from foldbot.perception.geometry import Plane, pixel_rays, polygon_area
 from foldbot.perception.keypoints import KeypointConfig, find_corners, label_corners
-from foldbot.perception.segmentation import SegmentationConfig, segment_cloth
+from foldbot.perception.segmentation import Segmentation, SegmentationConfig, segment_cloth
 from foldbot.perception.state import NO_CLOTH, ClothState
 from foldbot.types import Observation
 
@@ -60,38 +60,20 @@ class VisionEstimator:
         if corners is None:
             return ClothState.not_detected(NO_CLOTH, shape, table_plane=plane, stamp=obs.stamp)
 
-        # Heights of the visible cloth (the mask also covers cloth hidden under the arm), on
-        # the 2×2-block height map.
-        h2 = seg.height
-        cloth2 = seg.mask[::2, ::2][: h2.shape[0], : h2.shape[1]]
-        heights = h2[cloth2]
-        heights = heights[np.isfinite(heights)]
-        if heights.size == 0:
+        stats = visible_heights(seg)
+        if stats is None:
             return ClothState.not_detected(
                 "cloth pixels have no depth", shape, table_plane=plane, stamp=obs.stamp
             )
-        p5, h_med, p95 = (float(v) for v in np.percentile(heights, [5.0, 50.0, 95.0]))
+        p5, h_med, p95 = stats
 
-        origin, dirs = pixel_rays(corners.contour, obs.intrinsics, obs.T_world_camera)
-        outline = pw.intersect(origin, dirs, height=h_med)
-        nz = abs(float(pw.normal[2])) or 1.0
-        coverage = polygon_area(outline[:, :2]) / nz
+        outline, coverage = lift_outline(obs, pw, corners.contour, h_med)
         if coverage < cfg.segmentation.min_area:
             return ClothState.not_detected(NO_CLOTH, shape, table_plane=plane, stamp=obs.stamp)
 
         # Corner heights from the cloth blocks near each corner, away from the blurred edge.
-        inner = cv2.erode(cloth2.view(np.uint8), np.ones((3, 3), np.uint8)).view(bool)
-        r = max(1, cfg.corner_height_radius_px // 2)
-        corner_h = np.full(4, h_med)
-        for k, (u, v) in enumerate(corners.uv / 2.0):
-            u0, u1 = max(0, int(u) - r), min(h2.shape[1], int(u) + r + 1)
-            v0, v1 = max(0, int(v) - r), min(h2.shape[0], int(v) + r + 1)
-            win = h2[v0:v1, u0:u1][inner[v0:v1, u0:u1]]
-            win = win[np.isfinite(win)]
-            if win.size >= 5:
-                corner_h[k] = float(np.median(win))
-        _, cdirs = pixel_rays(corners.uv, obs.intrinsics, obs.T_world_camera)
-        xyz = np.array([pw.intersect(origin, cdirs[k], corner_h[k])[0] for k in range(4)])
+        corner_h = local_heights(seg, corners.uv, cfg.corner_height_radius_px, h_med)
+        xyz = lift_pixels(obs, pw, corners.uv, corner_h)
         labels = label_corners(xyz)
         keypoints = {name: (xyz[i], float(corners.confidence[i])) for name, i in labels.items()}
         return ClothState(
@@ -105,3 +87,57 @@ class VisionEstimator:
             table_plane=plane,
             stamp=float(obs.stamp),
         )
+
+
+def visible_heights(seg: Segmentation) -> tuple[float, float, float] | None:
+    """5th, 50th and 95th percentile heights (m) of the visible cloth above the table; None when
+    no cloth pixel has depth. (The mask also covers cloth hidden under the arm; the 2×2-block
+    height map leaves those out.)"""
+    h2 = seg.height
+    cloth2 = seg.mask[::2, ::2][: h2.shape[0], : h2.shape[1]]
+    heights = h2[cloth2]
+    heights = heights[np.isfinite(heights)]
+    if heights.size == 0:
+        return None
+    p5, h_med, p95 = (float(v) for v in np.percentile(heights, [5.0, 50.0, 95.0]))
+    return p5, h_med, p95
+
+
+def lift_outline(
+    obs: Observation, plane_world: Plane, contour: np.ndarray, height: float
+) -> tuple[np.ndarray, float]:
+    """The image outline (N×2 px) on the table plane raised by `height` (N×3 world, m) and its
+    top-view area (m²)."""
+    origin, dirs = pixel_rays(contour, obs.intrinsics, obs.T_world_camera)
+    outline = plane_world.intersect(origin, dirs, height=height)
+    nz = abs(float(plane_world.normal[2])) or 1.0
+    return outline, polygon_area(outline[:, :2]) / nz
+
+
+def local_heights(seg: Segmentation, uv: np.ndarray, radius_px: int, default: float) -> np.ndarray:
+    """Height (m) of the cloth near each pixel (K×2): the median over the cloth blocks within
+    `radius_px`, away from the blurred edge; `default` where fewer than 5 blocks have depth."""
+    h2 = seg.height
+    cloth2 = seg.mask[::2, ::2][: h2.shape[0], : h2.shape[1]]
+    inner = cv2.erode(cloth2.view(np.uint8), np.ones((3, 3), np.uint8)).view(bool)
+    r = max(1, radius_px // 2)
+    out = np.full(len(uv), default)
+    for k, (u, v) in enumerate(np.asarray(uv, dtype=float).reshape(-1, 2) / 2.0):
+        u0, u1 = max(0, int(u) - r), min(h2.shape[1], int(u) + r + 1)
+        v0, v1 = max(0, int(v) - r), min(h2.shape[0], int(v) + r + 1)
+        win = h2[v0:v1, u0:u1][inner[v0:v1, u0:u1]]
+        win = win[np.isfinite(win)]
+        if win.size >= 5:
+            out[k] = float(np.median(win))
+    return out
+
+
+def lift_pixels(
+    obs: Observation, plane_world: Plane, uv: np.ndarray, heights: np.ndarray
+) -> np.ndarray:
+    """World points (K×3, m) where the rays through pixels `uv` (K×2) meet the table plane raised
+    by each one's height (K,)."""
+    origin, dirs = pixel_rays(uv, obs.intrinsics, obs.T_world_camera)
+    return np.array(
+        [plane_world.intersect(origin, dirs[k], heights[k])[0] for k in range(len(dirs))]
+    ).reshape(-1, 3)

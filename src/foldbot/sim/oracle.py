@@ -54,6 +54,17 @@ class GroundTruthOracle:
             if name.startswith("corner")
         }
 
+    def keypoint_positions(self, names: tuple[str, ...] | None = None) -> dict[str, np.ndarray]:
+        """GROUND TRUTH current world xyz (m) of the mesh's named keypoints (a garment's neck,
+        sleeves, …), all of them or those in `names` (ConfigError for a name the mesh lacks)."""
+        kp = self.cloth.mesh.keypoints
+        names = tuple(kp) if names is None else names
+        missing = [n for n in names if n not in kp]
+        if missing:
+            raise ConfigError(f"the cloth mesh has no keypoints {missing}; it has {sorted(kp)}")
+        v = self.cloth_vertices()
+        return {name: v[kp[name]].copy() for name in names}
+
     def labelled_corners(self) -> dict[str, np.ndarray]:
         """GROUND TRUTH mesh corners named by the shared labelling rule (near_left, …)."""
         corners = self.corner_positions()
