@@ -121,6 +121,8 @@ class FoldRecord:
     actions: list[dict] = field(default_factory=list)
     stages: list[dict] = field(default_factory=list)
     initial_overlay: np.ndarray | None = None
+    stage_overlays: list[np.ndarray] = field(default_factory=list)
+    """The perception overlay of each closed-loop stage's closing observation."""
     final_state: ClothState | None = None
     final_obs: Observation | None = None
 
@@ -169,7 +171,7 @@ def run_fold(
     state, obs = cell.observe()
     if not cfg.closed_loop:
         run_open_loop(cfg, cell, state, obs, rec, log)
-        return _finish(cell, rec)
+        return finish_fold(cell, rec)
     for stage in range(recipe_stages(cfg.recipe)):
         # From stage 2 on, the previous stage's closing observation (arm parked, cloth
         # settled) is where this stage starts, unless the cell asks for a fresh one.
@@ -213,11 +215,13 @@ def run_fold(
                 "verified": iou >= cfg.verify_iou,
             }
         )
+        rec.stage_overlays.append(draw_overlay(obs, state))
         log(f"stage {stage + 1} done: mask IoU with the predicted shape {iou:.2f}")
-    return _finish(cell, rec)
+    return finish_fold(cell, rec)
 
 
-def _finish(cell: FoldCell, rec: FoldRecord) -> FoldRecord:
+def finish_fold(cell: FoldCell, rec: FoldRecord) -> FoldRecord:
+    """Park, let the cloth rest and take the closing observation."""
     cell.park()
     cell.wait(0.5)
     rec.final_state, rec.final_obs = cell.observe()
@@ -263,23 +267,30 @@ def run_open_loop(
         for action in plan.actions:
             log(f"open loop: {action.label} → place")
             t_sim, t_wall = cell.sim_time, time.perf_counter()
-            _show_action(cell, state, action)
+            show_action(cell, state, action)
             outcome = execute_action(cell, action)
             rec.actions.append(
-                {
-                    **action.as_dict(),
-                    "kind": "pick_and_place",
-                    "grasp_success": outcome["grasp_success"],
-                    "grasp_reason": outcome["grasp_reason"],
-                    "grasped_vertices": outcome["grasped_vertices"],
-                    "placed_error_m": None,
-                    "retries": 0,
-                    "attempts": [],
-                    "max_tracking_error_m": outcome["max_tracking_error"],
-                    "sim_seconds": cell.sim_time - t_sim,
-                    "wall_seconds": time.perf_counter() - t_wall,
-                }
+                open_loop_entry(
+                    action, outcome, cell.sim_time - t_sim, time.perf_counter() - t_wall
+                )
             )
+
+
+def open_loop_entry(action: FoldAction, outcome: dict, sim_s: float, wall_s: float) -> dict:
+    """result.json's entry for an action executed as planned (no re-observation or retry)."""
+    return {
+        **action.as_dict(),
+        "kind": "pick_and_place",
+        "grasp_success": outcome["grasp_success"],
+        "grasp_reason": outcome["grasp_reason"],
+        "grasped_vertices": outcome["grasped_vertices"],
+        "placed_error_m": None,
+        "retries": 0,
+        "attempts": [],
+        "max_tracking_error_m": outcome["max_tracking_error"],
+        "sim_seconds": sim_s,
+        "wall_seconds": wall_s,
+    }
 
 
 def nearest_keypoint(state: ClothState, point: np.ndarray, radius: float) -> np.ndarray | None:
@@ -397,7 +408,7 @@ def closed_loop_action(
             outward = action.grasp[:2] - state.keypoint_array().mean(axis=0)[:2]
             outward = outward / max(np.linalg.norm(outward), 1e-9) * cfg.fault_grasp_offset
             action = dataclasses.replace(action, grasp=action.grasp + [*outward, 0.0])
-        _show_action(cell, state, action)
+        show_action(cell, state, action)
         outcome = execute_action(cell, action)
         placed_error = None
         cell.park()
@@ -444,7 +455,7 @@ def closed_loop_action(
     }, state
 
 
-def _show_action(cell: FoldCell, state: ClothState, action: FoldAction) -> None:
+def show_action(cell: FoldCell, state: ClothState, action: FoldAction) -> None:
     """The video's overlay while an action runs: its grasp and place points and fold line."""
     cell.show(
         state,

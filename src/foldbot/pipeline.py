@@ -18,8 +18,11 @@ from pathlib import Path
 
 import numpy as np
 
+from foldbot import metrics
 from foldbot.control.executor import ArmExecutor, PlannedSegment
 from foldbot.errors import UnreachableTargetError, require
+from foldbot.garment_loop import run_garment_fold
+from foldbot.garments.mesh import ClothMesh
 from foldbot.garments.towel import TowelSpec, make_towel
 from foldbot.io.episode import EpisodeWriter
 from foldbot.loop import FoldCell, FoldRecord, LoopConfig, StepLog, run_fold
@@ -28,18 +31,26 @@ from foldbot.perception.estimator import VisionEstimator
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState
 from foldbot.planning.actions import FoldAction
+from foldbot.planning.garment_recipes import GARMENT_RECIPES
 from foldbot.planning.motion import MotionConfig, Segment, action_segments, line_path
 from foldbot.planning.recipes import RECIPES
 from foldbot.sim.camera import CameraConfig, RGBDCamera
 from foldbot.sim.cloth import ClothConfig, DivergenceMonitor, SoftCloth, settle
+from foldbot.sim.garment_oracle import GarmentOracleEstimator
 from foldbot.sim.grasp import ClothGrasp
 from foldbot.sim.oracle import GroundTruthOracle, OracleEstimator
 from foldbot.sim.robots import ROBOT_NAMES, make_robot
 from foldbot.sim.world import SimConfig, SimWorld
 from foldbot.types import Observation
 
-GARMENTS = ("towel",)
+GARMENTS = ("towel", *GARMENT_RECIPES)
+"""Garment kinds: the towel (planning.recipes) and the garments of planning.garment_recipes."""
+GARMENT_YAW = math.pi / 2
+"""A garment (not a towel) lies with this base yaw, so its top (neck / waist, mesh +y) points
+at the robot (world −x): the hem-up and in-half folds then carry far cloth toward the arm."""
 PERCEPTION_MODES = ("vision", "oracle")
+START_STATES = ("flat", "crumpled")
+"""How an episode's cloth starts: settled flat, or crumpled (flattened by the robot first)."""
 
 
 @dataclass(frozen=True)
@@ -47,9 +58,9 @@ class EpisodeConfig:
     """Everything that defines one fold episode; the seed draws the cloth's pose on the table."""
 
     garment: str = "towel"
-    """Garment kind; allowed: towel."""
+    """Garment kind; allowed: towel, tshirt, pants."""
     recipe: str = "half"
-    """Fold recipe; see planning.recipes.RECIPES."""
+    """Fold recipe: planning.recipes.RECIPES for a towel, GARMENT_RECIPES[garment] otherwise."""
     robot: str = "ur5"
     """Arm; allowed: ur5, panda."""
     perception: str = "vision"
@@ -60,6 +71,8 @@ class EpisodeConfig:
     towel_size_range: tuple[float, float] | None = None
     """When set, each side of the towel is drawn uniformly from [lo, hi] m by the seed (the
     resolution stays `towel.resolution` vertices along the longer side)."""
+    garment_edge_length: float | None = None
+    """Mesh edge length (m) of a T-shirt or pants; None = the garment module's default."""
     cloth: ClothConfig = field(default_factory=ClothConfig)
     sim: SimConfig = field(default_factory=SimConfig)
     motion: MotionConfig = field(default_factory=MotionConfig)
@@ -86,14 +99,19 @@ class EpisodeConfig:
     execute all actions with no re-observation, regrasp, retry or stage verification."""
     video_fps: float = 10.0
     """Frames per simulated second in video.mp4 (0 = no video)."""
+    start: str = "flat"
+    """flat, or crumpled: the seed crumples the settled cloth and the robot flattens it (until the
+    perceived coverage reaches the target, or its action budget is spent) before folding."""
 
     def __post_init__(self) -> None:
         require(
             self.garment in GARMENTS,
             f"unknown garment {self.garment!r}; allowed: {', '.join(GARMENTS)}",
         )
+        recipes = garment_recipes(self.garment)
         require(
-            self.recipe in RECIPES, f"unknown recipe {self.recipe!r}; allowed: {', '.join(RECIPES)}"
+            self.recipe in recipes,
+            f"unknown {self.garment} recipe {self.recipe!r}; allowed: {', '.join(recipes)}",
         )
         require(
             self.robot in ROBOT_NAMES,
@@ -113,12 +131,32 @@ class EpisodeConfig:
                 0.05 <= lo <= hi <= 1.0,
                 f"towel_size_range must satisfy 0.05 ≤ lo ≤ hi ≤ 1.0 m, got {self.towel_size_range!r}",
             )
+        if self.garment_edge_length is not None:
+            require(
+                0.005 <= self.garment_edge_length <= 0.1,
+                f"garment_edge_length must be in [0.005, 0.1] m, got {self.garment_edge_length!r}",
+            )
         require(self.retries >= 0, f"retries must be ≥ 0, got {self.retries!r}")
         require(
             0.0 <= self.fault_grasp_offset <= 0.2,
             f"fault_grasp_offset must be in [0, 0.2] m, got {self.fault_grasp_offset!r}",
         )
         require(self.video_fps >= 0, f"video_fps must be ≥ 0, got {self.video_fps!r}")
+        require(
+            self.start in START_STATES,
+            f"unknown start {self.start!r}; allowed: {', '.join(START_STATES)}",
+        )
+        require(
+            self.start == "flat" or self.garment == "towel",
+            f"start {self.start!r} is for towels (the flattening pulls toward a rectangle); "
+            f"a {self.garment} starts flat",
+        )
+
+
+def garment_recipes(garment: str) -> tuple[str, ...]:
+    """The fold recipes of a garment kind (ConfigError for an unknown kind)."""
+    require(garment in GARMENTS, f"unknown garment {garment!r}; allowed: {', '.join(GARMENTS)}")
+    return RECIPES if garment == "towel" else GARMENT_RECIPES[garment]
 
 
 class _VideoRecorder:
@@ -157,13 +195,28 @@ def seeded_towel(cfg: EpisodeConfig) -> TowelSpec:
     return dataclasses.replace(cfg.towel, width=width, height=height)
 
 
+def seeded_garment(cfg: EpisodeConfig) -> tuple[object, ClothMesh]:
+    """The garment of this episode and its flat mesh: the (seeded) towel, or a T-shirt / pants
+    whose size the seed draws from the garment module's realistic ranges."""
+    if cfg.garment == "towel":
+        towel = seeded_towel(cfg)
+        return towel, make_towel(towel)
+    from foldbot.garments import sample_garment
+
+    rng = np.random.default_rng([cfg.seed, 1])
+    return sample_garment(cfg.garment, rng, cfg.garment_edge_length)
+
+
 def seeded_pose(
     cfg: EpisodeConfig, center: tuple[float, float]
 ) -> tuple[tuple[float, float], float]:
-    """The cloth's centre (x, y) and yaw (rad) on the table for this episode's seed."""
+    """The cloth's centre (x, y) and yaw (rad) on the table for this episode's seed (a garment
+    other than the towel adds GARMENT_YAW)."""
     rng = np.random.default_rng(cfg.seed)
     dx, dy = rng.uniform(-cfg.position_jitter, cfg.position_jitter, size=2)
     yaw = float(rng.uniform(-cfg.yaw_range, cfg.yaw_range))
+    if cfg.garment != "towel":
+        yaw += GARMENT_YAW
     return (center[0] + float(dx), center[1] + float(dy)), yaw
 
 
@@ -259,7 +312,7 @@ def loop_config(cfg: EpisodeConfig, layer_thickness: float = 0.0) -> LoopConfig:
 
 def episode_result(
     cfg: EpisodeConfig,
-    towel: TowelSpec,
+    spec: object,
     pose: tuple[tuple[float, float], float],
     score,
     record: FoldRecord,
@@ -280,7 +333,7 @@ def episode_result(
         "perception": cfg.perception,
         "closed_loop": cfg.closed_loop,
         "grasp_points_source": "oracle" if cfg.perception == "oracle" else "vision",
-        "towel": dataclasses.asdict(towel),
+        ("towel" if cfg.garment == "towel" else "garment_spec"): dataclasses.asdict(spec),
         "cloth_pose": {"x": x, "y": y, "yaw": yaw},
         "camera": {
             "width": camera.width,
@@ -300,8 +353,9 @@ class SimCellParts:
 
     world: SimWorld
     robot: object
-    towel: TowelSpec
-    mesh: object
+    spec: object
+    """The garment's spec (TowelSpec, or the garment module's spec)."""
+    mesh: ClothMesh
     cloth: SoftCloth
     center: tuple[float, float]
     yaw: float
@@ -317,8 +371,7 @@ def build_sim_cell(cfg: EpisodeConfig, world: SimWorld) -> SimCellParts:
     layout = world.layout
     robot = make_robot(cfg.robot, world.client, layout)
     center, yaw = seeded_pose(cfg, layout.workspace_center_xy)
-    towel = seeded_towel(cfg)
-    mesh = make_towel(towel)
+    spec, mesh = seeded_garment(cfg)
     cloth = SoftCloth(world.client, mesh, cfg.cloth, layout.table_height, center, yaw)
     world.add_step_hook(DivergenceMonitor(cloth, layout.workspace_center_xy, radius=1.0))
     camera = RGBDCamera(world.client, cfg.camera)
@@ -327,8 +380,61 @@ def build_sim_cell(cfg: EpisodeConfig, world: SimWorld) -> SimCellParts:
     model = make_robot(cfg.robot, model_world.client, model_world.layout)
     executor = ArmExecutor(world, robot, ClothGrasp(world, robot, cloth), model=model)
     return SimCellParts(
-        world, robot, towel, mesh, cloth, center, yaw, camera, oracle, executor, model_world
+        world, robot, spec, mesh, cloth, center, yaw, camera, oracle, executor, model_world
     )
+
+
+def make_estimator(cfg: EpisodeConfig, oracle: GroundTruthOracle):
+    """The episode's eyes: vision (RGB-D only) or the named ground-truth oracle, for its garment."""
+    if cfg.garment == "towel":
+        return VisionEstimator() if cfg.perception == "vision" else OracleEstimator(oracle)
+    if cfg.perception == "vision":
+        from foldbot.perception.fallback import FirstDetected
+        from foldbot.perception.garment_keypoints import GarmentEstimator
+
+        # Keypoints on the flat garment; once folded, the outline and mask of any cloth.
+        return FirstDetected(GarmentEstimator(cfg.garment), VisionEstimator())
+    return GarmentOracleEstimator(oracle)
+
+
+def crumple_and_flatten(
+    cfg: EpisodeConfig, parts: SimCellParts, cell: SimCell, writer: EpisodeWriter, log=print
+) -> dict:
+    """Crumple the settled towel (seeded), then flatten it from what the camera sees; returns
+    result.json's "flatten" entry, its coverage figures measured on GROUND TRUTH (for scoring)."""
+    from foldbot.flatten import run_flatten
+    from foldbot.planning.flatten import FlattenConfig
+    from foldbot.sim.crumple import crumple
+
+    flat_area = parts.mesh.area
+
+    def true_coverage() -> float:
+        return metrics.coverage(parts.oracle.cloth_vertices(), parts.mesh.faces, flat_area)
+
+    log("crumpling the towel…")
+    crumple(parts.world, parts.cloth, np.random.default_rng([cfg.seed, 2]))
+    start = true_coverage()
+    log(f"crumpled: coverage {start:.2f}; flattening…")
+    flatten_cfg = FlattenConfig()
+    record = run_flatten(flatten_cfg, cell, (parts.spec.width, parts.spec.height), log)
+    end = true_coverage()
+    if record.final_obs is not None and record.final_state is not None:
+        writer.write_image(
+            "overlay_flattened.png", draw_overlay(record.final_obs, record.final_state)
+        )
+    n = sum(not a.get("skipped_unreachable", False) for a in record.actions)
+    log(f"flattened: coverage {start:.2f} → {end:.2f} in {n} actions")
+    return {
+        "success": bool(metrics.flatten_success(end) and n <= flatten_cfg.max_actions),
+        "actions": n,
+        "max_actions": flatten_cfg.max_actions,
+        "coverage_start": start,
+        "coverage_end": end,
+        "perceived_coverage_start": record.initial_coverage,
+        "perceived_coverage_end": record.final_coverage,
+        "reached_target": record.reached,
+        "pulls": record.actions,
+    }
 
 
 def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=print) -> dict:
@@ -341,28 +447,34 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
         robot, cloth, mesh, camera, oracle = (
             parts.robot, parts.cloth, parts.mesh, parts.camera, parts.oracle
         )  # fmt: skip
-        center, yaw, towel, executor = parts.center, parts.yaw, parts.towel, parts.executor
-        estimator = VisionEstimator() if cfg.perception == "vision" else OracleEstimator(oracle)
+        center, yaw, spec, executor = parts.center, parts.yaw, parts.spec, parts.executor
+        estimator = make_estimator(cfg, oracle)
         recorder = None
         if cfg.video_fps > 0:
             recorder = _VideoRecorder(camera, writer, cfg.video_fps)
             world.add_step_hook(recorder)
         log(f"settling the cloth ({mesh.vertices.shape[0]} vertices)…")
         settle(world, cloth)
-        initial = oracle.cloth_vertices()
         cell = SimCell(world, robot, executor, camera, estimator, cfg.motion, recorder)
-        record = run_fold(loop_config(cfg, cloth.thickness), cell, log)
+        flattened = None
+        if cfg.start == "crumpled":
+            flattened = crumple_and_flatten(cfg, parts, cell, writer, log)
+        initial = oracle.cloth_vertices()
+        fold = run_fold if cfg.garment == "towel" else run_garment_fold
+        record = fold(loop_config(cfg, cloth.thickness), cell, log)
         final = oracle.cloth_vertices()
         score = score_episode(initial, final, mesh.faces, record.fold_lines, cloth.thickness)
         if record.initial_overlay is not None:
             writer.write_image("overlay_initial.png", record.initial_overlay)
+        for k, image in enumerate(record.stage_overlays, start=1):
+            writer.write_image(f"overlay_stage{k}.png", image)
         writer.write_image("overlay_final.png", draw_overlay(record.final_obs, record.final_state))
         if recorder is not None:
             recorder.capture()
         writer.write_cloth(mesh.faces, initial, final, cloth.thickness)
         result = episode_result(
             cfg,
-            towel,
+            spec,
             (center, yaw),
             score,
             record,
@@ -370,6 +482,8 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
             time.perf_counter() - wall0,
             cfg.camera,
         )
+        if flattened is not None:
+            result["flatten"] = flattened
         writer.write_result(result)
         path = writer.commit()
     result["out_dir"] = str(path)

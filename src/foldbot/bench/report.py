@@ -90,6 +90,22 @@ def markdown(summary: dict) -> str:
                 f"| {two(c['fold_error_mm_median'])} | {two(c['normalized_performance_mean'], '.3f')} "
                 f"| {two(c['retries_per_episode'], '.2f')} |"
             )
+    flat_rows = [(n, g["flatten"]) for n, g in rows if g.get("flatten")]
+    if flat_rows:
+        lines += [
+            "",
+            "## Flattening (crumpled starts; success = coverage ≥ 0.9 within the action budget)",
+            "",
+            "| group | episodes | flattened | actions: mean / median / p95 "
+            "| coverage before: mean | coverage after: mean / median / p95 |",
+            "|---|---|---|---|---|---|",
+        ]
+        for name, f in flat_rows:
+            lines.append(
+                f"| {name} | {f['episodes']} | {_pct(f['success_rate'])} "
+                f"| {_stat(f['actions'])} | {_f((f['coverage_start'] or {}).get('mean'), '.2f')} "
+                f"| {_stat(f['coverage_end'], '.2f')} |"
+            )
     failed = summary["overall"]["failed_episodes"]
     if failed:
         lines += ["", "## Failures by cause", "", "| cause | episodes | ids |", "|---|---|---|"]

@@ -9,8 +9,10 @@ name = "smoke"                          # must match the file name for suites/NA
 description = "what the suite is for"
 
 [axes]                                  # every combination runs for every seed
-garment = ["towel"]
-recipe = ["half", "diagonal"]           # planning.recipes.RECIPES
+garment = ["towel"]                     # towel, tshirt, pants (a T-shirt's / pants' size is
+                                        # drawn by the seed from foldbot.garments' ranges)
+recipe = ["half", "diagonal"]           # towel: planning.recipes.RECIPES; tshirt: retail;
+                                        # pants: leg_over_leg (every garment × recipe must match)
 perception = ["vision", "oracle"]       # comparison axis: keypoints from RGB-D or ground truth
 loop = ["closed", "open"]               # comparison axis: re-observe after every action or not
 seeds = "0-1"                           # "0-49", "0,3,5" or a list of integers ≥ 0
@@ -28,6 +30,7 @@ yaw_deg = 15                            # degrees, yaw in ±this
 [episode]
 retries = 1                             # closed loop: redo a failed grasp / off placement
 video_fps = 0                           # video.mp4 frames per simulated second (0 = none)
+start = "flat"                          # "crumpled": crumple the cloth, flatten it, then fold
 
 [reference]
 ravens_speed = true                     # plain-PyBullet speed reference (ravens_reference.py)
@@ -48,8 +51,17 @@ from typing import Any
 
 from foldbot.errors import ConfigError
 from foldbot.garments.towel import MAX_RESOLUTION, MIN_RESOLUTION, TowelSpec
-from foldbot.pipeline import GARMENTS, PERCEPTION_MODES, EpisodeConfig
+from foldbot.pipeline import (
+    GARMENTS,
+    PERCEPTION_MODES,
+    START_STATES,
+    EpisodeConfig,
+    garment_recipes,
+)
+from foldbot.planning.garment_recipes import GARMENT_RECIPES
 from foldbot.planning.recipes import RECIPES
+
+ALL_RECIPES = RECIPES + tuple(r for rs in GARMENT_RECIPES.values() for r in rs)
 
 SUITES_DIR = Path(__file__).resolve().parents[3] / "suites"
 """The repository's suite folder (src/foldbot/bench/suite.py → <repo>/suites)."""
@@ -61,7 +73,7 @@ _SCHEMA: dict[str, set[str]] = {
     "axes": {"garment", "recipe", "perception", "loop", "seeds"},
     "towel": {"resolution", "width", "height"},
     "randomise": {"towel_side", "position_jitter", "yaw_deg"},
-    "episode": {"retries", "video_fps"},
+    "episode": {"retries", "video_fps", "start"},
     "reference": {"ravens_speed"},
 }
 
@@ -111,11 +123,15 @@ class EpisodeSpec:
     """degrees; the cloth yaw is a uniform draw in ±this."""
     retries: int = 1
     video_fps: float = 0.0
+    start: str = "flat"
+    """flat, or crumpled: crumple the cloth, flatten it, then fold."""
 
     @property
     def id(self) -> str:
-        """Stable id and folder name, e.g. towel-half-vision-closed-s0007."""
-        return f"{self.garment}-{self.recipe}-{self.perception}-{self.loop}-s{self.seed:04d}"
+        """Stable id and folder name, e.g. towel-half-vision-closed-s0007 (a crumpled start adds
+        -crumpled before the seed)."""
+        start = "" if self.start == "flat" else f"-{self.start}"
+        return f"{self.garment}-{self.recipe}-{self.perception}-{self.loop}{start}-s{self.seed:04d}"
 
     @property
     def group(self) -> tuple[str, str, str, str]:
@@ -140,6 +156,7 @@ class EpisodeSpec:
             yaw_range=math.radians(self.yaw_deg),
             retries=self.retries,
             video_fps=self.video_fps,
+            start=self.start,
         )
 
     def as_dict(self) -> dict[str, Any]:
@@ -281,7 +298,14 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
     description = _get(data, "", "description", str, "", where)
 
     garments = _choices(data, "garment", GARMENTS, ["towel"], where)
-    recipes = _choices(data, "recipe", RECIPES, ["half"], where)
+    recipes = _choices(data, "recipe", ALL_RECIPES, ["half"], where)
+    for garment in garments:
+        for recipe in recipes:
+            if recipe not in garment_recipes(garment):
+                raise ConfigError(
+                    f"{where}: recipe {recipe!r} does not fold a {garment}; "
+                    f"{garment} recipes: {', '.join(garment_recipes(garment))}"
+                )
     perceptions = _choices(data, "perception", PERCEPTION_MODES, ["vision"], where)
     loops = _choices(data, "loop", LOOP_MODES, ["closed"], where)
     seeds_raw = _get(data, "axes", "seeds", (str, list, int), None, where)
@@ -323,6 +347,11 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
     if not 0 <= retries <= 10:
         raise ConfigError(f"{where}: episode.retries = {retries!r} must be an integer in [0, 10]")
     video_fps = _range(ep.get("video_fps", 0.0), "episode.video_fps", 0, 60, where)
+    start = _get(data, "episode", "start", str, "flat", where)
+    if start not in START_STATES:
+        raise ConfigError(
+            f"{where}: episode.start = {start!r} is unknown; allowed: {', '.join(START_STATES)}"
+        )
     ravens = _get(data, "reference", "ravens_speed", bool, True, where)
 
     specs = []
@@ -346,6 +375,7 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
                                 yaw_deg=yaw,
                                 retries=retries,
                                 video_fps=video_fps,
+                                start=start,
                             )
                         )
     for spec in specs[:1]:
@@ -356,14 +386,33 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
         "towel_resolution": resolution,
         "position_jitter_m": jitter,
         "yaw_deg": yaw,
-        "text": (
-            (
-                f"towel sides uniform in [{side_range[0]:g}, {side_range[1]:g}] m each"
-                if side_range
-                else f"towel {width:g} × {height:g} m (fixed)"
-            )
-            + f", {resolution} vertices along the longer side; centre ±{jitter * 100:g} cm in x"
-            f" and y; yaw ±{yaw:g}°"
+        "text": "; ".join(
+            [
+                *(
+                    [
+                        (
+                            f"towel sides uniform in [{side_range[0]:g}, {side_range[1]:g}] m each"
+                            if side_range
+                            else f"towel {width:g} × {height:g} m (fixed)"
+                        )
+                        + f", {resolution} vertices along the longer side"
+                    ]
+                    if "towel" in garments
+                    else []
+                ),
+                *(
+                    f"{g} size drawn from foldbot.garments.{g}'s ranges (children's sizes)"
+                    for g in garments
+                    if g != "towel"
+                ),
+                f"centre ±{jitter * 100:g} cm in x and y; yaw ±{yaw:g}°"
+                + (" (garments about a 90° base yaw)" if set(garments) - {"towel"} else ""),
+                *(
+                    ["crumpled by the seed, flattened by the robot, then folded"]
+                    if start != "flat"
+                    else []
+                ),
+            ]
         ),
     }
     return Suite(

@@ -133,6 +133,26 @@ def group_stats(records: list[dict]) -> dict[str, Any]:
         "sim_speed": sim / wall if wall > 0 else None,
         "failures": {c: len(ids) for c, ids in failures.items()},
         "failed_episodes": failures,
+        "flatten": flatten_stats(records),
+    }
+
+
+def flatten_stats(records: list[dict]) -> dict[str, Any] | None:
+    """Crumpled starts: flatten success (ground-truth coverage ≥ 0.9 within the action budget)
+    over all such episodes (an episode that ended in an error before being scored counts as a
+    failure), flatten actions, and coverage before / after; None when no episode was crumpled."""
+    crumpled = [r for r in records if "-crumpled-s" in r["id"]]  # see EpisodeSpec.id
+    if not crumpled:
+        return None
+    flat = [r["result"]["flatten"] for r in crumpled if "flatten" in r.get("result", {})]
+    wins = sum(bool(f.get("success")) for f in flat)
+    return {
+        "episodes": len(crumpled),
+        "successes": wins,
+        "success_rate": wins / len(crumpled),
+        "actions": stats([f.get("actions") for f in flat]),
+        "coverage_start": stats([f.get("coverage_start") for f in flat]),
+        "coverage_end": stats([f.get("coverage_end") for f in flat]),
     }
 
 

@@ -7,19 +7,26 @@ import dataclasses
 from pathlib import Path
 
 from foldbot.garments.towel import TowelSpec
-from foldbot.pipeline import GARMENTS, PERCEPTION_MODES, EpisodeConfig, run_episode
+from foldbot.pipeline import GARMENTS, PERCEPTION_MODES, START_STATES, EpisodeConfig, run_episode
+from foldbot.planning.garment_recipes import GARMENT_RECIPE_HELP, GARMENT_RECIPES
 from foldbot.planning.recipes import RECIPE_HELP, RECIPES
 from foldbot.sim.robots import ROBOT_NAMES
 from foldbot.sim.world import SimConfig
+
+DEFAULT_RECIPES = {"towel": "half", **{g: rs[0] for g, rs in GARMENT_RECIPES.items()}}
+"""The recipe `--recipe` defaults to, per garment."""
+ALL_RECIPES = RECIPES + tuple(r for rs in GARMENT_RECIPES.values() for r in rs)
 
 
 def add_recipe_and_perception(parser: argparse.ArgumentParser) -> None:
     """`--recipe` and `--perception`, shared by the commands that run episodes."""
     parser.add_argument(
         "--recipe",
-        default="half",
-        choices=RECIPES,
-        help="fold recipe: " + "; ".join(f"{k}: {v}" for k, v in RECIPE_HELP.items()),
+        default=None,
+        choices=ALL_RECIPES,
+        help="fold recipe (default: half for a towel, retail for a tshirt, leg_over_leg for "
+        "pants): "
+        + "; ".join(f"{k}: {v}" for k, v in {**RECIPE_HELP, **GARMENT_RECIPE_HELP}.items()),
     )
     parser.add_argument(
         "--perception",
@@ -31,9 +38,21 @@ def add_recipe_and_perception(parser: argparse.ArgumentParser) -> None:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of `foldbot fold`."""
-    parser.add_argument("--garment", default="towel", choices=GARMENTS, help="garment to fold")
+    parser.add_argument(
+        "--garment",
+        default="towel",
+        choices=GARMENTS,
+        help="garment to fold; a tshirt's or pants' size is drawn by --seed (default towel)",
+    )
     add_recipe_and_perception(parser)
     parser.add_argument("--robot", default="ur5", choices=ROBOT_NAMES, help="arm to use")
+    parser.add_argument(
+        "--start",
+        default="flat",
+        choices=START_STATES,
+        help="flat (default), or crumpled: the seed crumples the towel and the robot flattens it "
+        "(perceived coverage ≥ 0.9, at most 6 pulls) before folding",
+    )
     parser.add_argument("--seed", type=int, default=0, help="randomisation seed (default 0)")
     parser.add_argument("--width", type=float, default=0.30, help="towel width in m (0.05–1.0)")
     parser.add_argument("--height", type=float, default=0.30, help="towel height in m (0.05–1.0)")
@@ -60,10 +79,11 @@ def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
     cloth = base.cloth if args.mass is None else dataclasses.replace(base.cloth, mass=args.mass)
     return EpisodeConfig(
         garment=args.garment,
-        recipe=args.recipe,
+        recipe=args.recipe or DEFAULT_RECIPES[args.garment],
         robot=args.robot,
         perception=args.perception,
         seed=args.seed,
+        start=args.start,
         towel=TowelSpec(width=args.width, height=args.height, resolution=args.resolution),
         cloth=cloth,
         sim=SimConfig(gui=args.gui),
@@ -75,6 +95,12 @@ def run(args: argparse.Namespace) -> int:
     """Run the episode and print where its outputs are."""
     cfg = config_from_args(args)
     result = run_episode(cfg, args.out, overwrite=args.overwrite)
+    flat = result.get("flatten")
+    if flat is not None:
+        print(
+            f"flattening {'succeeded' if flat['success'] else 'FAILED'}: coverage "
+            f"{flat['coverage_start']:.2f} → {flat['coverage_end']:.2f} in {flat['actions']} actions"
+        )
     print(
         f"fold {'succeeded' if result['success'] else 'FAILED'}: "
         f"fold error {result['fold_error_mm']:.1f} mm, "

@@ -70,7 +70,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def fold_args_text(args: argparse.Namespace) -> str:
     """The episode's `foldbot fold` options as one shell-quoted string (the nodes parse it)."""
     words = [
-        *("--garment", args.garment, "--recipe", args.recipe, "--robot", args.robot),
+        *("--garment", args.garment, "--recipe", args.recipe or "half", "--robot", args.robot),
         *("--perception", args.perception, "--seed", str(args.seed)),
         *("--width", repr(args.width), "--height", repr(args.height)),
         *("--resolution", str(args.resolution), "--video-fps", repr(args.video_fps)),
@@ -87,6 +87,16 @@ def run(args: argparse.Namespace) -> int:
     """Validate, roslaunch the fold, then report from the episode folder the task node wrote."""
     if args.gui:
         raise ConfigError("--gui is not available over ROS; use `foldbot fold --gui`")
+    if args.start != "flat":
+        raise ConfigError(
+            f"ros-fold starts from a flat towel, got --start {args.start}; "
+            "crumpled starts run in process with `foldbot fold --start crumpled`"
+        )
+    if args.garment != "towel":
+        raise ConfigError(
+            f"ros-fold folds towels only, got --garment {args.garment}; "
+            "fold other garments in process with `foldbot fold`"
+        )
     if args.perception != "vision":
         raise ConfigError(
             f"--perception {args.perception!r} is not available over ROS: the perception node "

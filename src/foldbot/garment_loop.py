@@ -1,0 +1,265 @@
+"""The garment fold loop (T-shirt, pants): plan every fold from the flat garment's perceived
+keypoints, then per action grasp where the cloth is now, carry, place and re-observe; verify each
+stage against the outline the plan predicts.
+
+A folded garment hides its keypoints, so unlike the towel loop (foldbot.loop), later stages are not
+re-planned from new keypoints: their grasp points come from the first observation, and each grasp is
+corrected onto the cloth the camera sees now (a point the earlier carries left on bare table moves
+to the nearest perceived cloth). A failed grasp is retried (bounded). Written against `FoldCell`, so
+the same code drives any cell; it never reads ground truth.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable
+
+import cv2
+import numpy as np
+
+from foldbot.errors import FoldbotError
+from foldbot.loop import (
+    FoldCell,
+    FoldRecord,
+    LoopConfig,
+    corners_of,
+    execute_action,
+    finish_fold,
+    line_points,
+    moving_side_tip,
+    open_loop_entry,
+    require_in_view,
+    show_action,
+    stack_grasp_point,
+)
+from foldbot.metrics import FoldLine
+from foldbot.perception.geometry import backproject_pixel, project_points
+from foldbot.perception.overlay import draw_overlay
+from foldbot.perception.state import ClothState, fold_check_iou, polygon_mask
+from foldbot.planning.actions import FoldAction
+from foldbot.planning.garment_recipes import GarmentPlan, fold_outline, plan_garment
+from foldbot.types import Observation
+
+GRASP_INSET = 0.01
+"""A grasp moved onto the cloth lands this far (m) inside the perceived outline."""
+TIP_BAND = 0.01
+"""Outline points within this (m) of the farthest one from the line tie for the tip."""
+MIN_LEFT = 0.03
+"""A from-tip action runs only while the cloth reaches this far (m) past the line (less is the
+crease's bulge, not cloth left to fold)."""
+_SKIPPED = {
+    "grasp_success": True,
+    "grasp_reason": "skipped: an earlier carry already moved this part",
+    "grasped_vertices": [],
+    "max_tracking_error": 0.0,
+}
+
+
+def outline_distance(state: ClothState, point: np.ndarray) -> float:
+    """Signed distance (m) in the table plane from `point` to the perceived outline: > 0 inside the
+    cloth, < 0 outside (−inf when no cloth is seen)."""
+    outline = np.asarray(state.outline_world, dtype=float).reshape(-1, 3)
+    if not state.detected or len(outline) < 3:
+        return float("-inf")
+    contour = outline[:, :2].astype(np.float32).reshape(-1, 1, 2)
+    return float(cv2.pointPolygonTest(contour, (float(point[0]), float(point[1])), True))
+
+
+def snap_to_cloth(
+    state: ClothState, point: np.ndarray, radius: float, inset: float = GRASP_INSET
+) -> np.ndarray | None:
+    """`point` if the perceived cloth covers it; else the nearest outline point within `radius`,
+    moved `inset` inside the cloth (same height); None when no cloth lies that near."""
+    d = outline_distance(state, point)
+    if d >= 0.0:
+        return np.asarray(point, dtype=float)
+    if -d > radius:
+        return None
+    outline = np.asarray(state.outline_world, dtype=float).reshape(-1, 3)[:, :2]
+    q = outline[int(np.argmin(np.linalg.norm(outline - point[:2], axis=1)))]
+    inward = (q - point[:2]) / max(float(np.linalg.norm(q - point[:2])), 1e-9)
+    xy = q + inward * inset
+    return np.array([xy[0], xy[1], float(point[2])])
+
+
+def surface_height(obs: Observation, point: np.ndarray, radius: int = 2) -> float | None:
+    """Height (world z, m) of the surface the camera sees at `point`'s x, y (robust depth around
+    its pixel); None when that pixel is outside the image or has no depth."""
+    uv, z = project_points(
+        np.asarray(point, dtype=float)[None, :], obs.intrinsics, obs.T_world_camera
+    )
+    (u, v), h, w = uv[0], obs.intrinsics.height, obs.intrinsics.width
+    if not (z[0] > 0 and 0 <= u < w and 0 <= v < h):
+        return None
+    seen = backproject_pixel(obs, float(u), float(v), radius)
+    return float(seen[2]) if np.all(np.isfinite(seen)) else None
+
+
+def tip_action(state: ClothState, planned: FoldAction, inset: float = GRASP_INSET):
+    """The action that carries the cloth left on `planned`'s moving side from its tip: the outline
+    point farthest from the line (ties: nearest the planned grasp), `inset` back toward the line,
+    placed at its mirror; None when the cloth reaches less than MIN_LEFT past the line."""
+    line = FoldLine(*planned.fold_line)
+    outline = np.asarray(state.outline_world, dtype=float).reshape(-1, 3)
+    if (
+        not state.detected
+        or len(outline) < 3
+        or line.side(outline).max() < MIN_LEFT * np.hypot(line.dx, line.dy)
+    ):
+        return None
+    tip = moving_side_tip(state, planned.fold_line, planned.grasp, band=TIP_BAND)
+    if tip is None:
+        return None
+    normal = np.array([-line.dy, line.dx]) / np.hypot(line.dx, line.dy)  # toward the moving side
+    grasp = np.array([*(tip[:2] - normal * inset), planned.grasp[2]])
+    place = line.reflect_xy(grasp)
+    place[2] = planned.place[2]
+    return dataclasses.replace(planned, grasp=grasp, place=place)
+
+
+def predicted_mask(parts: list[np.ndarray], height: float, obs: Observation) -> np.ndarray:
+    """The image mask of predicted outline pieces (N×2, table plane) at cloth `height`."""
+    mask = np.zeros((obs.intrinsics.height, obs.intrinsics.width), bool)
+    for part in parts:
+        poly = np.c_[part, np.full(len(part), height)]
+        mask |= polygon_mask(poly, obs.intrinsics, obs.T_world_camera)
+    return mask
+
+
+def garment_action(
+    cfg: LoopConfig,
+    cell: FoldCell,
+    planned: FoldAction,
+    latest: ClothState,
+    latest_obs: Observation,
+    log: Callable[[str], None] = print,
+    from_tip: bool = False,
+) -> tuple[dict, ClothState, Observation]:
+    """One pick-and-place with the grasp corrected onto the cloth seen now (x, y onto the
+    perceived cloth, height onto the perceived surface there); a failed grasp is re-observed and
+    retried (at most `cfg.retries` times). Returns the log entry and the observation taken after
+    it (state and frame)."""
+    t_sim, t_wall = cell.sim_time, time.perf_counter()
+    action, retries, attempts, state, obs = planned, 0, [], latest, latest_obs
+    carried = (
+        tip_action(state, planned) is None
+        if from_tip
+        else snap_to_cloth(state, planned.grasp, cfg.regrasp_radius) is None
+        and outline_distance(state, planned.place) >= 0.0
+    )
+    if carried:
+        # Earlier carries took this part along: no cloth is left near the grasp point (or past the
+        # line) and the cloth already covers the place point.
+        log(f"  {planned.label}: already carried; skipped")
+        entry = open_loop_entry(planned, _SKIPPED, 0.0, time.perf_counter() - t_wall)
+        entry.update(skipped=True)
+        return entry, state, obs
+    while True:
+        if from_tip:
+            action = tip_action(state, planned) or action
+        else:
+            seen = snap_to_cloth(state, planned.grasp, cfg.regrasp_radius)
+            if seen is not None:
+                action = dataclasses.replace(action, grasp=seen)
+        top = surface_height(obs, action.grasp)
+        if planned.layers == 1 and top is not None:
+            action = dataclasses.replace(action, grasp=np.r_[action.grasp[:2], top])
+        if planned.layers > 1:
+            action = dataclasses.replace(
+                action, grasp=stack_grasp_point(state, action.grasp, cfg.stack_grasp_height)
+            )
+        show_action(cell, state, action)
+        outcome = execute_action(cell, action)
+        cell.park()
+        state, obs = cell.observe()
+        off = None
+        if outcome["grasp_success"]:
+            off = max(0.0, -outline_distance(state, action.place))
+        attempts.append(
+            {
+                "grasp": [float(v) for v in action.grasp],
+                "grasp_success": outcome["grasp_success"],
+                "grasp_reason": outcome["grasp_reason"],
+                "placed_error_m": off,
+            }
+        )
+        if outcome["grasp_success"] or retries >= cfg.retries:
+            break
+        retries += 1
+        log(f"  grasp failed ({outcome['grasp_reason']}); re-observed, retry {retries}")
+    entry = open_loop_entry(action, outcome, cell.sim_time - t_sim, time.perf_counter() - t_wall)
+    entry.update(label=planned.label, placed_error_m=attempts[-1]["placed_error_m"])
+    entry.update(retries=retries, attempts=attempts)
+    return entry, state, obs
+
+
+def plan_overlay_all(
+    obs: Observation, state: ClothState, plan: GarmentPlan, z: float
+) -> np.ndarray:
+    """The first observation's overlay: keypoints and the first stage's grasps, places and line."""
+    first = plan.stages[0]
+    return draw_overlay(
+        obs,
+        state,
+        grasp_points=[a.grasp for a in first.actions],
+        place_points=[a.place for a in first.actions],
+        fold_line=line_points(first.fold_line, z),
+    )
+
+
+def run_garment_fold(
+    cfg: LoopConfig, cell: FoldCell, log: Callable[[str], None] = print, settle_s: float = 0.3
+) -> FoldRecord:
+    """Fold a garment on `cell` with the recipe `cfg.recipe` (closed loop, or with
+    `cfg.closed_loop` False the open-loop baseline: planned grasps, no re-observation)."""
+    rec = FoldRecord()
+    cell.park()
+    state, obs = cell.observe()
+    if not state.detected:
+        raise FoldbotError(f"no garment found before folding: {state.reason}")
+    if cfg.require_full_view:
+        require_in_view(state)
+    plan = plan_garment(cfg.recipe, corners_of(state), cfg.place_lift, cfg.layer_thickness)
+    height = float(np.median(state.keypoint_array()[:, 2]))
+    rec.initial_overlay = plan_overlay_all(obs, state, plan, cell.table_height)
+    parts = [np.asarray(state.outline_world, dtype=float)[:, :2]]
+    for i, stage in enumerate(plan.stages):
+        rec.fold_lines.append(stage.fold_line)
+        for j, planned in enumerate(stage.actions):
+            log(f"stage {i + 1}, action {j + 1}/{len(stage.actions)}: {planned.label} → place")
+            if cfg.closed_loop:
+                entry, state, obs = garment_action(
+                    cfg, cell, planned, state, obs, log, from_tip=stage.from_tip
+                )
+            else:
+                t_sim, t_wall = cell.sim_time, time.perf_counter()
+                show_action(cell, state, planned)
+                outcome = execute_action(cell, planned)
+                entry = open_loop_entry(
+                    planned, outcome, cell.sim_time - t_sim, time.perf_counter() - t_wall
+                )
+            rec.actions.append(entry)
+        parts = fold_outline(parts, stage.fold_line)
+        if not cfg.closed_loop:
+            rec.stages.append({"stage": i, "fold_line": list(stage.fold_line), "verified": None})
+            continue
+        cell.park()
+        cell.wait(settle_s)
+        state, obs = cell.observe()
+        iou = (
+            fold_check_iou(state.mask, predicted_mask(parts, height, obs))
+            if state.detected
+            else 0.0
+        )
+        rec.stages.append(
+            {
+                "stage": i,
+                "fold_line": list(stage.fold_line),
+                "mask_iou_vs_predicted": iou,
+                "verified": iou >= cfg.verify_iou,
+            }
+        )
+        rec.stage_overlays.append(draw_overlay(obs, state))
+        log(f"stage {i + 1} done: mask IoU with the predicted shape {iou:.2f}")
+    return finish_fold(cell, rec)

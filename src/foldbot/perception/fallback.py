@@ -1,0 +1,34 @@
+"""Chain estimators: the first one that detects the cloth answers.
+
+A garment's keypoint estimator only recognises the flat garment; once folded, the cloth's mask and
+outline (all the garment loop needs after its first observation) come from the generic one.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+from foldbot.errors import ConfigError
+from foldbot.perception.state import ClothState
+from foldbot.types import Observation
+
+
+class Estimator(Protocol):
+    def estimate(self, obs: Observation) -> ClothState: ...
+
+
+class FirstDetected:
+    """Ask `estimators` in order; return the first state with detected=True (else the last)."""
+
+    def __init__(self, *estimators: Estimator) -> None:
+        if not estimators:
+            raise ConfigError("FirstDetected needs at least one estimator")
+        self.estimators = estimators
+
+    def estimate(self, obs: Observation) -> ClothState:
+        state = ClothState.not_detected()
+        for estimator in self.estimators:
+            state = estimator.estimate(obs)
+            if state.detected:
+                return state
+        return state

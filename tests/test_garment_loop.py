@@ -1,0 +1,41 @@
+"""The garment loop's grasp correction and stage prediction on synthetic states; the loop itself
+runs end to end in tests/test_pipeline_garments.py."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from foldbot.garment_loop import outline_distance, snap_to_cloth
+from foldbot.perception.state import ClothState
+
+Z = 0.752
+
+
+def square_state(side: float = 0.2, center=(0.45, 0.0)) -> ClothState:
+    c = np.asarray(center)
+    corners = c + side / 2 * np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]])
+    # A dense outline, as vision gives (contour pixels lifted to the table plane).
+    pts = np.concatenate(
+        [np.linspace(corners[i], corners[(i + 1) % 4], 20, endpoint=False) for i in range(4)]
+    )
+    return ClothState(detected=True, outline_world=np.c_[pts, np.full(len(pts), Z)])
+
+
+def test_outline_distance_sign():
+    s = square_state()
+    assert outline_distance(s, np.array([0.45, 0.0])) == pytest.approx(0.1, abs=1e-6)
+    assert outline_distance(s, np.array([0.60, 0.0])) == pytest.approx(-0.05, abs=1e-6)
+    assert outline_distance(ClothState.not_detected(), np.zeros(2)) == float("-inf")
+
+
+def test_snap_keeps_points_on_cloth_and_moves_near_misses_inside():
+    s = square_state()
+    on = np.array([0.50, 0.05, Z + 0.01])
+    assert np.array_equal(snap_to_cloth(s, on, radius=0.06), on)
+    near = np.array([0.58, 0.02, 0.77])  # 3 cm outside the +x side
+    snapped = snap_to_cloth(s, near, radius=0.06, inset=0.01)
+    assert snapped is not None
+    assert outline_distance(s, snapped) == pytest.approx(0.01, abs=0.003)
+    assert snapped[2] == 0.77  # the planned height is kept
+    assert snap_to_cloth(s, np.array([0.75, 0.0, Z]), radius=0.06) is None
