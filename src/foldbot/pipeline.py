@@ -21,21 +21,27 @@ import numpy as np
 from foldbot import metrics
 from foldbot.control.executor import ArmExecutor, PlannedSegment
 from foldbot.errors import UnreachableTargetError, require
+from foldbot.flatten import run_flatten
 from foldbot.garment_loop import run_garment_fold
+from foldbot.garments import sample_garment
 from foldbot.garments.mesh import ClothMesh
 from foldbot.garments.towel import TowelSpec, make_towel
 from foldbot.io.episode import EpisodeWriter
 from foldbot.loop import FoldCell, FoldRecord, LoopConfig, StepLog, run_fold
 from foldbot.metrics import score_episode
 from foldbot.perception.estimator import VisionEstimator
+from foldbot.perception.fallback import FirstDetected
+from foldbot.perception.garment_keypoints import GarmentEstimator
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState
 from foldbot.planning.actions import FoldAction
+from foldbot.planning.flatten import FlattenConfig
 from foldbot.planning.garment_recipes import GARMENT_RECIPES
 from foldbot.planning.motion import MotionConfig, Segment, action_segments, line_path
 from foldbot.planning.recipes import RECIPES
 from foldbot.sim.camera import CameraConfig, RGBDCamera
 from foldbot.sim.cloth import ClothConfig, DivergenceMonitor, SoftCloth, settle
+from foldbot.sim.crumple import crumple
 from foldbot.sim.garment_oracle import GarmentOracleEstimator
 from foldbot.sim.grasp import ClothGrasp
 from foldbot.sim.oracle import GroundTruthOracle, OracleEstimator
@@ -201,8 +207,6 @@ def seeded_garment(cfg: EpisodeConfig) -> tuple[object, ClothMesh]:
     if cfg.garment == "towel":
         towel = seeded_towel(cfg)
         return towel, make_towel(towel)
-    from foldbot.garments import sample_garment
-
     rng = np.random.default_rng([cfg.seed, 1])
     return sample_garment(cfg.garment, rng, cfg.garment_edge_length)
 
@@ -389,9 +393,6 @@ def make_estimator(cfg: EpisodeConfig, oracle: GroundTruthOracle):
     if cfg.garment == "towel":
         return VisionEstimator() if cfg.perception == "vision" else OracleEstimator(oracle)
     if cfg.perception == "vision":
-        from foldbot.perception.fallback import FirstDetected
-        from foldbot.perception.garment_keypoints import GarmentEstimator
-
         # Keypoints on the flat garment; once folded, the outline and mask of any cloth.
         return FirstDetected(GarmentEstimator(cfg.garment), VisionEstimator())
     return GarmentOracleEstimator(oracle)
@@ -402,10 +403,6 @@ def crumple_and_flatten(
 ) -> dict:
     """Crumple the settled towel (seeded), then flatten it from what the camera sees; returns
     result.json's "flatten" entry, its coverage figures measured on GROUND TRUTH (for scoring)."""
-    from foldbot.flatten import run_flatten
-    from foldbot.planning.flatten import FlattenConfig
-    from foldbot.sim.crumple import crumple
-
     flat_area = parts.mesh.area
 
     def true_coverage() -> float:

@@ -1,0 +1,161 @@
+"""The closed flattening loop — observe → stop at the target coverage, else plan a pull → execute
+→ park → re-observe — written once against `loop.FoldCell`, from perception only.
+
+The robot knows the item's nominal flat size (the task names the towel), never the cloth's state:
+perceived coverage is the perceived top-view area over that expected area.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from foldbot.errors import FoldbotError, UnreachableTargetError
+from foldbot.loop import FoldCell, execute_action, line_points
+from foldbot.perception.state import ClothState
+from foldbot.planning.flatten import (
+    FlattenConfig,
+    Pull,
+    cloth_surface,
+    perceived_coverage,
+    plan_pulls,
+)
+from foldbot.types import Observation
+
+
+@dataclass
+class FlattenRecord:
+    """What a flattening run did, for result.json: one entry per pull, and where it ended."""
+
+    actions: list[dict] = field(default_factory=list)
+    """Per pull: label, target, grasp, place, fold_line, grasp_success, grasp_reason,
+    grasped_vertices, retries, attempts (grasp point and outcome of each try), coverage_before,
+    coverage_after (perceived), shortfall_m, palm_clear, skipped_unreachable, sim_seconds,
+    wall_seconds."""
+    initial_coverage: float = 0.0
+    """Perceived coverage before the first pull."""
+    final_coverage: float = 0.0
+    """Perceived coverage after the last pull."""
+    reached: bool = False
+    """True when the perceived coverage reached the target."""
+    final_state: ClothState | None = None
+    final_obs: Observation | None = None
+
+
+def run_flatten(
+    cfg: FlattenConfig,
+    cell: FoldCell,
+    expected_size: tuple[float, float],
+    log: Callable[[str], None] = print,
+) -> FlattenRecord:
+    """Flatten the cloth on `cell` with pick-and-place pulls until its perceived coverage of
+    the item's expected `(width, height)` (m) reaches `cfg.target_coverage`, or `cfg.max_actions`."""
+    width, height = (float(v) for v in expected_size)
+    area = width * height
+    rec = FlattenRecord()
+    cell.park()
+    state, obs = cell.observe()
+    if not state.detected:
+        raise FoldbotError(f"no cloth found to flatten: {state.reason}")
+    coverage = rec.initial_coverage = perceived_coverage(state, area)
+    log(f"flatten: perceived coverage {coverage:.2f} (target {cfg.target_coverage:.2f})")
+    yaw = None
+    while coverage < cfg.target_coverage and len(rec.actions) < cfg.max_actions:
+        surface = cloth_surface(obs, state, cfg)
+        fit, pulls = plan_pulls(state, width, height, cfg, surface, yaw)
+        if cfg.keep_yaw:
+            yaw = fit.yaw
+        if not pulls:
+            log("flatten: no point of the expected outline is short enough to pull")
+            break
+        t_sim, t_wall = cell.sim_time, time.perf_counter()
+        pull, outcome, attempts, skipped = _execute_pull(cfg, cell, state, pulls, log)
+        action = pull.action
+        cell.park()
+        cell.wait(cfg.settle_time)
+        state, obs = cell.observe()
+        after = perceived_coverage(state, area)
+        log(
+            f"flatten {len(rec.actions) + 1}: {action.label} "
+            f"({pull.shortfall * 1000:.0f} mm short) → coverage {coverage:.2f} → {after:.2f}"
+            + ("" if outcome["grasp_success"] else f", grasp failed: {outcome['grasp_reason']}")
+        )
+        rec.actions.append(
+            {
+                "kind": "flatten_pull",
+                **dataclasses.replace(action, grasp=np.asarray(attempts[-1]["grasp"])).as_dict(),
+                "target": pull.target,
+                "shortfall_m": pull.shortfall,
+                "palm_clear": pull.palm_ok,
+                "grasp_success": outcome["grasp_success"],
+                "grasp_reason": outcome["grasp_reason"],
+                "grasped_vertices": outcome["grasped_vertices"],
+                "max_tracking_error_m": outcome["max_tracking_error"],
+                "retries": len(attempts) - 1,
+                "attempts": attempts,
+                "skipped_unreachable": skipped,
+                "coverage_before": coverage,
+                "coverage_after": after,
+                "sim_seconds": cell.sim_time - t_sim,
+                "wall_seconds": time.perf_counter() - t_wall,
+            }
+        )
+        coverage = after
+        if not state.detected:
+            raise FoldbotError(
+                f"the cloth was lost after flattening pull {len(rec.actions)} "
+                f"({action.label}): {state.reason}"
+            )
+    rec.final_coverage = coverage
+    rec.reached = coverage >= cfg.target_coverage
+    rec.final_state, rec.final_obs = state, obs
+    return rec
+
+
+def _execute_pull(
+    cfg: FlattenConfig,
+    cell: FoldCell,
+    state: ClothState,
+    pulls: list[Pull],
+    log: Callable[[str], None],
+) -> tuple[Pull, dict, list[dict], int]:
+    """Run the first reachable pull; after a failed grasp (the jaws closed between the mesh's
+    cloth points or beside the cloth) retry up to `cfg.retries` times, each `cfg.retry_step`
+    further inside the cloth. Returns the pull, its outcome, the attempts and how many pulls
+    were skipped as unreachable."""
+    skipped = 0
+    for pull in pulls:
+        action, attempts = pull.action, []
+        inward = action.grasp[:2] - action.place[:2]
+        inward = inward / max(float(np.linalg.norm(inward)), 1e-9)
+        try:
+            while True:
+                cell.show(
+                    state,
+                    grasp_points=[action.grasp],
+                    place_points=[action.place],
+                    fold_line=line_points(action.fold_line, cell.table_height),
+                )
+                outcome = execute_action(cell, action)
+                attempts.append(
+                    {
+                        "grasp": [float(v) for v in action.grasp],
+                        "grasp_success": outcome["grasp_success"],
+                        "grasp_reason": outcome["grasp_reason"],
+                    }
+                )
+                if outcome["grasp_success"] or len(attempts) > cfg.retries:
+                    return pull, outcome, attempts, skipped
+                log(f"  grasp failed ({outcome['grasp_reason']}); retrying further in")
+                grasp = action.grasp + np.r_[inward * cfg.retry_step, 0.0]
+                action = dataclasses.replace(action, grasp=grasp)
+        except UnreachableTargetError as exc:
+            if attempts:
+                raise
+            skipped += 1  # planned before anything moved: try the next target
+            log(f"  {action.label} unreachable ({exc}); next target")
+    raise UnreachableTargetError(f"every flattening pull ({len(pulls)}) is out of the arm's reach")
