@@ -155,7 +155,7 @@ class EpisodeConfig:
         require(
             self.start == "flat" or self.garment == "towel",
             f"start {self.start!r} is for towels (the flattening pulls toward a rectangle); "
-            f"a {self.garment} starts flat",
+            f"a {self.garment} garment starts flat",
         )
 
 
