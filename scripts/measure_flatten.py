@@ -244,7 +244,13 @@ def main(argv: list[str] | None = None) -> int:
                 args.time_step,
             )
         except Exception as exc:  # reported, not hidden
-            row = {"seed": args.one, "error": f"{type(exc).__name__}: {exc}"}
+            import traceback
+
+            row = {
+                "seed": args.one,
+                "error": f"{type(exc).__name__}: {exc}",
+                "traceback": traceback.format_exc()[-3000:],
+            }
         print(json.dumps(row))
         return 0
     args.out.parent.mkdir(parents=True, exist_ok=True)

@@ -112,26 +112,41 @@ def test_a_heap_raises_the_grasp_so_the_palm_clears_it():
         assert level > cfg.grasp_height  # raised off the table
 
 
-def test_fold_back_takes_the_top_layer_at_the_mirror_point():
-    cfg = FlattenConfig(grasp_mode="fold_back")
-    # The +x third of the towel folded back over the middle: two layers in x ∈ [0.40, 0.50].
-    outline = rect(0.40, 0.0, 0.20, H)
+def test_top_layer_grasp_closes_just_under_the_perceived_surface():
+    cfg = FlattenConfig(grasp_layer="top")
+    # The towel folded in half along x = 0.50: two layers, the crease at the +x edge.
+    outline = rect(0.425, 0.0, W / 2, H)
     ny = math.ceil((cfg.workspace[3] - cfg.workspace[2]) / cfg.raster) + 1
     nx = math.ceil((cfg.workspace[1] - cfg.workspace[0]) / cfg.raster) + 1
+    surface = np.full((ny, nx), np.nan, np.float32)
     xs = cfg.workspace[0] + np.arange(nx) * cfg.raster
     ys = cfg.workspace[2] + np.arange(ny) * cfg.raster
     gx, gy = np.meshgrid(xs, ys)
-    surface = np.full((ny, nx), np.nan, np.float32)
-    on = (np.abs(gx - 0.40) <= 0.10) & (np.abs(gy) <= H / 2)
-    surface[on] = 0.004
-    surface[on & (gx >= 0.40)] = 0.016
+    surface[(np.abs(gx - 0.425) <= W / 4) & (np.abs(gy) <= H / 2)] = 0.016
     _fit, pulls = plan_pulls(state_of(outline), W, H, cfg, surface, yaw=0.0)
-    back = [p for p in pulls if p.action.label.startswith("fold_back")]
-    assert back, [p.action.label for p in pulls]
-    g = back[0].action.grasp
-    assert 0.40 <= g[0] <= 0.50
-    assert g[2] == pytest.approx(TABLE + 0.016, abs=1e-6)
-    assert back[0].action.place[0] > 0.50
+    assert pulls
+    for pull in pulls:
+        assert pull.action.grasp[2] == pytest.approx(TABLE + 0.016 - cfg.top_depth, abs=1e-6)
+    # Every layer at the table, by default.
+    _fit, pulls = plan_pulls(state_of(outline), W, H, FlattenConfig(), surface, yaw=0.0)
+    assert all(p.action.grasp[2] == pytest.approx(TABLE + 0.004) for p in pulls)
+
+
+def test_cloth_beyond_the_flattening_workspace_is_planned_without_surface_data():
+    cfg = FlattenConfig()
+    # Part of the crumpled cloth lies nearer the robot than the workspace's near edge (x 0.22).
+    blob = rect(0.26, -0.02, 0.16, 0.12)
+    surface = np.full(
+        (
+            math.ceil((cfg.workspace[3] - cfg.workspace[2]) / cfg.raster) + 1,
+            math.ceil((cfg.workspace[1] - cfg.workspace[0]) / cfg.raster) + 1,
+        ),
+        0.004,
+        np.float32,
+    )
+    _fit, pulls = plan_pulls(state_of(blob), W, H, cfg, surface)
+    assert pulls
+    assert all(cfg.workspace[0] + cfg.margin - 1e-9 <= p.action.place[0] for p in pulls)
 
 
 def test_no_cloth_is_a_clear_error():
@@ -149,7 +164,8 @@ def test_no_cloth_is_a_clear_error():
         ({"grasp_inset": 0.5}, r"grasp_inset must be in \[0, 0.1\], got 0.5"),
         ({"overshoot": -0.01}, r"overshoot must be in \[0, 0.1\], got -0.01"),
         ({"raster": 0.0}, r"raster must be in \[0.001, 0.02\], got 0.0"),
-        ({"grasp_mode": "fling"}, r"grasp_mode must be one of edge, fold_back, heap, got 'fling'"),
+        ({"retries": 9}, r"retries must be an integer in \[0, 5\], got 9"),
+        ({"grasp_layer": "middle"}, r"grasp_layer must be one of all, top, got 'middle'"),
         ({"workspace": (0.5, 0.5, -0.3, 0.3)}, r"workspace .* must span > 0.1 m"),
     ],
 )

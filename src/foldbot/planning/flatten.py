@@ -33,10 +33,10 @@ TARGET_NAMES = (
     "edge_da",
 )
 """Pull targets on the expected outline, counter-clockwise: its corners and edge midpoints."""
+GRASP_LAYERS = ("all", "top")
+"""FlattenConfig.grasp_layer values."""
 _JAW_REACH_BELOW = 0.004
 """The closing jaws catch cloth down to ~5 mm below the grasp point (ClothGrasp); with margin."""
-GRASP_MODES = ("edge", "fold_back", "heap")
-"""FlattenConfig.grasp_mode values."""
 
 
 @dataclass(frozen=True)
@@ -46,12 +46,18 @@ class FlattenConfig:
     target_coverage: float = 0.9
     """Stop once the perceived coverage (top-view area / expected flat area) reaches this."""
     max_actions: int = 6
-    """Most pick-and-place pulls (failed grasps included) before giving up."""
+    """Most pulls before giving up (a pull's grasp retries, nothing carried, are part of it)."""
     grasp_inset: float = 0.015
     """The grasp lies this far inside the perceived outline (m), so the jaws land on cloth."""
     grasp_height: float = 0.004
-    """Grasp point height above the perceived table (m): the jaws close at the table and hold
-    every layer at the edge."""
+    """Lowest grasp point height above the perceived table (m)."""
+    grasp_layer: str = "all"
+    """all: the jaws close at the table and hold every layer at the edge (a pull drags the
+    whole edge); top: they close just under the perceived top surface there and hold the top
+    layer only, so pulling a folded edge unrolls the fold instead of dragging both layers."""
+    top_depth: float = 0.002
+    """top: the grasp point lies this far below the perceived top surface (m); the jaws catch
+    cloth from ~5 mm below it, less than one simulated layer's thickness (≥ 6.7 mm)."""
     release_height: float = 0.03
     """The grasped point is let go this high above the table (m): the gripper's palm (~4.5 cm
     above the jaw tips) then stays clear of cloth heaped at the place point; pressing a heap
@@ -88,18 +94,6 @@ class FlattenConfig:
     keep_yaw: bool = True
     """After the first pull keep the expected outline's yaw and refit only its position, so
     later pulls work towards the same goal instead of a re-guessed one."""
-    grasp_mode: str = "edge"
-    """edge: grasp the outline point nearest the short target (all layers there) and pull it out;
-    fold_back: where the cloth inside that edge lies in more than one layer, grasp the top layer
-    at the target's mirror image across the edge and lay it back out (undoing a fold);
-    heap: while the cloth is heaped (its highest point above `heap_height`), grasp the top layer
-    at the highest point and lay it out at the target."""
-    heap_height: float = 0.03
-    """heap mode: the cloth counts as heaped while its highest perceived point is above this (m)."""
-    layer_step: float = 0.005
-    """Perceived height above the cloth's lowest level (m) from which a spot counts as layered."""
-    max_fold_back: float = 0.15
-    """Farthest (m) inside the edge a fold-back grasp reaches."""
 
     def __post_init__(self) -> None:
         require(
@@ -115,6 +109,7 @@ class FlattenConfig:
         for name, lo, hi in (
             ("grasp_inset", 0.0, 0.1),
             ("grasp_height", 0.0, 0.05),
+            ("top_depth", 0.0, 0.02),
             ("release_height", 0.0, 0.2),
             ("palm_clearance", 0.0, 0.5),
             ("palm_radius", 0.0, 0.2),
@@ -133,26 +128,16 @@ class FlattenConfig:
                 f"FlattenConfig.{name} must be in [{lo:.4g}, {hi:.4g}], got {v!r}",
             )
         require(
+            self.grasp_layer in GRASP_LAYERS,
+            f"FlattenConfig.grasp_layer must be one of {', '.join(GRASP_LAYERS)}, "
+            f"got {self.grasp_layer!r}",
+        )
+        require(
             isinstance(self.retries, int)
             and not isinstance(self.retries, bool)
             and 0 <= self.retries <= 5,
             f"FlattenConfig.retries must be an integer in [0, 5], got {self.retries!r}",
         )
-        require(
-            self.grasp_mode in GRASP_MODES,
-            f"FlattenConfig.grasp_mode must be one of {', '.join(GRASP_MODES)}, "
-            f"got {self.grasp_mode!r}",
-        )
-        for name, lo, hi in (
-            ("layer_step", 0.0, 0.05),
-            ("max_fold_back", 0.0, 0.5),
-            ("heap_height", 0.0, 0.3),
-        ):
-            v = getattr(self, name)
-            require(
-                isinstance(v, int | float) and math.isfinite(v) and lo <= v <= hi,
-                f"FlattenConfig.{name} must be in [{lo:.4g}, {hi:.4g}], got {v!r}",
-            )
         x0, x1, y0, y1 = self.workspace
         require(
             all(math.isfinite(v) for v in self.workspace) and x1 - x0 > 0.1 and y1 - y0 > 0.1,
@@ -283,16 +268,18 @@ def cloth_surface(obs: Observation, state: ClothState, cfg: FlattenConfig) -> np
 
 
 def _surface_at(surface: np.ndarray, xy: np.ndarray, cfg: FlattenConfig, radius: float) -> float:
-    """Highest surface height (m) within `radius` (m) of `xy`; NaN where none is known."""
+    """Highest surface height (m) within `radius` (m) of `xy`; NaN where none is known (also
+    off the raster: cloth can lie beyond the flattening workspace)."""
     x0, _x1, y0, _y1 = cfg.workspace
+    ny, nx = surface.shape
     i, j = (round((xy[k] - (x0, y0)[k]) / cfg.raster) for k in range(2))
     r = max(1, math.ceil(radius / cfg.raster))
-    win = surface[max(0, j - r) : j + r + 1, max(0, i - r) : i + r + 1]
-    jj, ii = np.mgrid[max(0, j - r) : j + r + 1, max(0, i - r) : i + r + 1]
-    disc = (ii[: win.shape[0], : win.shape[1]] - i) ** 2 + (
-        jj[: win.shape[0], : win.shape[1]] - j
-    ) ** 2
-    win = win[np.isfinite(win) & (disc <= r * r)]
+    j0, j1, i0, i1 = max(0, j - r), min(ny, j + r + 1), max(0, i - r), min(nx, i + r + 1)
+    if j0 >= j1 or i0 >= i1:
+        return float("nan")
+    jj, ii = np.mgrid[j0:j1, i0:i1]
+    win = surface[j0:j1, i0:i1]
+    win = win[np.isfinite(win) & ((ii - i) ** 2 + (jj - j) ** 2 <= r * r)]
     return float(win.max()) if win.size else float("nan")
 
 
@@ -341,6 +328,8 @@ def _grasp_level(surface: np.ndarray | None, xy: np.ndarray, cfg: FlattenConfig)
         return cfg.grasp_height, True
     level = max(cfg.grasp_height, heap - cfg.palm_clearance)
     here = _surface_at(surface, xy, cfg, cfg.raster)
+    if cfg.grasp_layer == "top" and math.isfinite(here):
+        level = max(level, here - cfg.top_depth)
     return level, not math.isfinite(here) or here >= level - _JAW_REACH_BELOW
 
 
@@ -385,7 +374,8 @@ def plan_pulls(
     yaw: float | None = None,
 ) -> tuple[ExpectedOutline, list[Pull]]:
     """The expected outline fitted to `state` (at `yaw` if given) and every worthwhile pull,
-    largest shortfall first. `surface` (see cloth_surface) enables fold-back grasps."""
+    largest shortfall first (pulls whose palm would meet a heap last). `surface` (see
+    cloth_surface) lets grasps rise so the palm clears heaped cloth."""
     require(
         math.isfinite(width) and math.isfinite(height) and width > 0.0 and height > 0.0,
         f"expected width × height must be > 0 m, got {width!r} × {height!r}",
@@ -397,21 +387,11 @@ def plan_pulls(
         raise FoldbotError(f"the perceived outline has {len(outline)} points, 3 are needed")
     poly = outline[:, :2]
     fit = fit_expected_outline(poly, width, height, cfg, yaw)
-    base = (
-        float(np.nanpercentile(surface, 10))
-        if surface is not None and np.isfinite(surface).any()
-        else math.nan
-    )
     contour = poly.astype(np.float32).reshape(-1, 1, 2)
     centroid = poly.mean(axis=0)
     x0, x1, y0, y1 = cfg.workspace
     m = cfg.margin
     pulls = []
-    peak = None
-    if cfg.grasp_mode == "heap" and surface is not None and np.isfinite(surface).any():
-        j, i = np.unravel_index(int(np.nanargmax(surface)), surface.shape)
-        if surface[j, i] >= cfg.heap_height:
-            peak = (np.array([x0 + i * cfg.raster, y0 + j * cfg.raster]), float(surface[j, i]))
     for name, target in zip(TARGET_NAMES, _targets(fit.corners), strict=True):
         inside = cv2.pointPolygonTest(contour, (float(target[0]), float(target[1])), True)
         shortfall = max(0.0, -float(inside))
@@ -422,26 +402,6 @@ def plan_pulls(
         direction = pull / max(float(np.linalg.norm(pull)), 1e-9)
         grasp_xy, h_g, palm_ok = _edge_grasp(contour, centroid, nearest, direction, surface, cfg)
         z_g = _table_z(state.table_plane, grasp_xy) + h_g
-        kind = "edge"
-        if cfg.grasp_mode == "fold_back" and surface is not None and math.isfinite(base):
-            mirror = nearest - direction * min(shortfall, cfg.max_fold_back)
-            top = _surface_at(surface, mirror, cfg, cfg.raster)
-            inside = cv2.pointPolygonTest(contour, (float(mirror[0]), float(mirror[1])), False)
-            heap = _surface_at(surface, mirror, cfg, cfg.palm_radius)
-            if (
-                inside > 0
-                and math.isfinite(top)
-                and top >= base + cfg.layer_step
-                and heap - top <= cfg.palm_clearance
-            ):
-                # A layered spot: take its top layer only (the jaws catch ~5 mm below the grasp
-                # point and up) and lay it back out over the edge.
-                grasp_xy, kind, palm_ok = mirror, "fold_back", True
-                z_g = _table_z(state.table_plane, grasp_xy) + top
-        if peak is not None:
-            grasp_xy, kind, palm_ok = peak[0], "heap", True
-            z_g = _table_z(state.table_plane, grasp_xy) + peak[1]
-            direction = (target - grasp_xy) / max(float(np.linalg.norm(target - grasp_xy)), 1e-9)
         place_xy = target + direction * cfg.overshoot
         place_xy = np.clip(place_xy, [x0 + m, y0 + m], [x1 - m, y1 - m])
         z_p = _table_z(state.table_plane, place_xy) + cfg.release_height
@@ -449,7 +409,7 @@ def plan_pulls(
             grasp=np.array([grasp_xy[0], grasp_xy[1], z_g]),
             place=np.array([place_xy[0], place_xy[1], z_p]),
             fold_line=_pull_line(grasp_xy, place_xy),
-            label=f"{kind} {name}",
+            label=f"pull {name}",
         )
         pulls.append(Pull(action, name, shortfall, palm_ok))
     pulls.sort(key=lambda pl: (not pl.palm_ok, -pl.shortfall))
