@@ -4,8 +4,18 @@ moved, and how low to grasp a folded stack. Pure geometry on hand-made perceptio
 import numpy as np
 import pytest
 
-from foldbot.loop import moving_side_tip, regrasp_point, stack_grasp_point
+from foldbot.loop import (
+    MIN_LEFT,
+    inset_grasp,
+    moving_side_tip,
+    place_is_corner,
+    regrasp_point,
+    stack_grasp_point,
+    tip_action,
+)
+from foldbot.metrics import FoldLine
 from foldbot.perception.state import ClothState
+from foldbot.planning.actions import FoldAction
 
 TABLE_Z = 0.75
 # Fold line x = 0.45 pointing −y: its left (moving) side is x > 0.45, the far side.
@@ -94,3 +104,47 @@ def test_stack_grasp_point_goes_down_to_the_table():
     assert stack_grasp_point(s, low, 0.004) == pytest.approx(low)
     flat = ClothState(detected=True, table_plane=np.zeros(4))
     assert stack_grasp_point(flat, top, 0.004) == pytest.approx(top)
+
+
+def test_a_placement_is_checked_only_where_it_should_make_a_corner():
+    corners = np.array(
+        [[0.3, 0.15, 0.76], [0.3, -0.15, 0.76], [0.45, -0.15, 0.76], [0.45, 0.15, 0.76]]
+    )
+    assert place_is_corner(np.array([0.31, 0.16, 0.76]), corners, 0.03)
+    # A corner laid inside the outline (thirds' first stage) is no corner keypoint: not checked.
+    assert not place_is_corner(np.array([0.37, 0.0, 0.76]), corners, 0.03)
+    # Without a predicted outline every placement is checked.
+    assert place_is_corner(np.array([0.37, 0.0, 0.76]), None, 0.03)
+
+
+def test_inset_grasp_moves_inside_and_keeps_the_corner_landing_on_its_place():
+    s = dragged_towel()
+    corner = np.array([0.45, 0.05, 0.757])
+    line = FoldLine(*LINE)
+    place = line.reflect_xy(corner)
+    action = FoldAction(grasp=corner, place=place, fold_line=LINE, label="far_left")
+    moved = inset_grasp(s, action, corner, 0.012)
+    assert np.linalg.norm(moved.grasp[:2] - corner[:2]) == pytest.approx(0.012)
+    centre = np.asarray(s.outline_world)[:, :2].mean(axis=0)
+    assert np.linalg.norm(moved.grasp[:2] - centre) < np.linalg.norm(corner[:2] - centre)
+    # The grasp still maps onto the place by the fold: the corner lands where it was planned.
+    assert line.reflect_xy(moved.grasp)[:2] == pytest.approx(moved.place[:2])
+    assert moved.grasp[2] == corner[2] and moved.place[2] == place[2]
+    assert inset_grasp(s, action, corner, 0.0) is action
+
+
+def test_tip_action_carries_the_cloth_left_past_the_line_and_nothing_less():
+    s = dragged_towel()  # the dragged far_right reaches 11 cm past the line x = 0.45
+    planned = FoldAction(
+        grasp=np.array([0.6, -0.15, 0.757]),
+        place=np.array([0.3, -0.15, 0.761]),
+        fold_line=LINE,
+        label="far_right",
+    )
+    extra = tip_action(s, planned)
+    assert extra is not None
+    assert extra.grasp[:2] == pytest.approx([0.55, -0.06])  # the tip, 1 cm back toward the line
+    assert extra.place[:2] == pytest.approx(FoldLine(*LINE).reflect_xy(extra.grasp)[:2])
+    assert extra.place[2] == planned.place[2]
+    folded = state([(0.30, 0.15), (0.30, -0.15), (0.45 + MIN_LEFT / 2, -0.15)], {})
+    assert tip_action(folded, planned) is None

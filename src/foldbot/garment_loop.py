@@ -20,6 +20,7 @@ import numpy as np
 
 from foldbot.errors import FoldbotError
 from foldbot.loop import (
+    GRASP_INSET,
     FoldCell,
     FoldRecord,
     LoopConfig,
@@ -27,27 +28,19 @@ from foldbot.loop import (
     execute_action,
     finish_fold,
     line_points,
-    moving_side_tip,
     open_loop_entry,
     require_in_view,
     show_action,
     stack_grasp_point,
+    surface_height,
+    tip_action,
 )
-from foldbot.metrics import FoldLine
-from foldbot.perception.geometry import backproject_pixel, project_points
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState, fold_check_iou, polygon_mask
 from foldbot.planning.actions import FoldAction
 from foldbot.planning.garment_recipes import GarmentPlan, fold_outline, plan_garment
 from foldbot.types import Observation
 
-GRASP_INSET = 0.01
-"""A grasp moved onto the cloth lands this far (m) inside the perceived outline."""
-TIP_BAND = 0.01
-"""Outline points within this (m) of the farthest one from the line tie for the tip."""
-MIN_LEFT = 0.03
-"""A from-tip action runs only while the cloth reaches this far (m) past the line (less is the
-crease's bulge, not cloth left to fold)."""
 _SKIPPED = {
     "grasp_success": True,
     "grasp_reason": "skipped: an earlier carry already moved this part",
@@ -81,41 +74,6 @@ def snap_to_cloth(
     inward = (q - point[:2]) / max(float(np.linalg.norm(q - point[:2])), 1e-9)
     xy = q + inward * inset
     return np.array([xy[0], xy[1], float(point[2])])
-
-
-def surface_height(obs: Observation, point: np.ndarray, radius: int = 2) -> float | None:
-    """Height (world z, m) of the surface the camera sees at `point`'s x, y (robust depth around
-    its pixel); None when that pixel is outside the image or has no depth."""
-    uv, z = project_points(
-        np.asarray(point, dtype=float)[None, :], obs.intrinsics, obs.T_world_camera
-    )
-    (u, v), h, w = uv[0], obs.intrinsics.height, obs.intrinsics.width
-    if not (z[0] > 0 and 0 <= u < w and 0 <= v < h):
-        return None
-    seen = backproject_pixel(obs, float(u), float(v), radius)
-    return float(seen[2]) if np.all(np.isfinite(seen)) else None
-
-
-def tip_action(state: ClothState, planned: FoldAction, inset: float = GRASP_INSET):
-    """The action that carries the cloth left on `planned`'s moving side from its tip: the outline
-    point farthest from the line (ties: nearest the planned grasp), `inset` back toward the line,
-    placed at its mirror; None when the cloth reaches less than MIN_LEFT past the line."""
-    line = FoldLine(*planned.fold_line)
-    outline = np.asarray(state.outline_world, dtype=float).reshape(-1, 3)
-    if (
-        not state.detected
-        or len(outline) < 3
-        or line.side(outline).max() < MIN_LEFT * np.hypot(line.dx, line.dy)
-    ):
-        return None
-    tip = moving_side_tip(state, planned.fold_line, planned.grasp, band=TIP_BAND)
-    if tip is None:
-        return None
-    normal = np.array([-line.dy, line.dx]) / np.hypot(line.dx, line.dy)  # toward the moving side
-    grasp = np.array([*(tip[:2] - normal * inset), planned.grasp[2]])
-    place = line.reflect_xy(grasp)
-    place[2] = planned.place[2]
-    return dataclasses.replace(planned, grasp=grasp, place=place)
 
 
 def predicted_mask(parts: list[np.ndarray], height: float, obs: Observation) -> np.ndarray:

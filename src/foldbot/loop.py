@@ -20,12 +20,22 @@ import numpy as np
 from scipy.spatial import ConvexHull
 
 from foldbot.errors import FoldbotError, UnreachableTargetError
+from foldbot.metrics import FoldLine
+from foldbot.perception.geometry import backproject_pixel, project_points
 from foldbot.perception.keypoints import label_corners, max_area_quad
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState, fold_check_iou
 from foldbot.planning.actions import FoldAction, FoldPlan
 from foldbot.planning.recipes import plan_stage, predicted_outline, recipe_stages
 from foldbot.types import GraspResult, Observation
+
+GRASP_INSET = 0.01
+"""A grasp moved onto the cloth lands this far (m) inside the perceived outline."""
+TIP_BAND = 0.01
+"""Outline points within this (m) of the farthest one from the line tie for the tip."""
+MIN_LEFT = 0.03
+"""Cloth reaching less than this (m) past a stage's fold line is the crease's bulge, not cloth
+left to fold: a from-tip or finishing action runs only when more is left."""
 
 
 @dataclass(frozen=True)
@@ -48,6 +58,12 @@ class LoopConfig:
     """Height of one cloth layer (m): where the open loop expects a folded stack's corners."""
     stack_grasp_height: float = 0.004
     """A stack (FoldAction.layers > 1) is grasped this high above the perceived table (m)."""
+    stack_inset: float = 0.012
+    """A stack's corner is grasped this far (m) inside the perceived corner, toward the cloth's
+    centre: a crease is rounded, so its cloth lies inside the corner the camera sees."""
+    finish_actions: int = 1
+    """After a stage's planned actions, at most this many extra actions carry cloth still left
+    past the fold line (more than MIN_LEFT) over it, from its tip (0 = off)."""
 
 
 @dataclass
@@ -187,6 +203,7 @@ def run_fold(
         rec.fold_lines.append(plan.fold_lines[0])
         if stage == 0:
             rec.initial_overlay = plan_overlay(obs, state, plan, cell.table_height)
+        corner_places = outline_corners(np.asarray(predicted, dtype=float).reshape(-1, 3))
         for i, planned in enumerate(plan.actions):
             log(f"stage {stage + 1}, action {i + 1}/{len(plan.actions)}: {planned.label} → place")
             entry, latest = closed_loop_action(
@@ -196,11 +213,28 @@ def run_fold(
                 latest,
                 log,
                 inject_fault=cfg.fault_grasp_offset > 0 and not rec.actions,
+                predicted_corners=corner_places,
             )
             rec.actions.append(entry)
         cell.park()
         cell.wait(settle_s)
         state, obs = cell.observe()
+        for _ in range(cfg.finish_actions):
+            extra = finish_action(state, obs, plan.actions[-1])
+            if extra is None:
+                break
+            log(f"stage {stage + 1}: cloth left past the fold line; carrying it over from its tip")
+            t_sim, t_wall = cell.sim_time, time.perf_counter()
+            show_action(cell, state, extra)
+            outcome = execute_action(cell, extra)
+            entry = open_loop_entry(
+                extra, outcome, cell.sim_time - t_sim, time.perf_counter() - t_wall
+            )
+            entry.update(kind="finish_stage")
+            rec.actions.append(entry)
+            cell.park()
+            cell.wait(settle_s)
+            state, obs = cell.observe()
         iou = (
             fold_check_iou(state.mask, predicted, obs.intrinsics, obs.T_world_camera)
             if state.detected
@@ -373,6 +407,110 @@ def stack_grasp_point(state: ClothState, point: np.ndarray, height: float) -> np
     return np.array([point[0], point[1], min(float(point[2]), z_table + height)])
 
 
+def surface_height(obs: Observation, point: np.ndarray, radius: int = 2) -> float | None:
+    """Height (world z, m) of the surface the camera sees at `point`'s x, y (robust depth around
+    its pixel); None when that pixel is outside the image or has no depth."""
+    uv, z = project_points(
+        np.asarray(point, dtype=float)[None, :], obs.intrinsics, obs.T_world_camera
+    )
+    (u, v), h, w = uv[0], obs.intrinsics.height, obs.intrinsics.width
+    if not (z[0] > 0 and 0 <= u < w and 0 <= v < h):
+        return None
+    seen = backproject_pixel(obs, float(u), float(v), radius)
+    return float(seen[2]) if np.all(np.isfinite(seen)) else None
+
+
+def tip_action(
+    state: ClothState, planned: FoldAction, inset: float = GRASP_INSET
+) -> FoldAction | None:
+    """The action that carries the cloth left on `planned`'s moving side from its tip: the outline
+    point farthest from the line (ties: nearest the planned grasp), `inset` back toward the line,
+    placed at its mirror; None when the cloth reaches less than MIN_LEFT past the line."""
+    line = FoldLine(*planned.fold_line)
+    outline = np.asarray(state.outline_world, dtype=float).reshape(-1, 3)
+    if (
+        not state.detected
+        or len(outline) < 3
+        or line.side(outline).max() < MIN_LEFT * np.hypot(line.dx, line.dy)
+    ):
+        return None
+    tip = moving_side_tip(state, planned.fold_line, planned.grasp, band=TIP_BAND)
+    if tip is None:
+        return None
+    normal = np.array([-line.dy, line.dx]) / np.hypot(line.dx, line.dy)  # toward the moving side
+    grasp = np.array([*(tip[:2] - normal * inset), planned.grasp[2]])
+    place = line.reflect_xy(grasp)
+    place[2] = planned.place[2]
+    return dataclasses.replace(planned, grasp=grasp, place=place)
+
+
+def finish_action(state: ClothState, obs: Observation, last: FoldAction) -> FoldAction | None:
+    """After a stage's planned actions: the action that carries cloth still left past the stage's
+    fold line over it, from its tip, grasped at the surface the camera sees there (one layer), or
+    None when no more than the crease's bulge is left."""
+    extra = tip_action(state, last)
+    if extra is None:
+        return None
+    top = surface_height(obs, extra.grasp)
+    grasp = extra.grasp if top is None else np.r_[extra.grasp[:2], top]
+    return dataclasses.replace(extra, grasp=grasp, label=f"finish_{last.label}", layers=1)
+
+
+CORNER_TURN = np.radians(30.0)
+"""An outline vertex whose boundary turns by at least this much is a corner the keypoint detector
+finds; a shallower one is a bump on a side."""
+
+
+def outline_corners(outline: np.ndarray, min_turn: float = CORNER_TURN) -> np.ndarray:
+    """The vertices of a counter-clockwise outline (N×2 or N×3) where its boundary turns left by at
+    least `min_turn` (rad): the corners a perceived keypoint can stand for."""
+    pts = np.asarray(outline, dtype=float).reshape(len(outline), -1)
+    if len(pts) < 3:
+        return pts
+    xy = pts[:, :2]
+    into = xy - np.roll(xy, 1, axis=0)
+    out = np.roll(xy, -1, axis=0) - xy
+    turn = np.arctan2(into[:, 0] * out[:, 1] - into[:, 1] * out[:, 0], np.sum(into * out, axis=1))
+    return pts[turn >= min_turn]
+
+
+def place_is_corner(place: np.ndarray, corners: np.ndarray | None, tol: float) -> bool:
+    """Whether a place point is one of `corners`, the corners of the outline the stage should leave
+    (within `tol`, m): only there can the placed corner be checked against a perceived corner
+    keypoint. A corner laid inside the outline or on its side (thirds' first stage) is no keypoint;
+    the stage check covers it. Without predicted corners every place is checked."""
+    if corners is None:
+        return True
+    if len(corners) == 0:
+        return False
+    d = np.linalg.norm(np.asarray(corners)[:, :2] - np.asarray(place)[:2], axis=1)
+    return bool(d.min() <= tol)
+
+
+def inset_grasp(
+    state: ClothState, action: FoldAction, corner: np.ndarray, inset: float
+) -> FoldAction:
+    """`action` with its grasp moved `inset` (m) from `corner` toward the perceived cloth's centre
+    and its place moved by the mirror image of that shift, so the corner still lands on its place."""
+    if inset <= 0 or not state.detected:
+        return action
+    outline = np.asarray(state.outline_world, dtype=float).reshape(-1, 3)
+    centre = (
+        outline[:, :2].mean(axis=0) if len(outline) >= 3 else state.keypoint_array()[:, :2].mean(0)
+    )
+    inward = centre - corner[:2]
+    norm = float(np.linalg.norm(inward))
+    if norm < 2 * inset:
+        return action
+    shift = inward / norm * inset
+    line = FoldLine(*action.fold_line)
+    d = np.array([line.dx, line.dy]) / np.hypot(line.dx, line.dy)
+    mirrored = 2 * (shift @ d) * d - shift
+    grasp = np.r_[action.grasp[:2] + shift, action.grasp[2]]
+    place = np.r_[action.place[:2] + mirrored, action.place[2]]
+    return dataclasses.replace(action, grasp=grasp, place=place)
+
+
 def closed_loop_action(
     cfg: LoopConfig,
     cell: FoldCell,
@@ -380,11 +518,15 @@ def closed_loop_action(
     latest: ClothState,
     log: Callable[[str], None] = print,
     inject_fault: bool = False,
+    predicted_corners: np.ndarray | None = None,
 ) -> tuple[dict, ClothState]:
     """Execute one pick-and-place, re-observing to grasp the corner where it now is, and
     verifying the placement; a failed grasp or an off placement is redone (bounded).
 
-    `latest` is the state of the newest observation (taken after the cloth last moved)."""
+    `latest` is the state of the newest observation (taken after the cloth last moved);
+    `predicted_corners` are the corners of the outline the stage should leave: a placement is
+    verified only where it should make one of them (see place_is_corner)."""
+    check_place = place_is_corner(planned.place, predicted_corners, cfg.place_tolerance)
     t_sim, t_wall = cell.sim_time, time.perf_counter()
     action, outcome, retries, attempts = planned, {}, 0, []
     state = latest
@@ -401,9 +543,13 @@ def closed_loop_action(
         if seen is not None:
             action = dataclasses.replace(action, grasp=seen)
         if planned.layers > 1 and not (attempts and attempts[-1]["grasp_success"]):
+            corner = action.grasp
             action = dataclasses.replace(
-                action, grasp=stack_grasp_point(state, action.grasp, cfg.stack_grasp_height)
+                action,
+                grasp=stack_grasp_point(state, action.grasp, cfg.stack_grasp_height),
+                place=planned.place,
             )
+            action = inset_grasp(state, action, corner, cfg.stack_inset)
         if inject_fault and not attempts:
             outward = action.grasp[:2] - state.keypoint_array().mean(axis=0)[:2]
             outward = outward / max(np.linalg.norm(outward), 1e-9) * cfg.fault_grasp_offset
@@ -413,7 +559,7 @@ def closed_loop_action(
         placed_error = None
         cell.park()
         state, _obs = cell.observe()
-        if outcome["grasp_success"]:
+        if outcome["grasp_success"] and check_place:
             seen = nearest_keypoint(state, action.place, 2 * cfg.regrasp_radius)
             placed_error = (
                 None if seen is None else float(np.linalg.norm(seen[:2] - action.place[:2]))

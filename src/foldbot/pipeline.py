@@ -246,7 +246,7 @@ class SimCell(FoldCell):
         self.motion = motion
         self.recorder = recorder
         self.table_height = world.layout.table_height
-        self.park_q = robot.home_q  # joint-space park: the arm at home hides ~3 % of the workspace
+        self.park_q = robot.park_q  # joint-space park, out of the camera's view
 
     @property
     def sim_time(self) -> float:
