@@ -57,6 +57,10 @@ at the robot (world −x): the hem-up and in-half folds then carry far cloth tow
 PERCEPTION_MODES = ("vision", "oracle")
 START_STATES = ("flat", "crumpled")
 """How an episode's cloth starts: settled flat, or crumpled (flattened by the robot first)."""
+PARK_POSES = ("home", "out_of_view")
+"""Where the arm waits while the camera looks: home (TCP 0.25 m over the workspace centre; from
+the camera it hides the near edge of a large cloth) or out_of_view (TCP near the robot base,
+outside the image; longer moves)."""
 
 
 @dataclass(frozen=True)
@@ -108,6 +112,8 @@ class EpisodeConfig:
     start: str = "flat"
     """flat, or crumpled: the seed crumples the settled cloth and the robot flattens it (until the
     perceived coverage reaches the target, or its action budget is spent) before folding."""
+    park: str = "home"
+    """Where the arm waits while the camera looks (PARK_POSES): home or out_of_view."""
 
     def __post_init__(self) -> None:
         require(
@@ -156,6 +162,10 @@ class EpisodeConfig:
             self.start == "flat" or self.garment == "towel",
             f"start {self.start!r} is for towels (the flattening pulls toward a rectangle); "
             f"a {self.garment} garment starts flat",
+        )
+        require(
+            self.park in PARK_POSES,
+            f"unknown park {self.park!r}; allowed: {', '.join(PARK_POSES)}",
         )
 
 
@@ -237,6 +247,7 @@ class SimCell(FoldCell):
         estimator,
         motion: MotionConfig,
         recorder: _VideoRecorder | None = None,
+        park: str = "home",
     ) -> None:
         self.world = world
         self.robot = robot
@@ -246,7 +257,7 @@ class SimCell(FoldCell):
         self.motion = motion
         self.recorder = recorder
         self.table_height = world.layout.table_height
-        self.park_q = robot.park_q  # joint-space park, out of the camera's view
+        self.park_q = robot.out_of_view_q if park == "out_of_view" else robot.home_q
 
     @property
     def sim_time(self) -> float:
@@ -452,7 +463,9 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
             world.add_step_hook(recorder)
         log(f"settling the cloth ({mesh.vertices.shape[0]} vertices)…")
         settle(world, cloth)
-        cell = SimCell(world, robot, executor, camera, estimator, cfg.motion, recorder)
+        cell = SimCell(
+            world, robot, executor, camera, estimator, cfg.motion, recorder, park=cfg.park
+        )
         flattened = None
         if cfg.start == "crumpled":
             flattened = crumple_and_flatten(cfg, parts, cell, writer, log)

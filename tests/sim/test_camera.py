@@ -167,20 +167,20 @@ def test_lighting_validation_and_change(plate_world) -> None:
 
 
 @pytest.mark.parametrize("name", ["ur5", "panda"])
-def test_the_parked_arm_is_out_of_the_default_cameras_view(name):
+def test_the_out_of_view_park_hides_nothing_from_the_default_camera(name):
     """At home the gripper hangs over the workspace and hides a large cloth's near edge; parked,
     no pixel of the arm is in the default camera's image, and the TCP is where the park says."""
     from foldbot.sim.robots import make_robot
-    from foldbot.sim.robots.base import PARK_TCP_FROM_BASE
+    from foldbot.sim.robots.base import OUT_OF_VIEW_TCP_FROM_BASE
 
     with SimWorld() as world:
         robot = make_robot(name, world.client, world.layout)
         camera = RGBDCamera(world.client, CameraConfig())
         robot.reset_joints(robot.home_q)
         assert (camera.render_segmentation() == robot.body_id).any()
-        robot.reset_joints(robot.park_q)
+        robot.reset_joints(robot.out_of_view_q)
         assert not (camera.render_segmentation() == robot.body_id).any()
         bx, by, _ = world.layout.robot_base_xyz
-        dx, dy, dz = PARK_TCP_FROM_BASE
+        dx, dy, dz = OUT_OF_VIEW_TCP_FROM_BASE
         expected = [bx + dx, by + dy, world.layout.table_height + dz]
         assert robot.tcp_pose()[0] == pytest.approx(expected, abs=2e-3)

@@ -31,6 +31,7 @@ yaw_deg = 15                            # degrees, yaw in ±this
 retries = 1                             # closed loop: redo a failed grasp / off placement
 video_fps = 0                           # video.mp4 frames per simulated second (0 = none)
 start = "flat"                          # "crumpled": crumple the cloth, flatten it, then fold
+park = "home"                           # "out_of_view": the arm waits outside the camera's image
 
 [reference]
 ravens_speed = true                     # plain-PyBullet speed reference (ravens_reference.py)
@@ -53,6 +54,7 @@ from foldbot.errors import ConfigError
 from foldbot.garments.towel import MAX_RESOLUTION, MIN_RESOLUTION, TowelSpec
 from foldbot.pipeline import (
     GARMENTS,
+    PARK_POSES,
     PERCEPTION_MODES,
     START_STATES,
     EpisodeConfig,
@@ -73,7 +75,7 @@ _SCHEMA: dict[str, set[str]] = {
     "axes": {"garment", "recipe", "perception", "loop", "seeds"},
     "towel": {"resolution", "width", "height"},
     "randomise": {"towel_side", "position_jitter", "yaw_deg"},
-    "episode": {"retries", "video_fps", "start"},
+    "episode": {"retries", "video_fps", "start", "park"},
     "reference": {"ravens_speed"},
 }
 
@@ -125,6 +127,8 @@ class EpisodeSpec:
     video_fps: float = 0.0
     start: str = "flat"
     """flat, or crumpled: crumple the cloth, flatten it, then fold."""
+    park: str = "home"
+    """Where the arm waits while the camera looks: home or out_of_view."""
 
     @property
     def id(self) -> str:
@@ -157,6 +161,7 @@ class EpisodeSpec:
             retries=self.retries,
             video_fps=self.video_fps,
             start=self.start,
+            park=self.park,
         )
 
     def as_dict(self) -> dict[str, Any]:
@@ -352,6 +357,11 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
         raise ConfigError(
             f"{where}: episode.start = {start!r} is unknown; allowed: {', '.join(START_STATES)}"
         )
+    park = _get(data, "episode", "park", str, "home", where)
+    if park not in PARK_POSES:
+        raise ConfigError(
+            f"{where}: episode.park = {park!r} is unknown; allowed: {', '.join(PARK_POSES)}"
+        )
     ravens = _get(data, "reference", "ravens_speed", bool, True, where)
 
     specs = []
@@ -376,6 +386,7 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
                                 retries=retries,
                                 video_fps=video_fps,
                                 start=start,
+                                park=park,
                             )
                         )
     for spec in specs[:1]:

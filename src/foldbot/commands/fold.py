@@ -7,7 +7,14 @@ import dataclasses
 from pathlib import Path
 
 from foldbot.garments.towel import TowelSpec
-from foldbot.pipeline import GARMENTS, PERCEPTION_MODES, START_STATES, EpisodeConfig, run_episode
+from foldbot.pipeline import (
+    GARMENTS,
+    PARK_POSES,
+    PERCEPTION_MODES,
+    START_STATES,
+    EpisodeConfig,
+    run_episode,
+)
 from foldbot.planning.garment_recipes import GARMENT_RECIPE_HELP, GARMENT_RECIPES
 from foldbot.planning.recipes import RECIPE_HELP, RECIPES
 from foldbot.sim.robots import ROBOT_NAMES
@@ -53,6 +60,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="flat (default), or crumpled: the seed crumples the towel and the robot flattens it "
         "(perceived coverage ≥ 0.9, at most 6 pulls) before folding",
     )
+    parser.add_argument(
+        "--park",
+        default="home",
+        choices=PARK_POSES,
+        help="where the arm waits while the camera looks: home (default, over the workspace) "
+        "or out_of_view (near the robot base, outside the image)",
+    )
     parser.add_argument("--seed", type=int, default=0, help="randomisation seed (default 0)")
     parser.add_argument("--width", type=float, default=0.30, help="towel width in m (0.05–1.0)")
     parser.add_argument("--height", type=float, default=0.30, help="towel height in m (0.05–1.0)")
@@ -84,6 +98,7 @@ def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
         perception=args.perception,
         seed=args.seed,
         start=args.start,
+        park=args.park,
         towel=TowelSpec(width=args.width, height=args.height, resolution=args.resolution),
         cloth=cloth,
         sim=SimConfig(gui=args.gui),

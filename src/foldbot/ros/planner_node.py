@@ -97,9 +97,9 @@ class MotionPlanner:
                 )
             }
         if kind == "park":
-            if np.abs(self.robot.park_q - q).max() < 1e-4:
+            if np.abs(self.robot.home_q - q).max() < 1e-4:
                 return {"trajectory": None}
-            traj = self.executor.joint_move_trajectory(q, self.robot.park_q)
+            traj = self.executor.joint_move_trajectory(q, self.robot.home_q)
             return {"trajectory": self._trajectory("park", traj)}
         raise FoldbotError(
             f"unknown planner request kind {kind!r}; allowed: stage, action, lift, time, park"

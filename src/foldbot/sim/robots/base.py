@@ -26,10 +26,10 @@ from foldbot.sim.layout import CellLayout
 
 HOME_HEIGHT_ABOVE_TABLE = 0.25
 """Height of the TCP above the table top in the home pose (m)."""
-PARK_TCP_FROM_BASE = (0.25, 0.0, 0.30)
-"""Park pose: the TCP this far (m) ahead of the robot base along x, sideways along y, and above
-the table top. From the cell's camera the parked arm is out of view: at home, over the workspace
-centre, it hides the near edge of a large cloth."""
+OUT_OF_VIEW_TCP_FROM_BASE = (0.25, 0.0, 0.30)
+"""The out-of-view park: the TCP this far (m) ahead of the robot base along x, sideways along y,
+and above the table top. From the cell's camera the arm is then out of view, where at home, over
+the workspace centre, it hides the near edge of a large cloth."""
 
 
 def gripper_down_quaternion(yaw: float = 0.0) -> np.ndarray:
@@ -191,12 +191,12 @@ class Robot(abc.ABC):
         self.reset_joints(self.home_q)
         self._home_tcp_position = self.tcp_pose()[0]
         bx, by, _ = layout.robot_base_xyz
-        dx, dy, dz = PARK_TCP_FROM_BASE
-        self.park_q: np.ndarray = _frozen(
+        dx, dy, dz = OUT_OF_VIEW_TCP_FROM_BASE
+        self.out_of_view_q: np.ndarray = _frozen(
             self.solve_ik([bx + dx, by + dy, layout.table_height + dz], q_seed=self.home_q)
         )
-        """Gripper-down posture out of the camera's view (PARK_TCP_FROM_BASE), where the arm waits
-        while the camera looks."""
+        """Gripper-down posture out of the camera's view (OUT_OF_VIEW_TCP_FROM_BASE): a park
+        pose where the arm hides nothing from the camera."""
         self.reset_gripper(self.max_opening)
 
     # ------------------------------------------------------------------ subclass hooks
