@@ -8,6 +8,7 @@ from foldbot.loop import (
     MIN_LEFT,
     inset_grasp,
     moving_side_tip,
+    outline_corners,
     place_is_corner,
     regrasp_point,
     stack_grasp_point,
@@ -148,3 +149,15 @@ def test_tip_action_carries_the_cloth_left_past_the_line_and_nothing_less():
     assert extra.place[2] == planned.place[2]
     folded = state([(0.30, 0.15), (0.30, -0.15), (0.45 + MIN_LEFT / 2, -0.15)], {})
     assert tip_action(folded, planned) is None
+
+
+def test_outline_corners_are_the_detectors_four_not_a_bump_on_a_side():
+    # Thirds' first stage: the staying two thirds, and the mirrored far corner 4 mm past the left
+    # side (a bump the four-corner detector does not report).
+    outline = np.array(
+        [[0.3, 0.15], [0.3, -0.15], [0.5, -0.15], [0.5, 0.15], [0.4, 0.154], [0.39, 0.15]]
+    )
+    corners = outline_corners(outline)
+    assert len(corners) == 4
+    assert not place_is_corner(np.array([0.4, 0.154]), corners, 0.03)
+    assert place_is_corner(np.array([0.31, 0.14]), corners, 0.03)

@@ -116,6 +116,9 @@ def test_failed_grasp_is_retried_after_reobserving(tmp_path):
     assert "no cloth" in first["attempts"][0]["grasp_reason"]
     assert first["attempts"][1]["grasp_success"] is True
     assert first["grasp_success"] is True
+    # The retry does not repeat the miss: it closes the jaws at the (perceived) table.
+    table = cfg.sim.layout.table_height
+    assert first["attempts"][1]["grasp"][2] <= table + cfg.motion.stack_grasp_height + 0.002
 
 
 @pytest.mark.slow

@@ -58,9 +58,10 @@ class LoopConfig:
     """Height of one cloth layer (m): where the open loop expects a folded stack's corners."""
     stack_grasp_height: float = 0.004
     """A stack (FoldAction.layers > 1) is grasped this high above the perceived table (m)."""
-    stack_inset: float = 0.012
-    """A stack's corner is grasped this far (m) inside the perceived corner, toward the cloth's
-    centre: a crease is rounded, so its cloth lies inside the corner the camera sees."""
+    stack_inset: float = 0.01
+    """A stack's corner, or a corner retried after a missed grasp, is grasped this far (m) inside
+    the perceived corner, toward the cloth's centre, at the table (stack_grasp_height): a crease is
+    rounded, so its cloth lies inside and below the corner the camera sees."""
     finish_actions: int = 1
     """After a stage's planned actions, at most this many extra actions carry cloth still left
     past the fold line (more than MIN_LEFT) over it, from its tip (0 = off)."""
@@ -462,11 +463,16 @@ finds; a shallower one is a bump on a side."""
 
 
 def outline_corners(outline: np.ndarray, min_turn: float = CORNER_TURN) -> np.ndarray:
-    """The vertices of a counter-clockwise outline (N×2 or N×3) where its boundary turns left by at
-    least `min_turn` (rad): the corners a perceived keypoint can stand for."""
+    """The corners a perceived keypoint can stand for on a counter-clockwise outline (N×2 or N×3):
+    as the towel detector does, the largest-area quad on its convex hull, of which the vertices
+    where the boundary turns left by at least `min_turn` (rad). A small bump on a side (a folded
+    corner just past it) is no corner."""
     pts = np.asarray(outline, dtype=float).reshape(len(outline), -1)
     if len(pts) < 3:
         return pts
+    if len(pts) > 4:
+        hull = pts[ConvexHull(pts[:, :2]).vertices]
+        pts = hull[max_area_quad(hull[:, :2])]
     xy = pts[:, :2]
     into = xy - np.roll(xy, 1, axis=0)
     out = np.roll(xy, -1, axis=0) - xy
@@ -542,7 +548,11 @@ def closed_loop_action(
         )
         if seen is not None:
             action = dataclasses.replace(action, grasp=seen)
-        if planned.layers > 1 and not (attempts and attempts[-1]["grasp_success"]):
+        last_failed = bool(attempts) and not attempts[-1]["grasp_success"]
+        if last_failed or (planned.layers > 1 and not attempts):
+            # A stack, or a corner the jaws just missed (a crease's cloth lies below and inside
+            # the corner the camera sees; the same grasp again would miss again): close the jaws
+            # at the table, a little inside the perceived corner, under every layer there.
             corner = action.grasp
             action = dataclasses.replace(
                 action,
