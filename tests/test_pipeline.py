@@ -93,6 +93,7 @@ def test_episode_folder_follows_the_contract(half_fold_episode):
         ({"recipe": "origami"}, "recipe"),
         ({"perception": "psychic"}, "perception"),
         ({"seed": -1}, "seed"),
+        ({"park": "garage"}, "out_of_view"),
     ],
 )
 def test_bad_episode_config(kwargs, needle):

@@ -69,6 +69,16 @@ def test_spec_maps_onto_the_episode_config(tiny_suite_data):
     assert cfg.position_jitter == 0.02
     assert cfg.yaw_range == pytest.approx(math.radians(10))
     assert cfg.towel.resolution == 6 and cfg.video_fps == 0
+    assert cfg.park == "home"
+    data["episode"]["park"] = "out_of_view"
+    assert load_one(data).to_config().park == "out_of_view"
+
+
+def test_the_loop_acceptance_suite_parks_out_of_view_over_20_seeds():
+    suite = load_suite("towel_loop")
+    assert len(suite.episodes) == 80
+    assert {e.seed for e in suite.episodes} == set(range(20))
+    assert {e.park for e in suite.episodes} == {"out_of_view"}
 
 
 def load_one(data):
@@ -111,6 +121,7 @@ def test_unknown_suite_name_lists_the_available_ones():
         (lambda d: d.update(randomise={"yaw_deg": -5}), ["yaw_deg", "-5"]),
         (lambda d: d.update(randomise={"spin": 1}), ["randomise.spin", "yaw_deg"]),
         (lambda d: d["episode"].update(retries=-1), ["episode.retries", "-1"]),
+        (lambda d: d["episode"].update(park="garage"), ["episode.park", "garage", "out_of_view"]),
         (lambda d: d.update(reference={"ravens_speed": "yes"}), ["ravens_speed", "bool"]),
         (lambda d: d.update(name=""), ["name"]),
     ],
