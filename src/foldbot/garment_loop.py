@@ -26,6 +26,7 @@ from foldbot.loop import (
     LoopConfig,
     corners_of,
     execute_action,
+    execute_as_planned,
     finish_fold,
     line_points,
     open_loop_entry,
@@ -191,12 +192,7 @@ def run_garment_fold(
                     cfg, cell, planned, state, obs, log, from_tip=stage.from_tip
                 )
             else:
-                t_sim, t_wall = cell.sim_time, time.perf_counter()
-                show_action(cell, state, planned)
-                outcome = execute_action(cell, planned)
-                entry = open_loop_entry(
-                    planned, outcome, cell.sim_time - t_sim, time.perf_counter() - t_wall
-                )
+                entry = execute_as_planned(cell, state, planned)
             rec.actions.append(entry)
         parts = fold_outline(parts, stage.fold_line)
         if not cfg.closed_loop:

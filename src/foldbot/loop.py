@@ -225,12 +225,7 @@ def run_fold(
             if extra is None:
                 break
             log(f"stage {stage + 1}: cloth left past the fold line; carrying it over from its tip")
-            t_sim, t_wall = cell.sim_time, time.perf_counter()
-            show_action(cell, state, extra)
-            outcome = execute_action(cell, extra)
-            entry = open_loop_entry(
-                extra, outcome, cell.sim_time - t_sim, time.perf_counter() - t_wall
-            )
+            entry = execute_as_planned(cell, state, extra)
             entry.update(kind="finish_stage")
             rec.actions.append(entry)
             cell.park()
@@ -301,14 +296,15 @@ def run_open_loop(
     for plan in plans:
         for action in plan.actions:
             log(f"open loop: {action.label} → place")
-            t_sim, t_wall = cell.sim_time, time.perf_counter()
-            show_action(cell, state, action)
-            outcome = execute_action(cell, action)
-            rec.actions.append(
-                open_loop_entry(
-                    action, outcome, cell.sim_time - t_sim, time.perf_counter() - t_wall
-                )
-            )
+            rec.actions.append(execute_as_planned(cell, state, action))
+
+
+def execute_as_planned(cell: FoldCell, state: ClothState, action: FoldAction) -> dict:
+    """Show and run one action as planned (no re-observation or retry); its result.json entry."""
+    t_sim, t_wall = cell.sim_time, time.perf_counter()
+    show_action(cell, state, action)
+    outcome = execute_action(cell, action)
+    return open_loop_entry(action, outcome, cell.sim_time - t_sim, time.perf_counter() - t_wall)
 
 
 def open_loop_entry(action: FoldAction, outcome: dict, sim_s: float, wall_s: float) -> dict:

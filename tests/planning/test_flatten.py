@@ -86,16 +86,21 @@ def test_no_pull_once_the_target_coverage_is_reached():
     assert plan_pull(short, W, H, FlattenConfig()) is not None
 
 
+def empty_surface(cfg: FlattenConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A planning raster of the workspace with no surface seen (NaN), and its x, y grids."""
+    ny = math.ceil((cfg.workspace[3] - cfg.workspace[2]) / cfg.raster) + 1
+    nx = math.ceil((cfg.workspace[1] - cfg.workspace[0]) / cfg.raster) + 1
+    xs = cfg.workspace[0] + np.arange(nx) * cfg.raster
+    ys = cfg.workspace[2] + np.arange(ny) * cfg.raster
+    gx, gy = np.meshgrid(xs, ys)
+    return np.full((ny, nx), np.nan, np.float32), gx, gy
+
+
 def test_a_heap_raises_the_grasp_so_the_palm_clears_it():
     cfg = FlattenConfig()
     # A crumpled 15 cm blob whose middle is heaped 8 cm high.
     blob = rect(0.45, 0.0, 0.15, 0.15)
-    ny = math.ceil((cfg.workspace[3] - cfg.workspace[2]) / cfg.raster) + 1
-    nx = math.ceil((cfg.workspace[1] - cfg.workspace[0]) / cfg.raster) + 1
-    surface = np.full((ny, nx), np.nan, np.float32)
-    xs = cfg.workspace[0] + np.arange(nx) * cfg.raster
-    ys = cfg.workspace[2] + np.arange(ny) * cfg.raster
-    gx, gy = np.meshgrid(xs, ys)
+    surface, gx, gy = empty_surface(cfg)
     inside = (np.abs(gx - 0.45) <= 0.075) & (np.abs(gy) <= 0.075)
     r = np.hypot(gx - 0.45, gy)
     surface[inside] = np.clip(0.08 - 0.8 * r[inside], 0.004, None)
@@ -116,12 +121,7 @@ def test_top_layer_grasp_closes_just_under_the_perceived_surface():
     cfg = FlattenConfig(grasp_layer="top")
     # The towel folded in half along x = 0.50: two layers, the crease at the +x edge.
     outline = rect(0.425, 0.0, W / 2, H)
-    ny = math.ceil((cfg.workspace[3] - cfg.workspace[2]) / cfg.raster) + 1
-    nx = math.ceil((cfg.workspace[1] - cfg.workspace[0]) / cfg.raster) + 1
-    surface = np.full((ny, nx), np.nan, np.float32)
-    xs = cfg.workspace[0] + np.arange(nx) * cfg.raster
-    ys = cfg.workspace[2] + np.arange(ny) * cfg.raster
-    gx, gy = np.meshgrid(xs, ys)
+    surface, gx, gy = empty_surface(cfg)
     surface[(np.abs(gx - 0.425) <= W / 4) & (np.abs(gy) <= H / 2)] = 0.016
     _fit, pulls = plan_pulls(state_of(outline), W, H, cfg, surface, yaw=0.0)
     assert pulls
