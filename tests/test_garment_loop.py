@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from foldbot.garment_loop import outline_distance, snap_to_cloth
+from foldbot.errors import PerceptionError
+from foldbot.garment_loop import garment_keypoints, outline_distance, snap_to_cloth
 from foldbot.perception.state import ClothState
 
 Z = 0.752
@@ -39,3 +40,19 @@ def test_snap_keeps_points_on_cloth_and_moves_near_misses_inside():
     assert outline_distance(s, snapped) == pytest.approx(0.01, abs=0.003)
     assert snapped[2] == 0.77  # the planned height is kept
     assert snap_to_cloth(s, np.array([0.75, 0.0, Z]), radius=0.06) is None
+
+
+def test_an_unrecognised_garment_is_a_perception_failure():
+    # The generic outline estimator's towel corners are no pants keypoints: the loop must say
+    # perception failed (the benchmark's cause), naming what it missed, not blame the config.
+    s = square_state()
+    s.keypoints["near_left"] = (np.array([0.35, 0.1, Z]), 0.9)
+    with pytest.raises(PerceptionError, match=r"not recognised for recipe 'leg_over_leg'.*crotch"):
+        garment_keypoints(s, "leg_over_leg")
+    with pytest.raises(PerceptionError, match="seen: none"):
+        garment_keypoints(square_state(), "retail")
+    names = ("neck", "left_shoulder", "right_shoulder", "left_sleeve", "right_sleeve")
+    names += ("left_armpit", "right_armpit", "left_hem", "right_hem")
+    for n in names:
+        s.keypoints[n] = (np.array([0.45, 0.0, Z]), 0.8)
+    assert set(garment_keypoints(s, "retail")) >= set(names)

@@ -24,7 +24,8 @@ class OutputError(FoldbotError):
 
 
 class PerceptionError(FoldbotError, ValueError):
-    """Malformed input to perception (wrong shapes, dtypes, empty images, bad intrinsics)."""
+    """Perception cannot give what is asked of it: malformed input (wrong shapes, dtypes, empty
+    images, bad intrinsics), or a garment whose keypoints it did not recognise."""
 
 
 def require(condition: bool, message: str) -> None:

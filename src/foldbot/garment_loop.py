@@ -18,7 +18,7 @@ from collections.abc import Callable
 import cv2
 import numpy as np
 
-from foldbot.errors import FoldbotError
+from foldbot.errors import FoldbotError, PerceptionError
 from foldbot.loop import (
     GRASP_INSET,
     FoldCell,
@@ -39,7 +39,12 @@ from foldbot.loop import (
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState, fold_check_iou, polygon_mask
 from foldbot.planning.actions import FoldAction
-from foldbot.planning.garment_recipes import GarmentPlan, fold_outline, plan_garment
+from foldbot.planning.garment_recipes import (
+    GarmentPlan,
+    fold_outline,
+    plan_garment,
+    recipe_keypoints,
+)
 from foldbot.types import Observation
 
 _SKIPPED = {
@@ -75,6 +80,19 @@ def snap_to_cloth(
     inward = (q - point[:2]) / max(float(np.linalg.norm(q - point[:2])), 1e-9)
     xy = q + inward * inset
     return np.array([xy[0], xy[1], float(point[2])])
+
+
+def garment_keypoints(state: ClothState, recipe: str) -> dict[str, np.ndarray]:
+    """The perceived keypoints `recipe` plans from; PerceptionError naming the missing ones (and
+    what was seen instead) when the camera did not recognise the garment."""
+    seen = corners_of(state)
+    missing = [n for n in recipe_keypoints(recipe) if n not in seen]
+    if missing:
+        raise PerceptionError(
+            f"the garment was not recognised for recipe {recipe!r}: keypoints {missing} were not "
+            f"perceived (seen: {sorted(seen) or 'none'})"
+        )
+    return seen
 
 
 def predicted_mask(parts: list[np.ndarray], height: float, obs: Observation) -> np.ndarray:
@@ -179,7 +197,9 @@ def run_garment_fold(
         raise FoldbotError(f"no garment found before folding: {state.reason}")
     if cfg.require_full_view:
         require_in_view(state)
-    plan = plan_garment(cfg.recipe, corners_of(state), cfg.place_lift, cfg.layer_thickness)
+    plan = plan_garment(
+        cfg.recipe, garment_keypoints(state, cfg.recipe), cfg.place_lift, cfg.layer_thickness
+    )
     height = float(np.median(state.keypoint_array()[:, 2]))
     rec.initial_overlay = plan_overlay_all(obs, state, plan, cell.table_height)
     parts = [np.asarray(state.outline_world, dtype=float)[:, :2]]
