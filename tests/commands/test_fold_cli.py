@@ -1,5 +1,6 @@
 """`foldbot fold` from the command line: help, and clear errors for bad input."""
 
+import argparse
 import os
 import subprocess
 import sys
@@ -7,6 +8,7 @@ import sys
 import pytest
 
 from foldbot.cli import main
+from foldbot.commands.fold import add_arguments, config_from_args
 
 
 def test_help_lists_subcommands(capsys):
@@ -86,3 +88,21 @@ def test_oversized_towel_is_refused_before_anything_is_written(tmp_path, percept
     assert "Traceback" not in proc.stderr
     assert needle in proc.stderr
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "park"),
+    [
+        ([], "home"),
+        (["--garment", "tshirt"], "out_of_view"),
+        (["--garment", "pants"], "out_of_view"),
+        (["--start", "crumpled"], "out_of_view"),
+        (["--garment", "pants", "--park", "home"], "home"),
+        (["--park", "out_of_view"], "out_of_view"),
+    ],
+)
+def test_the_park_defaults_to_out_of_view_where_home_hides_cloth(tmp_path, args, park):
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    cfg = config_from_args(parser.parse_args(["--out", str(tmp_path / "ep"), *args]))
+    assert cfg.park == park

@@ -62,10 +62,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--park",
-        default="home",
+        default=None,
         choices=PARK_POSES,
-        help="where the arm waits while the camera looks: home (default, over the workspace) "
-        "or out_of_view (near the robot base, outside the image)",
+        help="where the arm waits while the camera looks: home (over the workspace; the default "
+        "for a flat towel) or out_of_view (near the robot base, outside the image; the default "
+        "for garments and crumpled starts, whose cloth reaches under the home pose)",
     )
     parser.add_argument("--seed", type=int, default=0, help="randomisation seed (default 0)")
     parser.add_argument("--width", type=float, default=0.30, help="towel width in m (0.05–1.0)")
@@ -87,6 +88,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--gui", action="store_true", help="open the PyBullet GUI")
 
 
+def default_park(garment: str, start: str) -> str:
+    """The park a fold uses unless told: home for a flat towel (the demo), out of view for
+    garments and crumpled starts (at home the gripper hides the cloth nearest the robot)."""
+    return "home" if garment == "towel" and start == "flat" else "out_of_view"
+
+
 def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
     """Build the episode config (validated) from parsed options."""
     base = EpisodeConfig()
@@ -98,7 +105,7 @@ def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
         perception=args.perception,
         seed=args.seed,
         start=args.start,
-        park=args.park,
+        park=args.park or default_park(args.garment, args.start),
         towel=TowelSpec(width=args.width, height=args.height, resolution=args.resolution),
         cloth=cloth,
         sim=SimConfig(gui=args.gui),
