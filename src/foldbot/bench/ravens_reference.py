@@ -61,8 +61,11 @@ def ravens_speed_reference(
     width: float = 0.30, height: float = 0.30, sim_seconds: float = 10.0
 ) -> dict:
     """Simulate the reference for `sim_seconds`; return its settings and sim s per wall s."""
-    import pybullet as p
     import pybullet_data
+
+    from foldbot.sim import import_pybullet
+
+    p = import_pybullet()
 
     if not (0.05 <= width <= 1.0 and 0.05 <= height <= 1.0):
         raise ConfigError(f"reference cloth {width} × {height} m; allowed sides: 0.05–1.0 m")
