@@ -94,14 +94,14 @@ def test_oversized_towel_is_refused_before_anything_is_written(tmp_path, percept
     ("args", "park"),
     [
         ([], "home"),
-        (["--garment", "tshirt"], "out_of_view"),
-        (["--garment", "pants"], "out_of_view"),
+        (["--garment", "tshirt"], "home"),
+        (["--garment", "pants"], "home"),
         (["--start", "crumpled"], "out_of_view"),
         (["--garment", "pants", "--park", "home"], "home"),
         (["--park", "out_of_view"], "out_of_view"),
     ],
 )
-def test_the_park_defaults_to_out_of_view_where_home_hides_cloth(tmp_path, args, park):
+def test_the_park_defaults_to_out_of_view_for_crumpled_starts_only(tmp_path, args, park):
     parser = argparse.ArgumentParser()
     add_arguments(parser)
     cfg = config_from_args(parser.parse_args(["--out", str(tmp_path / "ep"), *args]))

@@ -65,8 +65,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         choices=PARK_POSES,
         help="where the arm waits while the camera looks: home (over the workspace; the default "
-        "for a flat towel) or out_of_view (near the robot base, outside the image; the default "
-        "for garments and crumpled starts, whose cloth reaches under the home pose)",
+        "for flat starts) or out_of_view (near the robot base, outside the image; the default "
+        "for crumpled starts, whose heap can lie anywhere, also under the home pose)",
     )
     parser.add_argument("--seed", type=int, default=0, help="randomisation seed (default 0)")
     parser.add_argument("--width", type=float, default=0.30, help="towel width in m (0.05–1.0)")
@@ -89,9 +89,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def default_park(garment: str, start: str) -> str:
-    """The park a fold uses unless told: home for a flat towel (the demo), out of view for
-    garments and crumpled starts (at home the gripper hides the cloth nearest the robot)."""
-    return "home" if garment == "towel" and start == "flat" else "out_of_view"
+    """The park a fold uses unless told: out of view for a crumpled start (its heap can lie under
+    the home pose's gripper), home for flat starts. Measured on 10 seeds each, parking out of view
+    did not help flat garments: T-shirts 55 mm mean fold error against 45 mm at home, pants
+    83 mm against 65 mm (one unrecognised at home, one diverged out of view)."""
+    del garment  # the same rule for every garment (see above)
+    return "out_of_view" if start == "crumpled" else "home"
 
 
 def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
