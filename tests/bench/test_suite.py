@@ -81,13 +81,10 @@ def test_the_loop_acceptance_suite_parks_out_of_view_over_20_seeds():
     assert {e.park for e in suite.episodes} == {"out_of_view"}
 
 
-@pytest.mark.parametrize(
-    ("name", "park"),
-    [("tshirt", "home"), ("pants", "home"), ("towel_crumpled", "out_of_view")],
-)
-def test_the_garment_and_crumpled_suites_park_as_measured_best(name, park):
-    # Out of view folded flat garments worse; a crumpled heap can lie under the home gripper.
-    assert {e.park for e in load_suite(name).episodes} == {park}
+@pytest.mark.parametrize("name", ["tshirt", "pants", "towel_crumpled"])
+def test_the_garment_and_crumpled_suites_park_at_home(name):
+    # Measured: parked out of view, garments folded worse and crumpled towels diverged more.
+    assert {e.park for e in load_suite(name).episodes} == {"home"}
 
 
 def load_one(data):

@@ -62,11 +62,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--park",
-        default=None,
+        default="home",
         choices=PARK_POSES,
-        help="where the arm waits while the camera looks: home (over the workspace; the default "
-        "for flat starts) or out_of_view (near the robot base, outside the image; the default "
-        "for crumpled starts, whose heap can lie anywhere, also under the home pose)",
+        help="where the arm waits while the camera looks: home (default, over the workspace) "
+        "or out_of_view (near the robot base, outside the image)",
     )
     parser.add_argument("--seed", type=int, default=0, help="randomisation seed (default 0)")
     parser.add_argument("--width", type=float, default=0.30, help="towel width in m (0.05–1.0)")
@@ -88,15 +87,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--gui", action="store_true", help="open the PyBullet GUI")
 
 
-def default_park(garment: str, start: str) -> str:
-    """The park a fold uses unless told: out of view for a crumpled start (its heap can lie under
-    the home pose's gripper), home for flat starts. Measured on 10 seeds each, parking out of view
-    did not help flat garments: T-shirts 55 mm mean fold error against 45 mm at home, pants
-    83 mm against 65 mm (one unrecognised at home, one diverged out of view)."""
-    del garment  # the same rule for every garment (see above)
-    return "out_of_view" if start == "crumpled" else "home"
-
-
 def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
     """Build the episode config (validated) from parsed options."""
     base = EpisodeConfig()
@@ -108,7 +98,7 @@ def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
         perception=args.perception,
         seed=args.seed,
         start=args.start,
-        park=args.park or default_park(args.garment, args.start),
+        park=args.park,
         towel=TowelSpec(width=args.width, height=args.height, resolution=args.resolution),
         cloth=cloth,
         sim=SimConfig(gui=args.gui),
