@@ -37,6 +37,7 @@ def test_an_episode_ending_in_an_error_is_recorded_and_not_rerun(tmp_path, tiny_
     (rec,) = run_suite(suite, tmp_path, progress=False)
     assert "result" not in rec
     assert failure_cause(rec) == "cloth out of view", rec["error"]
+    assert rec["log_tail"] and rec["log_tail"][0].startswith("settling the cloth")  # the phase
     err = error_file(tmp_path, suite.episodes[0])
     assert json.loads(err.read_text()) == rec
     assert not episode_dir(tmp_path, suite.episodes[0]).exists()

@@ -26,14 +26,30 @@ def write_json_atomic(path: Path, data: object) -> None:
     os.replace(tmp, path)
 
 
+LOG_TAIL = 20
+"""Progress lines of an episode that ended in an error kept in its record: they say in which
+phase (settling, crumpling, which flattening pull, which stage and action) it ended."""
+
+
 def run_spec(spec: EpisodeSpec, out: Path) -> dict:
     """Run the episode; a deliberate foldbot error becomes an error record, not an exception."""
     from foldbot.pipeline import run_episode
 
+    lines: list[str] = []
     try:
-        result = run_episode(spec.to_config(), out, overwrite=True, log=lambda *_: None)
+        result = run_episode(
+            spec.to_config(),
+            out,
+            overwrite=True,
+            log=lambda *a: lines.append(" ".join(map(str, a))),
+        )
     except FoldbotError as exc:
-        return {"id": spec.id, "error_type": type(exc).__name__, "error": str(exc)}
+        return {
+            "id": spec.id,
+            "error_type": type(exc).__name__,
+            "error": str(exc),
+            "log_tail": lines[-LOG_TAIL:],
+        }
     result.pop("out_dir", None)
     return {"id": spec.id, "result": result}
 
