@@ -1,11 +1,8 @@
 import numpy as np
 import pytest
 
-from foldbot.errors import ConfigError
-from foldbot.garments.towel import TowelSpec, make_towel
-from foldbot.sim.cloth import ClothConfig, SoftCloth, settle
 from foldbot.sim.grasp import ClothGrasp
-from foldbot.sim.robots import gripper_down_quaternion, make_robot
+from foldbot.sim.robots import gripper_down_quaternion
 
 
 def _move(world, robot, target, duration=0.8):
@@ -64,41 +61,3 @@ def test_grasp_beside_the_edge_catches_nothing(cell, offset):
     corner = cloth.sim_vertices()[cloth.mesh.keypoints["corner_00"]]
     _move(world, robot, corner + [-offset, -offset, 0.004])
     assert not grasp.close().success
-
-
-def test_jaws_closing_between_mesh_points_pinch_the_triangle_there(world):
-    """On a coarse mesh (4.3 cm between points, wider than the 2 cm pads) jaws closing at a cell's
-    centre have no vertex between them but pinch the cloth there: each pinched triangle is held
-    by its vertex nearest the jaws, and the cloth rises with the gripper."""
-    lay = world.layout
-    robot = make_robot("ur5", world.client, lay)
-    mesh = make_towel(TowelSpec(0.3, 0.3, 8))
-    cloth = SoftCloth(world.client, mesh, ClothConfig(), lay.table_height, lay.workspace_center_xy)
-    settle(world, cloth)
-    grasp = ClothGrasp(world, robot, cloth)
-    v = cloth.sim_vertices()
-    # The centre of the mesh cell nearest the cloth's centre.
-    centre = v[:, :2].mean(axis=0)
-    cell = np.argsort(np.linalg.norm(v[:, :2] - centre, axis=1))[:4]
-    target = np.r_[v[cell, :2].mean(axis=0), lay.table_height + 0.004]
-    assert np.linalg.norm(v[:, :2] - target[:2], axis=1).min() > 0.02
-    _move(world, robot, target + [0, 0, 0.06])
-    _move(world, robot, target, 0.5)
-    assert grasp.vertices_between_jaws().size == 0
-    result = grasp.close()
-    assert result.success, result.reason
-    faces = cloth.mesh.faces[grasp.faces_between_jaws()]
-    assert len(faces) >= 1
-    assert set(result.vertex_ids) <= set(faces.ravel())
-    assert 1 <= len(result.vertex_ids) <= len(faces)
-    _move(world, robot, target + [0, 0, 0.10])
-    held = cloth.sim_vertices()[list(result.vertex_ids)]
-    assert held[:, 2].min() - lay.table_height > 0.05, "the pinched cloth rises with the gripper"
-    grasp.open()
-
-
-@pytest.mark.parametrize("samples", [0, 33, 2.5])
-def test_face_samples_out_of_range_is_rejected(cell, samples):
-    world, robot, cloth = cell
-    with pytest.raises(ConfigError, match="face_samples"):
-        ClothGrasp(world, robot, cloth, face_samples=samples)
