@@ -74,6 +74,19 @@ def test_spec_maps_onto_the_episode_config(tiny_suite_data):
     assert load_one(data).to_config().park == "out_of_view"
 
 
+def test_time_step_sets_the_physics_step_and_is_left_out_of_specs_by_default(tiny_suite_data):
+    data = tiny_suite_data()
+    default = load_one(data)
+    assert default.to_config().sim.time_step == pytest.approx(1 / 360)
+    # Runs recorded before the key existed keep resuming: their specs have no time_step.
+    assert "time_step" not in default.as_dict()
+    data["episode"]["time_step"] = 1 / 480
+    spec = load_one(data)
+    assert spec.to_config().sim.time_step == pytest.approx(1 / 480)
+    assert spec.as_dict()["time_step"] == pytest.approx(1 / 480)
+    assert EpisodeSpec.from_dict(spec.as_dict()) == spec
+
+
 def test_the_loop_acceptance_suite_parks_out_of_view_over_20_seeds():
     suite = load_suite("towel_loop")
     assert len(suite.episodes) == 80
@@ -128,6 +141,8 @@ def test_unknown_suite_name_lists_the_available_ones():
         (lambda d: d.update(randomise={"spin": 1}), ["randomise.spin", "yaw_deg"]),
         (lambda d: d["episode"].update(retries=-1), ["episode.retries", "-1"]),
         (lambda d: d["episode"].update(park="garage"), ["episode.park", "garage", "out_of_view"]),
+        (lambda d: d["episode"].update(time_step=0.5), ["episode.time_step", "0.5"]),
+        (lambda d: d["episode"].update(time_step=0), ["episode.time_step", "0"]),
         (lambda d: d.update(reference={"ravens_speed": "yes"}), ["ravens_speed", "bool"]),
         (lambda d: d.update(name=""), ["name"]),
     ],

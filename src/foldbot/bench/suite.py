@@ -32,6 +32,7 @@ retries = 1                             # closed loop: redo a failed grasp / off
 video_fps = 0                           # video.mp4 frames per simulated second (0 = none)
 start = "flat"                          # "crumpled": crumple the cloth, flatten it, then fold
 park = "home"                           # "out_of_view": the arm waits outside the camera's image
+time_step = 0.0027778                   # s, physics step (optional; default SimConfig's 1/360)
 
 [reference]
 ravens_speed = true                     # plain-PyBullet speed reference (ravens_reference.py)
@@ -62,6 +63,7 @@ from foldbot.pipeline import (
 )
 from foldbot.planning.garment_recipes import GARMENT_RECIPES
 from foldbot.planning.recipes import RECIPES
+from foldbot.sim.world import SimConfig
 
 ALL_RECIPES = RECIPES + tuple(r for rs in GARMENT_RECIPES.values() for r in rs)
 
@@ -75,7 +77,7 @@ _SCHEMA: dict[str, set[str]] = {
     "axes": {"garment", "recipe", "perception", "loop", "seeds"},
     "towel": {"resolution", "width", "height"},
     "randomise": {"towel_side", "position_jitter", "yaw_deg"},
-    "episode": {"retries", "video_fps", "start", "park"},
+    "episode": {"retries", "video_fps", "start", "park", "time_step"},
     "reference": {"ravens_speed"},
 }
 
@@ -129,6 +131,8 @@ class EpisodeSpec:
     """flat, or crumpled: crumple the cloth, flatten it, then fold."""
     park: str = "home"
     """Where the arm waits while the camera looks: home or out_of_view."""
+    time_step: float | None = None
+    """Physics step (s); None = SimConfig's default (1/360 s)."""
 
     @property
     def id(self) -> str:
@@ -162,11 +166,14 @@ class EpisodeSpec:
             video_fps=self.video_fps,
             start=self.start,
             park=self.park,
+            **({} if self.time_step is None else {"sim": SimConfig(time_step=self.time_step)}),
         )
 
     def as_dict(self) -> dict[str, Any]:
         """Plain JSON-able fields (tuples as lists)."""
         d = dataclasses.asdict(self)
+        if d["time_step"] is None:
+            del d["time_step"]  # runs from before the key existed resume unchanged
         if d["towel_side_range"] is not None:
             d["towel_side_range"] = list(d["towel_side_range"])
         return d
@@ -362,6 +369,9 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
         raise ConfigError(
             f"{where}: episode.park = {park!r} is unknown; allowed: {', '.join(PARK_POSES)}"
         )
+    time_step = ep.get("time_step")
+    if time_step is not None:
+        time_step = _range(time_step, "episode.time_step", 1e-4, 0.02, where)
     ravens = _get(data, "reference", "ravens_speed", bool, True, where)
 
     specs = []
@@ -387,6 +397,7 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
                                 video_fps=video_fps,
                                 start=start,
                                 park=park,
+                                time_step=time_step,
                             )
                         )
     for spec in specs[:1]:
