@@ -24,6 +24,8 @@ import sys
 
 import numpy as np
 
+from foldbot.bench.suite import parse_seeds
+
 REST_SECONDS = 4.0
 GROUPS = ("cloth", "sim", "engine", "load")
 
@@ -49,20 +51,19 @@ def measure(seed: int, over: dict[str, dict[str, float]]) -> dict:
     """One seed's rest figures (runs in the calling process)."""
     import pybullet as p
 
-    import foldbot.sim.cloth as cloth_module
     from foldbot.bench.suite import load_suite
     from foldbot.pipeline import build_sim_cell
     from foldbot.sim.cloth import settle
     from foldbot.sim.crumple import crumple
     from foldbot.sim.world import SimWorld
 
-    if over["load"]:
+    if over["load"]:  # extra loadSoftBody arguments, for this process only
         load = p.loadSoftBody
 
         def load_with(*args, **kwargs):
             return load(*args, **{**kwargs, **over["load"]})
 
-        cloth_module.p.loadSoftBody = load_with
+        p.loadSoftBody = load_with
     spec = next(e for e in load_suite("towel_crumpled").episodes if e.seed == seed)
     cfg = spec.to_config()
     cfg = dataclasses.replace(
@@ -110,7 +111,9 @@ def _top_speeds(world, cloth, seconds: float) -> tuple[np.ndarray, float]:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--seeds", default="0-7", help="seed range A-B or one seed (default 0-7)")
+    ap.add_argument(
+        "--seeds", default="0-7", help="seeds: '0-7', '0,3,5' or one seed (default 0-7)"
+    )
     ap.add_argument("--set", action="append", default=[], metavar="GROUP.NAME=VALUE")
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)  # child process: one seed
     args = ap.parse_args()
@@ -118,9 +121,8 @@ def main() -> int:
     if args.one is not None:
         print(json.dumps(measure(args.one, over)), flush=True)
         return 0
-    lo, _, hi = args.seeds.partition("-")
     rows = []
-    for seed in range(int(lo), int(hi or lo) + 1):
+    for seed in parse_seeds(args.seeds):
         cmd = [sys.executable, __file__, "--one", str(seed)]
         for item in args.set:
             cmd += ["--set", item]

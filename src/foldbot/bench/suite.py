@@ -166,7 +166,7 @@ class EpisodeSpec:
             video_fps=self.video_fps,
             start=self.start,
             park=self.park,
-            **({} if self.time_step is None else {"sim": SimConfig(time_step=self.time_step)}),
+            sim=SimConfig() if self.time_step is None else SimConfig(time_step=self.time_step),
         )
 
     def as_dict(self) -> dict[str, Any]:
