@@ -53,6 +53,14 @@ def test_bad_arguments_get_a_clear_error(tmp_path, capsys, args, needle):
     assert not out.exists()
 
 
+def test_odd_grid_flag_reaches_the_towel():
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    assert config_from_args(parser.parse_args(["--out", "x"])).towel.odd_grid is False
+    cfg = config_from_args(parser.parse_args(["--out", "x", "--odd-grid"]))
+    assert cfg.towel.odd_grid is True and cfg.towel.grid_shape == (17, 17)
+
+
 def test_unwritable_output_folder(tmp_path, capsys):
     blocker = tmp_path / "a_file"
     blocker.write_text("not a folder")

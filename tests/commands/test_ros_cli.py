@@ -1,9 +1,12 @@
 """`foldbot ros-fold`, `ros-replay` and `export-bag`: clear errors before anything starts (these
 run with or without ROS installed)."""
 
+import argparse
+
 import pytest
 
 from foldbot.cli import main
+from foldbot.commands.ros_fold import add_arguments, fold_args_text
 
 
 @pytest.mark.parametrize(
@@ -31,3 +34,10 @@ def test_export_of_a_folder_that_is_no_episode_names_it(tmp_path, capsys):
     assert main(["export-bag", str(tmp_path / "ep"), "--out", str(tmp_path / "x.bag")]) == 2
     assert "ep" in capsys.readouterr().err
     assert not (tmp_path / "x.bag").exists()
+
+
+def test_fold_options_reach_the_nodes():
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    assert "--odd-grid" not in fold_args_text(parser.parse_args(["--out", "e"]))
+    assert "--odd-grid" in fold_args_text(parser.parse_args(["--out", "e", "--odd-grid"]))

@@ -26,6 +26,28 @@ def test_rectangular_towel_keeps_spacing_square():
 
 
 @pytest.mark.parametrize(
+    ("width", "height", "resolution", "shape"),
+    [
+        (0.30, 0.30, 16, (17, 17)),  # 15 edges → the nearest even count, 16, ties up
+        (0.30, 0.30, 15, (15, 15)),
+        (0.45, 0.25, 17, (9, 17)),  # 8.9 edges → 8
+        (0.40, 0.20, 21, (11, 21)),
+        (0.30, 0.05, 8, (5, 9)),  # never fewer than 5
+    ],
+)
+def test_odd_grid_puts_vertex_rows_on_both_midlines(width, height, resolution, shape):
+    spec = TowelSpec(width, height, resolution, odd_grid=True)
+    assert spec.grid_shape == shape
+    v = make_towel(spec).vertices
+    # A half fold's line is a row of vertices in either direction, the fold line of a mass-spring
+    # mesh's crease; without odd_grid an even count puts it between two rows.
+    assert np.sum(np.isclose(v[:, 0], 0.0, atol=1e-12)) == shape[0]
+    assert np.sum(np.isclose(v[:, 1], 0.0, atol=1e-12)) == shape[1]
+    even = make_towel(TowelSpec(0.30, 0.30, 16)).vertices
+    assert not np.any(np.isclose(even[:, 0], 0.0, atol=1e-6))
+
+
+@pytest.mark.parametrize(
     ("kwargs", "needle"),
     [
         ({"width": 0.0}, "width"),
@@ -34,6 +56,7 @@ def test_rectangular_towel_keeps_spacing_square():
         ({"resolution": 2}, "resolution"),
         ({"resolution": 400}, "resolution"),
         ({"resolution": 10.5}, "resolution"),
+        ({"odd_grid": "yes"}, "odd_grid"),
     ],
 )
 def test_bad_towel_specs_name_the_value(kwargs, needle):

@@ -19,6 +19,7 @@ seeds = "0-1"                           # "0-49", "0,3,5" or a list of integers 
 
 [towel]                                 # the towel's fixed settings
 resolution = 16                         # vertices along the longer side (4–40)
+odd_grid = false                        # odd vertex counts: vertex rows on both midlines
 width = 0.30                            # m; used when [randomise] towel_side is absent
 height = 0.30
 
@@ -75,7 +76,7 @@ LOOP_MODES = ("closed", "open")
 _SCHEMA: dict[str, set[str]] = {
     "": {"name", "description", "axes", "towel", "randomise", "episode", "reference"},
     "axes": {"garment", "recipe", "perception", "loop", "seeds"},
-    "towel": {"resolution", "width", "height"},
+    "towel": {"resolution", "odd_grid", "width", "height"},
     "randomise": {"towel_side", "position_jitter", "yaw_deg"},
     "episode": {"retries", "video_fps", "start", "park", "time_step"},
     "reference": {"ravens_speed"},
@@ -119,6 +120,8 @@ class EpisodeSpec:
     """m; ignored when towel_side_range is set."""
     towel_height: float = 0.30
     towel_resolution: int = 16
+    towel_odd_grid: bool = False
+    """Odd vertex counts along both sides (TowelSpec.odd_grid)."""
     towel_side_range: tuple[float, float] | None = None
     """m; each side drawn uniformly from it by the seed."""
     position_jitter: float = 0.03
@@ -158,6 +161,7 @@ class EpisodeSpec:
                 width=self.towel_width,
                 height=self.towel_height,
                 resolution=self.towel_resolution,
+                odd_grid=self.towel_odd_grid,
             ),
             towel_size_range=self.towel_side_range,
             position_jitter=self.position_jitter,
@@ -174,6 +178,8 @@ class EpisodeSpec:
         d = dataclasses.asdict(self)
         if d["time_step"] is None:
             del d["time_step"]  # runs from before the key existed resume unchanged
+        if not d["towel_odd_grid"]:
+            del d["towel_odd_grid"]  # likewise
         if d["towel_side_range"] is not None:
             d["towel_side_range"] = list(d["towel_side_range"])
         return d
@@ -335,6 +341,7 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
             f"{where}: towel.resolution = {resolution!r} must be an integer in "
             f"[{MIN_RESOLUTION}, {MAX_RESOLUTION}]"
         )
+    odd_grid = _get(data, "towel", "odd_grid", bool, False, where)
     width = _range(towel.get("width", 0.30), "towel.width", 0.05, 1.0, where)
     height = _range(towel.get("height", 0.30), "towel.height", 0.05, 1.0, where)
 
@@ -390,6 +397,7 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
                                 towel_width=width,
                                 towel_height=height,
                                 towel_resolution=resolution,
+                                towel_odd_grid=odd_grid,
                                 towel_side_range=side_range,
                                 position_jitter=jitter,
                                 yaw_deg=yaw,
@@ -406,6 +414,7 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
         "towel_side_m": list(side_range) if side_range else None,
         "towel_fixed_m": None if side_range else [width, height],
         "towel_resolution": resolution,
+        "towel_odd_grid": odd_grid,
         "position_jitter_m": jitter,
         "yaw_deg": yaw,
         "text": "; ".join(
@@ -418,6 +427,7 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
                             else f"towel {width:g} × {height:g} m (fixed)"
                         )
                         + f", {resolution} vertices along the longer side"
+                        + (" (odd counts: vertex rows on both midlines)" if odd_grid else "")
                     ]
                     if "towel" in garments
                     else []

@@ -76,6 +76,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=16,
         help="cloth vertices along the towel's longer side (4–40, default 16)",
     )
+    parser.add_argument(
+        "--odd-grid",
+        action="store_true",
+        help="odd vertex counts along both sides, so the half folds' lines are vertex rows "
+        "(a mass-spring mesh creases only at vertices; --resolution 16 becomes 17)",
+    )
     parser.add_argument("--mass", type=float, default=None, help="cloth mass in kg (default 0.1)")
     parser.add_argument(
         "--video-fps", type=float, default=10.0, help="video frames per simulated second (0 = off)"
@@ -99,7 +105,12 @@ def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
         seed=args.seed,
         start=args.start,
         park=args.park,
-        towel=TowelSpec(width=args.width, height=args.height, resolution=args.resolution),
+        towel=TowelSpec(
+            width=args.width,
+            height=args.height,
+            resolution=args.resolution,
+            odd_grid=args.odd_grid,
+        ),
         cloth=cloth,
         sim=SimConfig(gui=args.gui),
         video_fps=args.video_fps,

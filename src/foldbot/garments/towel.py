@@ -25,6 +25,11 @@ class TowelSpec:
     """Side along the mesh y axis (m)."""
     resolution: int = 16
     """Vertices along the longer side (the shorter side gets proportionally fewer, at least 4)."""
+    odd_grid: bool = False
+    """Odd vertex counts along both sides (each the odd count nearest the proportional one, at
+    least 5), so both midlines, the half folds' lines, are vertex rows. A mass-spring mesh
+    creases only at its vertices: a fold line that falls between two rows leaves a whole edge
+    standing in the crease, and the folded layer lies up to an edge's length off its goal."""
 
     def __post_init__(self) -> None:
         for name in ("width", "height"):
@@ -39,14 +44,29 @@ class TowelSpec:
             f"towel resolution must be an integer in [{MIN_RESOLUTION}, {MAX_RESOLUTION}] "
             f"vertices per long side, got {self.resolution!r}",
         )
+        require(
+            isinstance(self.odd_grid, bool | np.bool_),
+            f"towel odd_grid must be true or false, got {self.odd_grid!r}",
+        )
 
     @property
     def grid_shape(self) -> tuple[int, int]:
-        """(rows along y, cols along x) of the vertex grid, spacing as square as possible."""
+        """(rows along y, cols along x) of the vertex grid, spacing as square as possible (with
+        `odd_grid`, both counts odd)."""
         long_side = max(self.width, self.height)
-        nx = max(MIN_RESOLUTION, round((self.resolution - 1) * self.width / long_side) + 1)
-        ny = max(MIN_RESOLUTION, round((self.resolution - 1) * self.height / long_side) + 1)
+        edges_x = (self.resolution - 1) * self.width / long_side
+        edges_y = (self.resolution - 1) * self.height / long_side
+        if self.odd_grid:  # an even number of edges puts a vertex row on each midline
+            return _odd_count(edges_y), _odd_count(edges_x)
+        nx = max(MIN_RESOLUTION, round(edges_x) + 1)
+        ny = max(MIN_RESOLUTION, round(edges_y) + 1)
         return ny, nx
+
+
+def _odd_count(edges: float) -> int:
+    """The odd vertex count (at least 5) whose edge count is the even number nearest `edges`
+    (ties round up)."""
+    return max(MIN_RESOLUTION + 1, 2 * int(np.floor(edges / 2 + 0.5)) + 1)
 
 
 def make_towel(spec: TowelSpec) -> ClothMesh:
