@@ -56,9 +56,10 @@ def test_bad_arguments_get_a_clear_error(tmp_path, capsys, args, needle):
 def test_odd_grid_flag_reaches_the_towel():
     parser = argparse.ArgumentParser()
     add_arguments(parser)
-    assert config_from_args(parser.parse_args(["--out", "x"])).towel.odd_grid is False
-    cfg = config_from_args(parser.parse_args(["--out", "x", "--odd-grid"]))
-    assert cfg.towel.odd_grid is True and cfg.towel.grid_shape == (17, 17)
+    cfg = config_from_args(parser.parse_args(["--out", "x"]))
+    assert cfg.towel.odd_grid is True and cfg.towel.grid_shape == (17, 17)  # the CLI's default
+    cfg = config_from_args(parser.parse_args(["--out", "x", "--no-odd-grid"]))
+    assert cfg.towel.odd_grid is False and cfg.towel.grid_shape == (16, 16)
 
 
 def test_unwritable_output_folder(tmp_path, capsys):

@@ -39,5 +39,6 @@ def test_export_of_a_folder_that_is_no_episode_names_it(tmp_path, capsys):
 def test_fold_options_reach_the_nodes():
     parser = argparse.ArgumentParser()
     add_arguments(parser)
-    assert "--odd-grid" not in fold_args_text(parser.parse_args(["--out", "e"]))
-    assert "--odd-grid" in fold_args_text(parser.parse_args(["--out", "e", "--odd-grid"]))
+    assert "--odd-grid" in fold_args_text(parser.parse_args(["--out", "e"])).split()
+    words = fold_args_text(parser.parse_args(["--out", "e", "--no-odd-grid"])).split()
+    assert "--no-odd-grid" in words

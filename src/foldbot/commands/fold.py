@@ -78,9 +78,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--odd-grid",
-        action="store_true",
-        help="odd vertex counts along both sides, so the half folds' lines are vertex rows "
-        "(a mass-spring mesh creases only at vertices; --resolution 16 becomes 17)",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="odd vertex counts along both sides, so the half folds' lines are vertex rows: a "
+        "mass-spring mesh creases only at vertices (default; --resolution 16 becomes 17). "
+        "--no-odd-grid keeps the proportional counts",
     )
     parser.add_argument("--mass", type=float, default=None, help="cloth mass in kg (default 0.1)")
     parser.add_argument(

@@ -78,8 +78,7 @@ def fold_args_text(args: argparse.Namespace) -> str:
     ]
     if args.mass is not None:
         words += ["--mass", repr(args.mass)]
-    if args.odd_grid:
-        words.append("--odd-grid")
+    words.append("--odd-grid" if args.odd_grid else "--no-odd-grid")
     if args.overwrite:
         words.append("--overwrite")
     return shlex.join(words)
