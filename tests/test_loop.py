@@ -6,11 +6,14 @@ import pytest
 
 from foldbot.loop import (
     MIN_LEFT,
+    LoopConfig,
+    corner_to_grasp,
     inset_grasp,
     moving_side_tip,
     outline_corners,
     place_is_corner,
     regrasp_point,
+    shifted_grasp,
     stack_grasp_point,
     tip_action,
 )
@@ -96,6 +99,31 @@ def test_a_corner_to_re_place_on_the_staying_side_ignores_the_tip():
     assert point == pytest.approx([0.30, 0.15, 0.757])
 
 
+def test_a_corner_placed_off_is_re_grasped_where_it_lies_whatever_its_label():
+    """After a fold the detector labels the new outline's corners afresh: the corner to re-place is
+    the one seen nearest where it was found, even when a corner with the planned label is nearer
+    than the label radius (grasping that one dragged the towel apart in a benchmark run)."""
+    outline = [(0.30, 0.15), (0.30, -0.15), (0.45, -0.15), (0.45, 0.15)]
+    relabelled = {
+        "near_left": (0.30, 0.15, 0.767),
+        "near_right": (0.30, -0.15, 0.757),
+        "far_left": (0.45, -0.15, 0.757),
+        "far_right": (0.45, 0.03, 0.757),  # 22 cm from the misplaced corner: within label reach
+    }
+    towel = state(outline, relabelled)
+    cfg = LoopConfig()
+    action = FoldAction(
+        grasp=np.array([0.31, 0.14, 0.767]),  # where the misplaced corner was seen
+        place=np.array([0.30, 0.16, 0.76]),
+        fold_line=LINE,
+        label="far_right",
+    )
+    again = corner_to_grasp(cfg, towel, "far_right", action, replacing=True)
+    assert again == pytest.approx([0.30, 0.15, 0.767])  # the corner found there (near_left)
+    carried = corner_to_grasp(cfg, towel, "far_right", action, replacing=False)
+    assert carried == pytest.approx([0.45, 0.03, 0.757])  # a corner to carry: by its label
+
+
 def test_stack_grasp_point_goes_down_to_the_table():
     s = dragged_towel()
     top = np.array([0.47, 0.2, 0.772])  # top of a two-layer stack
@@ -149,6 +177,16 @@ def test_tip_action_carries_the_cloth_left_past_the_line_and_nothing_less():
     assert extra.place[2] == planned.place[2]
     folded = state([(0.30, 0.15), (0.30, -0.15), (0.45 + MIN_LEFT / 2, -0.15)], {})
     assert tip_action(folded, planned) is None
+
+
+def test_a_shifted_grasp_still_lands_the_aimed_point_on_its_place():
+    action = FoldAction(
+        grasp=np.array([0.6, 0.1, 0.76]), place=np.array([0.3, 0.1, 0.77]), fold_line=LINE
+    )
+    moved = shifted_grasp(action, np.array([-0.01, -0.03]))
+    assert moved.grasp == pytest.approx([0.59, 0.07, 0.76])
+    # Mirrored across x = 0.45: along the line the shift is kept, across it reversed.
+    assert moved.place == pytest.approx([0.31, 0.07, 0.77])
 
 
 def test_outline_corners_are_the_detectors_four_not_a_bump_on_a_side():

@@ -23,10 +23,16 @@ from foldbot.errors import FoldbotError, UnreachableTargetError
 from foldbot.metrics import FoldLine
 from foldbot.perception.geometry import backproject_pixel, project_points
 from foldbot.perception.keypoints import label_corners, max_area_quad
+from foldbot.perception.layers import deepest_gap, layer_cover
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState, fold_check_iou
 from foldbot.planning.actions import FoldAction, FoldPlan
-from foldbot.planning.recipes import plan_stage, predicted_outline, recipe_stages
+from foldbot.planning.recipes import (
+    plan_stage,
+    predicted_cover,
+    predicted_outline,
+    recipe_stages,
+)
 from foldbot.types import GraspResult, Observation
 
 GRASP_INSET = 0.01
@@ -65,6 +71,9 @@ class LoopConfig:
     finish_actions: int = 1
     """After a stage's planned actions, at most this many extra actions carry cloth still left
     past the fold line (more than MIN_LEFT) over it, from its tip (0 = off)."""
+    crease_band: float = 0.02
+    """When a stage's laid layer is checked in depth, the band (m) along the fold line where the
+    crease bends is left out of the region it should cover."""
 
 
 @dataclass
@@ -198,7 +207,7 @@ def run_fold(
             raise FoldbotError(f"no cloth found before fold stage {stage + 1}: {state.reason}")
         if cfg.require_full_view:
             require_in_view(state)
-        latest = state
+        latest, stage_state, stage_obs = state, state, obs
         corners = corners_of(state)
         plan, predicted = cell.plan_stage(cfg.recipe, stage, corners, cfg.place_lift)
         rec.fold_lines.append(plan.fold_lines[0])
@@ -231,6 +240,13 @@ def run_fold(
             cell.park()
             cell.wait(settle_s)
             state, obs = cell.observe()
+        cover = predicted_cover(cfg.recipe, stage, corners, cfg.crease_band)
+        laid = (
+            layer_cover(stage_obs, stage_state.table_plane, obs, state.table_plane, cover)
+            if len(cover) >= 3 and state.detected and stage_state.detected
+            else None
+        )
+        gap = deepest_gap(laid, obs)
         iou = (
             fold_check_iou(state.mask, predicted, obs.intrinsics, obs.T_world_camera)
             if state.detected
@@ -243,9 +259,15 @@ def run_fold(
                 "predicted_outline": np.asarray(predicted).tolist(),
                 "mask_iou_vs_predicted": iou,
                 "verified": iou >= cfg.verify_iou,
+                # Seen in depth: how high the laid layer rose, and how far into the region it
+                # should cover it left a gap (0: none; None: the region told nothing).
+                "laid_layer_rise_m": None if laid is None else laid.layer_rise,
+                "laid_layer_gap_m": None if laid is None else (0.0 if gap is None else gap.depth),
             }
         )
-        rec.stage_overlays.append(draw_overlay(obs, state))
+        rec.stage_overlays.append(
+            draw_overlay(obs, state, uncovered=None if laid is None else laid.exposed)
+        )
         log(f"stage {stage + 1} done: mask IoU with the predicted shape {iou:.2f}")
     return finish_fold(cell, rec)
 
@@ -394,6 +416,25 @@ def regrasp_point(
     return seen
 
 
+def corner_to_grasp(
+    cfg: LoopConfig, state: ClothState, label: str, action: FoldAction, replacing: bool
+) -> np.ndarray | None:
+    """Where the corner that `action` grasps is now (None: not seen): a corner to carry is found by
+    its label or position and checked against the moving side's tip (regrasp_point); a corner
+    `replacing` (placed off, to be picked where it was seen to lie) only by position, since after a
+    fold the detector's labels for the new outline's corners need not match the plan's."""
+    if replacing:
+        return nearest_keypoint(state, action.grasp, cfg.regrasp_radius)
+    return regrasp_point(
+        state,
+        label,
+        action.grasp,
+        cfg.regrasp_radius,
+        cfg.regrasp_label_radius,
+        line=action.fold_line,
+    )
+
+
 def stack_grasp_point(state: ClothState, point: np.ndarray, height: float) -> np.ndarray:
     """`point` lowered to `height` above the perceived table plane under it, so the jaws close
     under every layer of a stack (unchanged without a usable table plane)."""
@@ -489,11 +530,23 @@ def place_is_corner(place: np.ndarray, corners: np.ndarray | None, tol: float) -
     return bool(d.min() <= tol)
 
 
+def shifted_grasp(action: FoldAction, shift: np.ndarray) -> FoldAction:
+    """`action` with its grasp moved by `shift` (x, y; m) and its place by the mirror image of that
+    shift across the fold line, so the point the grasp was aimed at still lands on its place."""
+    shift = np.asarray(shift, dtype=float)[:2]
+    line = FoldLine(*action.fold_line)
+    d = np.array([line.dx, line.dy]) / np.hypot(line.dx, line.dy)
+    mirrored = 2 * (shift @ d) * d - shift
+    grasp = np.r_[action.grasp[:2] + shift, action.grasp[2]]
+    place = np.r_[action.place[:2] + mirrored, action.place[2]]
+    return dataclasses.replace(action, grasp=grasp, place=place)
+
+
 def inset_grasp(
     state: ClothState, action: FoldAction, corner: np.ndarray, inset: float
 ) -> FoldAction:
     """`action` with its grasp moved `inset` (m) from `corner` toward the perceived cloth's centre
-    and its place moved by the mirror image of that shift, so the corner still lands on its place."""
+    (see shifted_grasp)."""
     if inset <= 0 or not state.detected:
         return action
     outline = np.asarray(state.outline_world, dtype=float).reshape(-1, 3)
@@ -504,13 +557,7 @@ def inset_grasp(
     norm = float(np.linalg.norm(inward))
     if norm < 2 * inset:
         return action
-    shift = inward / norm * inset
-    line = FoldLine(*action.fold_line)
-    d = np.array([line.dx, line.dy]) / np.hypot(line.dx, line.dy)
-    mirrored = 2 * (shift @ d) * d - shift
-    grasp = np.r_[action.grasp[:2] + shift, action.grasp[2]]
-    place = np.r_[action.place[:2] + mirrored, action.place[2]]
-    return dataclasses.replace(action, grasp=grasp, place=place)
+    return shifted_grasp(action, inward / norm * inset)
 
 
 def closed_loop_action(
@@ -532,16 +579,12 @@ def closed_loop_action(
     t_sim, t_wall = cell.sim_time, time.perf_counter()
     action, outcome, retries, attempts = planned, {}, 0, []
     state = latest
+    replacing = False
     while True:
-        # Earlier actions move the cloth: grasp the corner where it is now.
-        seen = regrasp_point(
-            state,
-            planned.label,
-            action.grasp,
-            cfg.regrasp_radius,
-            cfg.regrasp_label_radius,
-            line=action.fold_line,
-        )
+        # Earlier actions move the cloth: grasp the corner where it is now. A corner placed off
+        # is picked where it was seen to lie: after a fold, the labels that the corner detector
+        # gives the new outline's corners need not match the plan's.
+        seen = corner_to_grasp(cfg, state, planned.label, action, replacing)
         if seen is not None:
             action = dataclasses.replace(action, grasp=seen)
         last_failed = bool(attempts) and not attempts[-1]["grasp_success"]
@@ -584,7 +627,8 @@ def closed_loop_action(
         if ok or retries >= cfg.retries:
             break
         retries += 1
-        if outcome["grasp_success"]:
+        replacing = bool(outcome["grasp_success"])
+        if replacing:
             # Off placement: pick the misplaced corner where it lies and place it again.
             log(f"  placed {placed_error * 1000:.0f} mm off; re-grasping, retry {retries}")
             action = dataclasses.replace(action, grasp=seen)

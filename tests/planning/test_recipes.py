@@ -15,6 +15,7 @@ from foldbot.planning.recipes import (
     half_fold,
     plan_recipe,
     plan_stage,
+    predicted_cover,
     predicted_outline,
     recipe_stages,
 )
@@ -376,6 +377,23 @@ def test_diagonal_outline_of_a_rectangle_is_the_union_of_the_two_triangles(pose)
     assert area(outline) == pytest.approx(in_union.sum() * cell, rel=0.02)
     assert area(ccw(staying)) < area(outline) < quad_area(flat)
     assert len(outline) == 5  # the overhanging tip adds two corners to the triangle
+
+
+@pytest.mark.parametrize("pose", POSES[:3])
+def test_the_cover_of_a_half_fold_is_the_staying_half_less_the_crease_band(pose):
+    cx, cy, yaw = pose
+    flat = towel(cx, cy, 0.3, 0.24, yaw=yaw)
+    line = FoldLine.coerce(plan_recipe("half", flat).fold_lines[0])
+    quad = np.array([flat[n] for n in CORNER_NAMES])
+    cover = predicted_cover("half", 0, flat)
+    assert area(cover) == pytest.approx(quad_area(flat) / 2, rel=1e-6)
+    assert np.all(line.side(cover) <= 1e-9)  # on the staying side
+    banded = predicted_cover("half", 0, flat, crease_band=0.02)
+    assert area(banded) == pytest.approx(quad_area(flat) / 2 - 0.02 * 0.24, rel=1e-6)
+    assert np.all(line.side(banded) / np.hypot(line.dx, line.dy) <= -0.02 + 1e-9)
+    assert cover[:, 2] == pytest.approx(np.full(len(cover), quad[:, 2].mean()))
+    # A band wider than the region leaves nothing to cover.
+    assert predicted_cover("half", 0, flat, crease_band=0.5).shape == (0, 3)
 
 
 # --- bad inputs ------------------------------------------------------------------------------------

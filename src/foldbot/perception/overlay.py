@@ -17,6 +17,7 @@ GRASP_RGB = (255, 40, 40)
 PLACE_RGB = (40, 200, 255)
 FOLD_LINE_RGB = (255, 255, 255)
 REFERENCE_RGB = (255, 0, 255)
+UNCOVERED_RGB = (255, 140, 0)
 
 
 def _points(value: np.ndarray | Sequence[Sequence[float]] | None) -> np.ndarray:
@@ -42,15 +43,20 @@ def draw_overlay(
     place_points: np.ndarray | Sequence[Sequence[float]] | None = None,
     fold_line: np.ndarray | Sequence[Sequence[float]] | None = None,
     reference: dict[str, np.ndarray] | None = None,
+    uncovered: np.ndarray | None = None,
 ) -> np.ndarray:
     """RGB image (H×W×3 uint8) of `obs` with the state's outline and labelled corners drawn on.
 
     Optional world points (N×3, m) are projected with the observation's camera: planned grasp
     points (red crosses), place points (blue circles, joined to their grasp point), a fold line
     given by two points (white), and `reference` corners (e.g. the oracle's, magenta) by label.
+    `uncovered` (H×W bool) tints, in orange, what a fold's laid layer left uncovered.
     """
     check_observation(obs)
     img = np.ascontiguousarray(obs.rgb.copy())
+    if uncovered is not None and np.shape(uncovered) == img.shape[:2]:
+        tint = np.asarray(uncovered, bool)
+        img[tint] = (0.4 * img[tint] + 0.6 * np.array(UNCOVERED_RGB)).astype(np.uint8)
     intr, T = obs.intrinsics, obs.T_world_camera
 
     def proj(points: np.ndarray) -> np.ndarray:

@@ -199,7 +199,8 @@ _GRASP_LAYERS: dict[tuple[str, int], int] = {}
 """Layers at the corners a stage grasps, where more than one (`FoldAction.layers`: the closed loop
 then closes the jaws at the table, under the whole stack, a little inside the perceived corner).
 Empty: for quarter's second stage, (quarter, 1) → 2 folded worse than a top-layer grasp in two
-trials (seeds 0–3: fold errors 150–184 mm against 57–208 mm, and one diverged soft body)."""
+trials (seeds 0–3: fold errors 150–184 mm against 57–208 mm, and one diverged soft body), and again
+with the jaws placed where depth showed both layers (seeds 0–5: 159–368 mm, 3 diverged; README)."""
 
 _STAGES: dict[str, tuple[Callable[[dict[str, np.ndarray]], _Fold], ...]] = {
     "half": (_half_x,),
@@ -380,5 +381,27 @@ def predicted_outline(recipe: str, stage_index: int, corners: dict[str, np.ndarr
     c = _require_corners(corners)
     quad = np.array([c[n][:2] for n in CORNER_NAMES])
     xy = _fold_outline(quad, FoldLine(*fold.line))
+    z = float(np.mean([c[n][2] for n in CORNER_NAMES]))
+    return np.column_stack([xy, np.full(len(xy), z)])
+
+
+def predicted_cover(
+    recipe: str, stage_index: int, corners: dict[str, np.ndarray], crease_band: float = 0.0
+) -> np.ndarray:
+    """Top-view region (N×3, counter-clockwise, at the corners' mean z) a stage lays its moved cloth
+    on: the corner quad's moving part mirrored across the stage's fold line, less the band of
+    `crease_band` (m) along the line where the crease's bend stands (empty when nothing is left)."""
+    fold = _stage_fold(recipe, stage_index, corners)
+    c = _require_corners(corners)
+    quad = np.array([c[n][:2] for n in CORNER_NAMES])
+    line = FoldLine(*fold.line)
+    moving = _clip(quad, line.side(quad), keep_positive=True)
+    if len(moving) < 3:
+        return np.zeros((0, 3))
+    xy = line.reflect_xy(moving)[::-1]
+    if crease_band > 0:
+        xy = _clip(xy, line.side(xy) + crease_band * np.hypot(line.dx, line.dy), False)
+    if len(xy) < 3:
+        return np.zeros((0, 3))
     z = float(np.mean([c[n][2] for n in CORNER_NAMES]))
     return np.column_stack([xy, np.full(len(xy), z)])
