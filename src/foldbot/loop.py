@@ -268,7 +268,11 @@ def run_fold(
         rec.stage_overlays.append(
             draw_overlay(obs, state, uncovered=None if laid is None else laid.exposed)
         )
-        log(f"stage {stage + 1} done: mask IoU with the predicted shape {iou:.2f}")
+        seen_gap = ""
+        if laid is not None:
+            depth_mm = 0.0 if gap is None else gap.depth * 1000
+            seen_gap = f"; in depth, the laid layer left a gap {depth_mm:.0f} mm deep"
+        log(f"stage {stage + 1} done: mask IoU with the predicted shape {iou:.2f}{seen_gap}")
     return finish_fold(cell, rec)
 
 

@@ -17,7 +17,7 @@ GRASP_RGB = (255, 40, 40)
 PLACE_RGB = (40, 200, 255)
 FOLD_LINE_RGB = (255, 255, 255)
 REFERENCE_RGB = (255, 0, 255)
-UNCOVERED_RGB = (255, 140, 0)
+UNCOVERED_RGB = (255, 120, 0)
 
 
 def _points(value: np.ndarray | Sequence[Sequence[float]] | None) -> np.ndarray:
@@ -56,7 +56,7 @@ def draw_overlay(
     img = np.ascontiguousarray(obs.rgb.copy())
     if uncovered is not None and np.shape(uncovered) == img.shape[:2]:
         tint = np.asarray(uncovered, bool)
-        img[tint] = (0.4 * img[tint] + 0.6 * np.array(UNCOVERED_RGB)).astype(np.uint8)
+        img[tint] = (0.2 * img[tint] + 0.8 * np.array(UNCOVERED_RGB)).astype(np.uint8)
     intr, T = obs.intrinsics, obs.T_world_camera
 
     def proj(points: np.ndarray) -> np.ndarray:
