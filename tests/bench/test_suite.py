@@ -45,6 +45,8 @@ def test_compare_suite_pairs_every_cell():
     cells = {(e.recipe, e.perception, e.loop) for e in suite.episodes}
     assert len(cells) == 2 * 2 * 2
     assert len(suite.episodes) == 8 * len(suite.axes["seeds"])
+    # Re-measured with vertex rows on the half folds' lines, as towel_loop.
+    assert {(e.towel_resolution, e.towel_odd_grid) for e in suite.episodes} == {(17, True)}
 
 
 def test_ids_are_stable_unique_and_round_trip(tiny_suite_data):
