@@ -52,14 +52,12 @@ def test_a_corner_the_layer_left_uncovered_is_found() -> None:
         observe(FLAT), TABLE_PLANE, folded((-0.1, -0.07, 0.04, 0.1)), TABLE_PLANE, COVER
     )
     assert gap is not None
-    assert gap.layer_rise == pytest.approx(LAYER, abs=1e-4)
     # The deepest uncovered point is the region's corner (less the ignored border).
     assert np.linalg.norm(gap.deepest[:2] - [-0.1, 0.1]) < 0.012
     # The laid layer's nearest edge is the gap's side 3 cm in, at the layer's height.
     assert gap.edge[0] == pytest.approx(-0.07, abs=0.006)
     assert gap.edge[2] == pytest.approx(2 * LAYER, abs=1e-4)
     assert 0.015 < gap.depth < 0.03
-    assert gap.area == pytest.approx(0.03 * 0.06, rel=0.35)
 
 
 def test_a_fully_covered_region_has_no_gap() -> None:

@@ -66,12 +66,6 @@ class CoverGap:
     """(3,) the laid layer's point nearest `deepest`, on its top surface."""
     depth: float
     """Distance from `edge` to `deepest` in the table plane (m)."""
-    area: float
-    """Uncovered area of the region (m², approximately: pixels × their footprint)."""
-    layer_rise: float
-    """Median rise of the region's surface over the stage (m): one laid layer's height."""
-    exposed: np.ndarray
-    """H×W bool: the uncovered pixels of the region."""
 
 
 def layer_cover(
@@ -128,12 +122,4 @@ def deepest_gap(cover: LayerCover | None, after: Observation) -> CoverGap | None
     edge = backproject_pixel(after, float(cu[k]), float(cv_[k]), radius=1)
     if not (np.all(np.isfinite(deepest)) and np.all(np.isfinite(edge))):
         return None
-    px_m = float(after.depth[vd, ud]) / after.intrinsics.fx  # a pixel's footprint there
-    return CoverGap(
-        deepest=deepest,
-        edge=edge,
-        depth=float(np.linalg.norm(deepest[:2] - edge[:2])),
-        area=float(exposed.sum()) * px_m**2,
-        layer_rise=cover.layer_rise,
-        exposed=exposed,
-    )
+    return CoverGap(deepest=deepest, edge=edge, depth=float(np.linalg.norm(deepest[:2] - edge[:2])))
