@@ -1,0 +1,168 @@
+"""Trace where a multi-stage fold's layers get their error: after every pick-and-place, each
+stage's flap (the vertices that stage folds) measured against its goal, how far the action
+dragged the flaps laid before it, and the first fold's normalized performance (the success
+measure) as it stands. Ground truth, for diagnosis only: the fold itself runs exactly
+as in the benchmark (vision, closed loop); the simulator is only read between actions.
+
+For each chosen episode of a suite (each in its own process: Bullet's soft body is deterministic
+only as the first simulation in a process) one JSON line goes to stdout; a summary per recipe
+goes to stderr: each flap's error when its stage ended and when the episode ended, and the
+drag that the later stages put on it.
+
+    .venv/bin/python scripts/trace_layers.py --suite towel_loop --recipe thirds --seeds 0-19
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+from foldbot.bench.suite import parse_seeds
+
+
+def flap_masks(initial: np.ndarray, lines: list, thickness: float) -> list[np.ndarray]:
+    """Per stage begun so far: the vertices that stage moves (its flap), from the goal's layers."""
+    from foldbot import metrics
+
+    masks, before = [], np.zeros(len(initial), dtype=np.int64)
+    for k in range(len(lines)):
+        layers = metrics.fold_goal(initial, lines[: k + 1], thickness)[1]
+        masks.append(layers != before)
+        before = layers
+    return masks
+
+
+def trace_episode(suite: str, recipe: str, seed: int) -> dict:
+    """Run one episode with the action tracer (in the calling process); its rows and result."""
+    import foldbot.loop as loop
+    from foldbot import metrics
+    from foldbot.bench.suite import load_suite
+    from foldbot.pipeline import run_episode
+
+    spec = next(
+        (e for e in load_suite(suite).episodes if e.recipe == recipe and e.seed == seed), None
+    )
+    if spec is None:
+        return {"recipe": recipe, "seed": seed, "error": f"no {recipe} seed {seed} in {suite}"}
+    rows: list[dict] = []
+    state: dict = {"lines": []}
+    execute = loop.execute_action
+
+    def traced(cell, action):
+        cloth = cell.executor.grasp.cloth
+        before = cloth.sim_vertices()
+        state.setdefault("initial", before.copy())
+        line = tuple(float(v) for v in action.fold_line)
+        if not state["lines"] or state["lines"][-1] != line:
+            state["lines"].append(line)
+        outcome = execute(cell, action)
+        after = cloth.sim_vertices()
+        initial, lines = state["initial"], [metrics.FoldLine(*ln) for ln in state["lines"]]
+        thickness = cloth.thickness
+        goal = metrics.fold_goal(initial, lines, thickness)[0]
+        masks = flap_masks(initial, lines, thickness)
+        moved = np.linalg.norm(after[:, :2] - before[:, :2], axis=1)
+        err = np.linalg.norm(after[:, :2] - goal[:, :2], axis=1)
+        first = metrics.softgym_performance(initial, after, lines[0], staying_reference=goal)
+        rows.append(
+            {
+                "stage": len(lines) - 1,
+                "label": action.label,
+                "grasped": len(outcome["grasped_vertices"]),
+                "flap_error_mm": [round(1000 * float(err[m].mean()), 1) for m in masks],
+                "flap_moved_mm": [round(1000 * float(moved[m].mean()), 1) for m in masks],
+                "first_fold_normalized": round(float(first.normalized), 3),
+            }
+        )
+        return outcome
+
+    loop.execute_action = traced
+    out = Path(tempfile.mkdtemp(prefix="trace_layers_")) / "episode"
+    try:
+        result = run_episode(spec.to_config(), out, log=lambda _msg: None)
+    except Exception as exc:  # a diverged cloth is a result here, not a crash
+        return {"recipe": recipe, "seed": seed, "actions": rows, "error": f"{exc}"[:200]}
+    return {
+        "recipe": recipe,
+        "seed": seed,
+        "fold_error_mm": round(result["fold_error_mm"], 1),
+        "normalized_performance": round(result["normalized_performance"], 3),
+        "actions": rows,
+    }
+
+
+def stage_ends(row: dict) -> list[list[float]]:
+    """Per stage: its own flap's error (mm) after the stage's last action, and at the end."""
+    acts = row.get("actions", [])
+    if not acts or "error" in row:
+        return []
+    out = []
+    for k in range(acts[-1]["stage"] + 1):
+        last = [a for a in acts if a["stage"] == k][-1]
+        out.append([last["flap_error_mm"][k], acts[-1]["flap_error_mm"][k]])
+    return out
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--suite", default="towel_loop", help="suite name or .toml (towel_loop)")
+    ap.add_argument("--recipe", default="thirds", help="recipe to trace (thirds)")
+    ap.add_argument("--seeds", default="0-19", help="'0-19', '0,3,5' or one seed (0-19)")
+    ap.add_argument("--workers", type=int, default=2, help="episodes at once (2)")
+    ap.add_argument("--one", type=int, help=argparse.SUPPRESS)  # child process: one seed
+    args = ap.parse_args()
+    if args.one is not None:
+        print(json.dumps(trace_episode(args.suite, args.recipe, args.one)), flush=True)
+        return 0
+    if args.workers < 1:
+        raise SystemExit(f"--workers must be ≥ 1, got {args.workers}")
+
+    def child(seed: int) -> dict:
+        cmd = [sys.executable, __file__, "--suite", args.suite, "--recipe", args.recipe]
+        res = subprocess.run([*cmd, "--one", str(seed)], capture_output=True, text=True)
+        line = res.stdout.strip().splitlines()[-1] if res.stdout.strip() else ""
+        if line.startswith("{"):
+            return json.loads(line)
+        return {"recipe": args.recipe, "seed": seed, "error": res.stderr[-300:]}
+
+    rows = []
+    with ThreadPoolExecutor(args.workers) as pool:
+        for row in pool.map(child, parse_seeds(args.seeds)):
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+    ends = [stage_ends(r) for r in rows]
+    ends = [e for e in ends if e]
+    print(f"# {args.recipe}: {len(ends)} of {len(rows)} episodes scored", file=sys.stderr)
+    for k in range(max((len(e) for e in ends), default=0)):
+        pairs = np.array([e[k] for e in ends if len(e) > k])
+        print(
+            f"# stage {k + 1}'s flap: median error {np.median(pairs[:, 0]):.1f} mm when the stage "
+            f"ended, {np.median(pairs[:, 1]):.1f} mm at the end "
+            f"(grew in {int(np.sum(pairs[:, 1] > pairs[:, 0] + 2))} of {len(pairs)})",
+            file=sys.stderr,
+        )
+    nps = [
+        [[a for a in r["actions"] if a["stage"] == 0][-1], r["actions"][-1]]
+        for r in rows
+        if "error" not in r and r.get("actions") and "first_fold_normalized" in r["actions"][0]
+    ]
+    if nps:
+        first, last = (np.array([p[i]["first_fold_normalized"] for p in nps]) for i in (0, 1))
+        print(
+            f"# first fold's normalized performance: median {np.median(first):.3f} when stage 1 "
+            f"ended ({int(np.sum(first >= 0.8))} of {len(nps)} at ≥ 0.8), {np.median(last):.3f} "
+            f"at the end ({int(np.sum(last >= 0.8))} at ≥ 0.8)",
+            file=sys.stderr,
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
