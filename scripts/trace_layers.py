@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from foldbot.bench.suite import parse_seeds
+from foldbot.metrics import FOLD_SUCCESS_MIN_NORMALIZED
 
 
 def flap_masks(initial: np.ndarray, lines: list, thickness: float) -> list[np.ndarray]:
@@ -151,14 +152,15 @@ def main() -> int:
     nps = [
         [[a for a in r["actions"] if a["stage"] == 0][-1], r["actions"][-1]]
         for r in rows
-        if "error" not in r and r.get("actions") and "first_fold_normalized" in r["actions"][0]
+        if "error" not in r and r.get("actions")
     ]
     if nps:
+        bar = FOLD_SUCCESS_MIN_NORMALIZED
         first, last = (np.array([p[i]["first_fold_normalized"] for p in nps]) for i in (0, 1))
         print(
             f"# first fold's normalized performance: median {np.median(first):.3f} when stage 1 "
-            f"ended ({int(np.sum(first >= 0.8))} of {len(nps)} at ≥ 0.8), {np.median(last):.3f} "
-            f"at the end ({int(np.sum(last >= 0.8))} at ≥ 0.8)",
+            f"ended ({int(np.sum(first >= bar))} of {len(nps)} at ≥ {bar}), "
+            f"{np.median(last):.3f} at the end ({int(np.sum(last >= bar))} at ≥ {bar})",
             file=sys.stderr,
         )
     return 0
