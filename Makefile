@@ -11,10 +11,10 @@ $(VENV)/bin/activate:
 	$(PY) -m pip install --quiet --upgrade pip
 
 install: $(VENV)/bin/activate
-	$(PY) -m pip install --quiet -e .
+	$(PY) -m pip install --quiet -c constraints.txt -e .
 
 install-test: $(VENV)/bin/activate
-	$(PY) -m pip install --quiet -e ".[test]"
+	$(PY) -m pip install --quiet -c constraints.txt -e ".[test]"
 
 ## demo: install, then fold a 30 cm towel headless and write the episode folder to $(OUT)
 demo: install

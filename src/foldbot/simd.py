@@ -1,0 +1,59 @@
+"""One SIMD level for numpy, OpenBLAS and OpenCV on every x86-64 CPU, so the same seed gives the same
+episode on any machine, not only on one: these libraries pick their kernels by CPU (AVX-512 where
+there is AVX-512), those kernels round sums differently in the last bit, and the cloth's chaotic
+dynamics grow that bit into a different fold (the demo towel: 8.4 mm with the AVX-512 kernels,
+6.1 mm without).
+
+`import foldbot` caps them at AVX2 with FMA (x86-64-v3): OpenBLAS runs its Haswell kernels, and
+numpy's and OpenCV's AVX-512 dispatch is switched off. Each reads its setting once, when it first
+loads, so the cap is set before anything imports numpy or cv2; a value the user has set is kept."""
+
+from __future__ import annotations
+
+import os
+import platform
+from collections.abc import MutableMapping
+from pathlib import Path
+
+OPENBLAS_CORETYPE = "Haswell"
+"""OpenBLAS's kernel family for AVX2 with FMA, used wherever the CPU can run it."""
+NUMPY_DISABLED_FEATURES = (
+    "X86_V4 AVX512_ICL AVX512_SPR "  # numpy ≥ 2.4's names
+    "AVX512F AVX512CD AVX512_KNL AVX512_KNM AVX512_SKX AVX512_CLX AVX512_CNL"  # numpy < 2.4's
+)
+"""numpy's AVX-512 dispatch targets (`NPY_DISABLE_CPU_FEATURES`); names a numpy version does not
+know, or a CPU does not have, are ignored."""
+OPENCV_DISABLED_FEATURES = "AVX512-SKX"
+"""OpenCV's AVX-512 dispatch target (`OPENCV_CPU_DISABLE`), its only one in the 4.x and 5.x wheels."""
+REQUIRED_CPU_FLAGS = frozenset({"avx2", "fma"})
+"""CPU flags (as /proc/cpuinfo spells them) of the level every machine is capped at."""
+
+
+def cpu_flags(cpuinfo: str) -> frozenset[str]:
+    """The flags of the first processor listed in /proc/cpuinfo's text (empty if none)."""
+    for line in cpuinfo.splitlines():
+        key, _, value = line.partition(":")
+        if key.strip() == "flags":
+            return frozenset(value.split())
+    return frozenset()
+
+
+def cap_simd_level(
+    environ: MutableMapping[str, str] = os.environ,
+    cpuinfo_path: Path = Path("/proc/cpuinfo"),
+    machine: str | None = None,
+) -> dict[str, str]:
+    """Cap numpy, OpenBLAS and OpenCV at AVX2 with FMA where the CPU has both (x86-64 Linux), keeping any
+    value the user set; return the settings in force (empty: the libraries choose by CPU)."""
+    names = ("OPENBLAS_CORETYPE", "NPY_DISABLE_CPU_FEATURES", "OPENCV_CPU_DISABLE")
+    if (machine or platform.machine()).lower() not in ("x86_64", "amd64"):
+        return {k: environ[k] for k in names if k in environ}
+    try:
+        flags = cpu_flags(cpuinfo_path.read_text())
+    except OSError:
+        flags = frozenset()
+    if flags >= REQUIRED_CPU_FLAGS:
+        environ.setdefault("OPENBLAS_CORETYPE", OPENBLAS_CORETYPE)
+        environ.setdefault("NPY_DISABLE_CPU_FEATURES", NUMPY_DISABLED_FEATURES)
+        environ.setdefault("OPENCV_CPU_DISABLE", OPENCV_DISABLED_FEATURES)
+    return {k: environ[k] for k in names if k in environ}
