@@ -1,4 +1,5 @@
 import json
+import os
 import subprocess
 import sys
 
@@ -139,6 +140,49 @@ def test_same_seed_same_episode(tmp_path):
             ]
         else:
             assert a.result[key] == b.result[key]
+
+
+REFERENCE_EPISODE = (
+    "fold --recipe diagonal --seed 3 --width 0.24 --height 0.24 --resolution 8 --video-fps 0"
+)
+REFERENCE_FOLD_ERROR_MM = 3.9189327357348187
+"""The reference episode's fold error, as every x86-64 machine with AVX2 and FMA computes it with
+the versions in constraints.txt (3.788… with an AVX-512 machine's own kernels). A change to the
+simulation, perception, planning or control changes it: then record the new value here."""
+
+
+def test_same_seed_same_episode_on_every_machine(tmp_path):
+    """With the SIMD cap (foldbot.simd) and the constrained versions, the same seed gives the
+    same episode, to the last bit, on any machine that can run the cap."""
+    from importlib.metadata import PackageNotFoundError, version
+    from pathlib import Path
+
+    from foldbot import simd
+
+    capped = simd.cap_simd_level({}) != {}
+    if not capped or any(
+        os.environ.get(k) != v
+        for k, v in {
+            "OPENBLAS_CORETYPE": simd.OPENBLAS_CORETYPE,
+            "NPY_DISABLE_CPU_FEATURES": simd.NUMPY_DISABLED_FEATURES,
+            "OPENCV_CPU_DISABLE": simd.OPENCV_DISABLED_FEATURES,
+        }.items()
+    ):
+        pytest.skip("this machine or environment does not run the SIMD cap")
+    constraints = Path(__file__).resolve().parents[1] / "constraints.txt"
+    for line in constraints.read_text().splitlines():
+        name, sep, pinned = line.partition("==")
+        if not sep or line.startswith("#"):
+            continue
+        try:
+            installed = version(name.strip())
+        except PackageNotFoundError:
+            installed = None
+        if installed != pinned.strip():
+            pytest.skip(f"{name.strip()} {installed} is installed, constraints.txt pins {pinned}")
+    run_cli(*REFERENCE_EPISODE.split(), "--out", str(tmp_path / "ep"))
+    result = json.loads((tmp_path / "ep" / "result.json").read_text())
+    assert result["fold_error_mm"] == pytest.approx(REFERENCE_FOLD_ERROR_MM, rel=0, abs=1e-9)
 
 
 def test_infeasible_action_is_rejected_before_the_arm_moves(tmp_path):
