@@ -11,6 +11,10 @@ appended to a JSON-lines file so an interrupted run resumes.
 
 from __future__ import annotations
 
+# isort: off
+import foldbot  # noqa: F401  first: caps numpy's SIMD level before numpy loads (foldbot.simd)
+
+# isort: on
 import argparse
 import contextlib
 import dataclasses

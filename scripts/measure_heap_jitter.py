@@ -16,6 +16,10 @@ simulation in a process); one JSON line per seed on stdout.
 
 from __future__ import annotations
 
+# isort: off
+import foldbot  # noqa: F401  first: caps numpy's SIMD level before numpy loads (foldbot.simd)
+
+# isort: on
 import argparse
 import dataclasses
 import json

@@ -14,6 +14,10 @@ drag that the later stages put on it.
 
 from __future__ import annotations
 
+# isort: off
+import foldbot  # noqa: F401  first: caps numpy's SIMD level before numpy loads (foldbot.simd)
+
+# isort: on
 import argparse
 import json
 import subprocess
