@@ -36,7 +36,7 @@ STAGE_GRASPS = {
     "half_long": "shape",  # half or half_y: the far-apart pair, by the towel's shape
     "quarter": [("far_left", "far_right"), ("far_left", "near_left")],
     "diagonal": None,  # one far corner, chosen by the pose
-    "thirds": [("far_left", "far_right"), ("near_left", "near_right")],
+    "thirds": [("near_left", "near_right"), ("far_left", "far_right")],
 }
 
 
@@ -256,21 +256,21 @@ def test_quarter_second_line_is_perpendicular_through_the_folded_centre(pose, sh
 
 @pytest.mark.parametrize("shape", SHAPES)
 @pytest.mark.parametrize("pose", POSES)
-def test_thirds_lines_lie_a_third_from_the_far_then_the_near_edge(pose, shape):
+def test_thirds_lines_lie_a_third_from_the_near_then_the_far_edge(pose, shape):
     cx, cy, yaw = pose
     flat = towel(cx, cy, *shape, yaw=yaw)
     plans, _, stage_corners = run_recipe("thirds", flat)
     depth_axis = unit(flat["far_left"] - flat["near_left"])
     depth = float((flat["far_left"] - flat["near_left"])[:2] @ depth_axis)
     near = flat["near_left"][:2]
-    for plan, fraction in zip(plans, (2 / 3, 1 / 3), strict=True):
+    for plan, fraction in zip(plans, (1 / 3, 2 / 3), strict=True):
         line = FoldLine.coerce(plan.fold_lines[0])
         # Parallel to the near edge, at `fraction` of the original depth from it.
         assert abs(unit([line.dx, line.dy]) @ depth_axis) < 1e-9
         assert (np.array([line.x, line.y]) - near) @ depth_axis == pytest.approx(fraction * depth)
-    # After stage 1 the perceived outline spans 2/3 of the depth, from the original near edge.
+    # After stage 1 the perceived outline spans 2/3 of the depth, up to the original far edge.
     c1 = stage_corners[1]
-    assert np.allclose(c1["near_left"], flat["near_left"])
+    assert np.allclose(c1["far_left"], flat["far_left"])
     assert (c1["far_left"] - c1["near_left"])[:2] @ depth_axis == pytest.approx(2 / 3 * depth)
 
 
@@ -308,7 +308,7 @@ EXPECTED_LAYERS = {
     "half_y": {0: 1 / 2, 1: 1 / 2},
     "half_long": {0: 1 / 2, 1: 1 / 2},
     "quarter": {0: 1 / 4, 1: 1 / 4, 2: 1 / 4, 3: 1 / 4},
-    # metrics' rule 2·n_max + 1 − n puts the near third (layer 0 before) at index 3: three layers.
+    # metrics' rule 2·n_max + 1 − n puts the far third (layer 0 before) at index 3: three layers.
     "thirds": {0: 1 / 3, 1: 1 / 3, 3: 1 / 3},
     "diagonal": {0: 1 / 2, 1: 1 / 2},
 }
@@ -486,14 +486,16 @@ def test_stage_grasp_layers_reach_the_actions(monkeypatch):
 
 
 def test_a_corner_is_released_above_a_thicker_stack_at_its_place():
-    """Thirds, second stage: the near third's single-layer corners land on the crease ends of the
+    """Thirds, second stage: the far third's single-layer corners land on the crease ends of the
     first fold, which stand higher: each is released above the higher of the two."""
     c = towel(depth=0.36, width=0.3)
     outline = predicted_outline("thirds", 0, c)
     corners = perceive(outline)
-    for name in ("far_left", "far_right"):  # the first stage's crease ends: two layers
+    base = corners["far_left"][2]
+    for name in ("near_left", "near_right"):  # the first stage's crease ends: two layers
         corners[name] = corners[name] + [0.0, 0.0, 0.012]
     plan = plan_stage("thirds", 1, corners, place_lift=0.004)
     for action in plan.actions:
-        assert action.label.startswith("near_")
-        assert action.place[2] == pytest.approx(corners[action.label][2] + 0.012 + 0.004)
+        assert action.label.startswith("far_")
+        assert corners[action.label][2] == pytest.approx(base)
+        assert action.place[2] == pytest.approx(base + 0.012 + 0.004)

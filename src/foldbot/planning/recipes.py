@@ -26,13 +26,14 @@ Recipes (`RECIPES`; the CLI offers them as `--recipe`, so the half fold's axis i
              direction the arm reaches best. Exact ties carry far_left (line near_left–far_right).
              For a non-square towel the mirrored triangle overhangs the staying one (the place point
              is still the mirror, as the metric requires).
-- "thirds"   2 stages. Stage 1: the far third onto the middle — the line crosses the left and right
-             sides at 2/3 of the way from the near corner to the far corner. Grasps: far_left, then
-             far_right. Stage 2: the near third on top — the line at 1/3 of the ORIGINAL depth from
-             the near edge. After stage 1 the perceived outline spans from the near edge to the
-             stage-1 crease, i.e. 2/3 of the original depth, so that line is the outline's midline:
-             it joins the midpoints of the perceived left and right sides, and the near side moves.
-             Grasps: near_left, then near_right.
+- "thirds"   2 stages. Stage 1: the near third onto the middle — the line crosses the left and
+             right sides at 1/3 of the way from the near corner to the far corner. Grasps:
+             near_left, then near_right. Stage 2: the far third on top — the line at 2/3 of the
+             ORIGINAL depth from the near edge. After stage 1 the perceived outline spans from the
+             stage-1 crease to the far edge, i.e. 2/3 of the original depth, so that line is the
+             outline's midline: it joins the midpoints of the perceived left and right sides, and
+             the far side moves. Grasps: far_left, then far_right. This order lays the stack's
+             top layer toward the robot (the other order, far third first, folded worse: README).
 
 A stage's labels rely on the labelling rule, which is stable while a rectangle's yaw stays away from
 ±45° (mod 90°), where two corners tie for "near_left"; there, noise can rotate the labels by one, and
@@ -64,7 +65,7 @@ RECIPE_HELP = {
     "half_long": "in half across the longer side, the shorter carry (half or half_y; 1 stage)",
     "quarter": "half, then the folded rectangle left onto right (2 stages)",
     "diagonal": "a far corner onto the opposite corner: a triangle (1 stage)",
-    "thirds": "far third onto the middle, then the near third on top (2 stages)",
+    "thirds": "near third onto the middle, then the far third on top (2 stages)",
 }
 """One line per recipe, for CLI help."""
 MIN_SIDE = 1e-3
@@ -169,14 +170,14 @@ def _half_long(c: dict[str, np.ndarray]) -> _Fold:
     return _half_y(c) if depth > LONG_SIDE_MARGIN * width else _half_x(c)
 
 
-def _far_third(c: dict[str, np.ndarray]) -> _Fold:
-    """Far third onto the middle third: the line at 2/3 of each side from the near edge."""
-    return _edge_fold(c, ("far_left", "far_right"), ("near_left", "near_right"), 2.0 / 3.0)
-
-
 def _near_third(c: dict[str, np.ndarray]) -> _Fold:
-    """Near third on top, from the outline after _far_third: that outline's midline, near moving."""
-    return _edge_fold(c, ("near_left", "near_right"), ("far_left", "far_right"), 0.5)
+    """Near third onto the middle third: the line at 1/3 of each side from the near edge."""
+    return _edge_fold(c, ("near_left", "near_right"), ("far_left", "far_right"), 2.0 / 3.0)
+
+
+def _far_third(c: dict[str, np.ndarray]) -> _Fold:
+    """Far third on top, from the outline after _near_third: that outline's midline, far moving."""
+    return _edge_fold(c, ("far_left", "far_right"), ("near_left", "near_right"), 0.5)
 
 
 def _diagonal(c: dict[str, np.ndarray]) -> _Fold:
@@ -208,7 +209,7 @@ _STAGES: dict[str, tuple[Callable[[dict[str, np.ndarray]], _Fold], ...]] = {
     "half_long": (_half_long,),
     "quarter": (_half_x, _half_y),
     "diagonal": (_diagonal,),
-    "thirds": (_far_third, _near_third),
+    "thirds": (_near_third, _far_third),
 }
 
 
