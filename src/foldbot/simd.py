@@ -1,8 +1,8 @@
-"""One SIMD level for numpy, OpenBLAS and OpenCV on every x86-64 CPU, so the same seed gives the same
-episode on any machine, not only on one: these libraries pick their kernels by CPU (AVX-512 where
-there is AVX-512), those kernels round sums differently in the last bit, and the cloth's chaotic
-dynamics grow that bit into a different fold (the demo towel: 8.4 mm with the AVX-512 kernels,
-6.1 mm without).
+"""One SIMD level for numpy, OpenBLAS and OpenCV on every x86-64 CPU, so the same seed gives the
+same episode on any machine, not only on one: these libraries pick their kernels by CPU (AVX-512
+where there is AVX-512), those kernels round sums differently in the last bit, and the cloth's
+chaotic dynamics grow that bit into a different fold (the demo towel: 8.4 mm with the AVX-512
+kernels, 6.1 mm without).
 
 `import foldbot` caps them at AVX2 with FMA (x86-64-v3): OpenBLAS runs its Haswell kernels, and
 numpy's and OpenCV's AVX-512 dispatch is switched off. Each reads its setting once, when it first
@@ -24,7 +24,7 @@ NUMPY_DISABLED_FEATURES = (
 """numpy's AVX-512 dispatch targets (`NPY_DISABLE_CPU_FEATURES`); names a numpy version does not
 know, or a CPU does not have, are ignored."""
 OPENCV_DISABLED_FEATURES = "AVX512-SKX"
-"""OpenCV's AVX-512 dispatch target (`OPENCV_CPU_DISABLE`), its only one in the 4.x and 5.x wheels."""
+"""OpenCV's AVX-512 dispatch target (`OPENCV_CPU_DISABLE`), its only one in the 4.x, 5.x wheels."""
 REQUIRED_CPU_FLAGS = frozenset({"avx2", "fma"})
 """CPU flags (as /proc/cpuinfo spells them) of the level every machine is capped at."""
 
@@ -43,8 +43,8 @@ def cap_simd_level(
     cpuinfo_path: Path = Path("/proc/cpuinfo"),
     machine: str | None = None,
 ) -> dict[str, str]:
-    """Cap numpy, OpenBLAS and OpenCV at AVX2 with FMA where the CPU has both (x86-64 Linux), keeping any
-    value the user set; return the settings in force (empty: the libraries choose by CPU)."""
+    """Cap numpy, OpenBLAS and OpenCV at AVX2 with FMA where the CPU has both (x86-64 Linux),
+    keeping any value the user set; return the settings in force (empty: the libraries choose)."""
     names = ("OPENBLAS_CORETYPE", "NPY_DISABLE_CPU_FEATURES", "OPENCV_CPU_DISABLE")
     if (machine or platform.machine()).lower() not in ("x86_64", "amd64"):
         return {k: environ[k] for k in names if k in environ}
