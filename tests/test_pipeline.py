@@ -159,15 +159,7 @@ def test_same_seed_same_episode_on_every_machine(tmp_path):
 
     from foldbot import simd
 
-    capped = simd.cap_simd_level({}) != {}
-    if not capped or any(
-        os.environ.get(k) != v
-        for k, v in {
-            "OPENBLAS_CORETYPE": simd.OPENBLAS_CORETYPE,
-            "NPY_DISABLE_CPU_FEATURES": simd.NUMPY_DISABLED_FEATURES,
-            "OPENCV_CPU_DISABLE": simd.OPENCV_DISABLED_FEATURES,
-        }.items()
-    ):
+    if any(os.environ.get(k) != v for k, v in simd.CAP.items()):
         pytest.skip("this machine or environment does not run the SIMD cap")
     constraints = Path(__file__).resolve().parents[1] / "constraints.txt"
     for line in constraints.read_text().splitlines():

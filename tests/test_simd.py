@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 
 from foldbot.simd import (
+    CAP,
     NUMPY_DISABLED_FEATURES,
     OPENBLAS_CORETYPE,
     OPENCV_DISABLED_FEATURES,
@@ -18,7 +19,6 @@ from foldbot.simd import (
     cpu_flags,
 )
 
-SETTINGS = ("OPENBLAS_CORETYPE", "NPY_DISABLE_CPU_FEATURES", "OPENCV_CPU_DISABLE")
 CPUINFO = "processor\t: 0\nvendor_id\t: AuthenticAMD\nflags\t\t: fpu sse2 {}\n\nprocessor\t: 1\n"
 
 
@@ -94,7 +94,7 @@ print(json.dumps({
     "cv2": cv2.getCPUFeaturesLine(),
 }))
 """
-    env = {k: v for k, v in os.environ.items() if k not in SETTINGS}
+    env = {k: v for k, v in os.environ.items() if k not in CAP}
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True
     )

@@ -25,6 +25,12 @@ NUMPY_DISABLED_FEATURES = (
 know, or a CPU does not have, are ignored."""
 OPENCV_DISABLED_FEATURES = "AVX512-SKX"
 """OpenCV's AVX-512 dispatch target (`OPENCV_CPU_DISABLE`), its only one in the 4.x, 5.x wheels."""
+CAP = {
+    "OPENBLAS_CORETYPE": OPENBLAS_CORETYPE,
+    "NPY_DISABLE_CPU_FEATURES": NUMPY_DISABLED_FEATURES,
+    "OPENCV_CPU_DISABLE": OPENCV_DISABLED_FEATURES,
+}
+"""The environment variables that cap the three libraries, and their values."""
 REQUIRED_CPU_FLAGS = frozenset({"avx2", "fma"})
 """CPU flags (as /proc/cpuinfo spells them) of the level every machine is capped at."""
 
@@ -45,15 +51,12 @@ def cap_simd_level(
 ) -> dict[str, str]:
     """Cap numpy, OpenBLAS and OpenCV at AVX2 with FMA where the CPU has both (x86-64 Linux),
     keeping any value the user set; return the settings in force (empty: the libraries choose)."""
-    names = ("OPENBLAS_CORETYPE", "NPY_DISABLE_CPU_FEATURES", "OPENCV_CPU_DISABLE")
-    if (machine or platform.machine()).lower() not in ("x86_64", "amd64"):
-        return {k: environ[k] for k in names if k in environ}
-    try:
-        flags = cpu_flags(cpuinfo_path.read_text())
-    except OSError:
-        flags = frozenset()
-    if flags >= REQUIRED_CPU_FLAGS:
-        environ.setdefault("OPENBLAS_CORETYPE", OPENBLAS_CORETYPE)
-        environ.setdefault("NPY_DISABLE_CPU_FEATURES", NUMPY_DISABLED_FEATURES)
-        environ.setdefault("OPENCV_CPU_DISABLE", OPENCV_DISABLED_FEATURES)
-    return {k: environ[k] for k in names if k in environ}
+    if (machine or platform.machine()).lower() in ("x86_64", "amd64"):
+        try:
+            flags = cpu_flags(cpuinfo_path.read_text())
+        except OSError:
+            flags = frozenset()
+        if flags >= REQUIRED_CPU_FLAGS:
+            for name, value in CAP.items():
+                environ.setdefault(name, value)
+    return {k: environ[k] for k in CAP if k in environ}
