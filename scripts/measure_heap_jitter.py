@@ -1,5 +1,5 @@
-"""Measure how restless a crumpled towel is at rest: the physics probe behind the README's
-divergence figures.
+"""Measure how restless a crumpled towel is at rest: the physics probe behind the heap
+table in docs/experiments.md.
 
 For each seed of the `towel_crumpled` suite: build its cell (arm parked at home, untouched), settle
 the flat towel and step it 1 s more (the flat baseline), crumple it (sim.crumple), then step 4 s;

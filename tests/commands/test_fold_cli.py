@@ -109,7 +109,8 @@ def test_oversized_towel_is_refused_before_anything_is_written(tmp_path, percept
     ],
 )
 def test_the_arm_parks_at_home_unless_told(tmp_path, args, park):
-    # Out of view measured worse for garments and crumpled towels (README, Garments: Results).
+    # Out of view measured worse for garments and crumpled towels (docs/experiments.md,
+    # Where the arm parks).
     parser = argparse.ArgumentParser()
     add_arguments(parser)
     cfg = config_from_args(parser.parse_args(["--out", str(tmp_path / "ep"), *args]))

@@ -33,7 +33,8 @@ Recipes (`RECIPES`; the CLI offers them as `--recipe`, so the half fold's axis i
              stage-1 crease to the far edge, i.e. 2/3 of the original depth, so that line is the
              outline's midline: it joins the midpoints of the perceived left and right sides, and
              the far side moves. Grasps: far_left, then far_right. This order lays the stack's
-             top layer toward the robot (the other order, far third first, folded worse: README).
+             top layer toward the robot (the other order, far third first, folded worse:
+             docs/experiments.md).
 
 A stage's labels rely on the labelling rule, which is stable while a rectangle's yaw stays away from
 ±45° (mod 90°), where two corners tie for "near_left"; there, noise can rotate the labels by one, and
@@ -201,7 +202,8 @@ _GRASP_LAYERS: dict[tuple[str, int], int] = {}
 then closes the jaws at the table, under the whole stack, a little inside the perceived corner).
 Empty: for quarter's second stage, (quarter, 1) → 2 folded worse than a top-layer grasp in two
 trials (seeds 0–3: fold errors 150–184 mm against 57–208 mm, and one diverged soft body), and again
-with the jaws placed where depth showed both layers (seeds 0–5: 159–368 mm, 3 diverged; README)."""
+with the jaws placed where depth showed both layers (seeds 0–5: 159–368 mm, 3 diverged;
+docs/experiments.md)."""
 
 _STAGES: dict[str, tuple[Callable[[dict[str, np.ndarray]], _Fold], ...]] = {
     "half": (_half_x,),
