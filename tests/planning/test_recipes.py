@@ -35,9 +35,21 @@ STAGE_GRASPS = {
     "half_y": [("far_left", "near_left")],
     "half_long": "shape",  # half or half_y: the far-apart pair, by the towel's shape
     "quarter": [("far_left", "far_right"), ("far_left", "near_left")],
-    "diagonal": None,  # one far corner, chosen by the pose
-    "thirds": [("near_left", "near_right"), ("far_left", "far_right")],
+    "diagonal": None,  # one far corner, chosen by the pose and shape
+    "diagonal_corners": None,  # one far corner, chosen by the pose
+    "thirds": "thirds",  # near then far third, or on a deep towel right then left (is_deep)
 }
+THIRDS_GRASPS = {
+    False: [("near_left", "near_right"), ("far_left", "far_right")],
+    True: [("far_right", "near_right"), ("far_left", "near_left")],
+}
+
+
+def is_deep(corners):
+    """Whether the perceived towel is deeper (near–far) than wide by the recipes' 10 % margin."""
+    depth = np.linalg.norm(corners["far_left"] - corners["near_left"])
+    width = np.linalg.norm(corners["far_left"] - corners["far_right"])
+    return depth > 1.1 * width
 
 
 def towel(cx=0.45, cy=0.0, depth=0.3, width=0.3, yaw=0.0, z=0.752):
@@ -165,7 +177,15 @@ def test_missing_corner_and_unknown_recipe_are_rejected():
 
 
 def test_recipe_names_and_stage_counts():
-    assert set(RECIPES) == {"half", "half_y", "half_long", "quarter", "diagonal", "thirds"}
+    assert set(RECIPES) == {
+        "half",
+        "half_y",
+        "half_long",
+        "quarter",
+        "diagonal",
+        "diagonal_corners",
+        "thirds",
+    }
     assert set(RECIPE_HELP) == set(RECIPES)
     assert {r: recipe_stages(r) for r in RECIPES} == {
         "half": 1,
@@ -173,6 +193,7 @@ def test_recipe_names_and_stage_counts():
         "half_long": 1,
         "quarter": 2,
         "diagonal": 1,
+        "diagonal_corners": 1,
         "thirds": 2,
     }
 
@@ -201,10 +222,10 @@ def test_every_stage_is_one_fold_whose_places_mirror_the_grasped_corners(recipe,
         labels = [a.label for a in plan.actions]
         if STAGE_GRASPS[recipe] == "shape":
             # Depth and width as perceived (labels follow the world frame, not the towel's).
-            depth = np.linalg.norm(corners["far_left"] - corners["near_left"])
-            width = np.linalg.norm(corners["far_left"] - corners["far_right"])
-            deep = depth > 1.1 * width
+            deep = is_deep(corners)
             assert labels == (["far_left", "near_left"] if deep else ["far_left", "far_right"])
+        elif STAGE_GRASPS[recipe] == "thirds":
+            assert tuple(labels) == THIRDS_GRASPS[is_deep(stage_corners[0])][k]
         elif STAGE_GRASPS[recipe] is None:
             assert labels in (["far_left"], ["far_right"])
         else:
@@ -256,29 +277,34 @@ def test_quarter_second_line_is_perpendicular_through_the_folded_centre(pose, sh
 
 @pytest.mark.parametrize("shape", SHAPES)
 @pytest.mark.parametrize("pose", POSES)
-def test_thirds_lines_lie_a_third_from_the_near_then_the_far_edge(pose, shape):
+def test_thirds_lines_lie_a_third_from_the_first_then_the_opposite_edge(pose, shape):
+    """Near then far third; on a towel deeper than wide, right then left (the long edges carried)."""
     cx, cy, yaw = pose
     flat = towel(cx, cy, *shape, yaw=yaw)
     plans, _, stage_corners = run_recipe("thirds", flat)
-    depth_axis = unit(flat["far_left"] - flat["near_left"])
-    depth = float((flat["far_left"] - flat["near_left"])[:2] @ depth_axis)
-    near = flat["near_left"][:2]
+    # The first moving edge's corner, and the corner across the towel from it on the same side.
+    first, across = ("near_right", "near_left") if is_deep(flat) else ("near_left", "far_left")
+    axis = unit(flat[across] - flat[first])
+    extent = float((flat[across] - flat[first])[:2] @ axis)
     for plan, fraction in zip(plans, (1 / 3, 2 / 3), strict=True):
         line = FoldLine.coerce(plan.fold_lines[0])
-        # Parallel to the near edge, at `fraction` of the original depth from it.
-        assert abs(unit([line.dx, line.dy]) @ depth_axis) < 1e-9
-        assert (np.array([line.x, line.y]) - near) @ depth_axis == pytest.approx(fraction * depth)
-    # After stage 1 the perceived outline spans 2/3 of the depth, up to the original far edge.
+        # Parallel to the first moving edge, at `fraction` of the original extent from it.
+        assert abs(unit([line.dx, line.dy]) @ axis) < 1e-9
+        offset = (np.array([line.x, line.y]) - flat[first][:2]) @ axis
+        assert offset == pytest.approx(fraction * extent)
+    # After stage 1 the perceived outline spans 2/3 of the extent, up to the far or left edge,
+    # and is long enough the other way that stage 2 keeps the axis.
     c1 = stage_corners[1]
     assert np.allclose(c1["far_left"], flat["far_left"])
-    assert (c1["far_left"] - c1["near_left"])[:2] @ depth_axis == pytest.approx(2 / 3 * depth)
+    span = c1[across] - c1[first]
+    assert span[:2] @ axis == pytest.approx(2 / 3 * extent)
 
 
 @pytest.mark.parametrize("pose", POSES)
-def test_diagonal_line_runs_through_opposite_corners_and_brings_a_far_corner_closer(pose):
+def test_corner_diagonal_runs_through_opposite_corners_and_brings_a_far_corner_closer(pose):
     cx, cy, yaw = pose
     c = square(cx, cy, 0.3, yaw=yaw)
-    plan = plan_recipe("diagonal", c)
+    plan = plan_recipe("diagonal_corners", c)
     line = FoldLine.coerce(plan.fold_lines[0])
     (action,) = plan.actions
     pivots = (
@@ -295,10 +321,53 @@ def test_diagonal_line_runs_through_opposite_corners_and_brings_a_far_corner_clo
     assert moved <= c[other_target][0] - c[other][0] + 1e-12
 
 
-def test_diagonal_tie_carries_far_left():
-    plan = plan_recipe("diagonal", square(yaw=0.0))
+@pytest.mark.parametrize("recipe", ["diagonal", "diagonal_corners"])
+def test_diagonal_tie_carries_far_left(recipe):
+    plan = plan_recipe(recipe, square(yaw=0.0))
     assert [a.label for a in plan.actions] == ["far_left"]
     assert on_line(square()["near_left"], FoldLine.coerce(plan.fold_lines[0]))
+
+
+@pytest.mark.parametrize("pose", POSES)
+def test_on_a_square_the_triangle_fold_is_the_corner_diagonal(pose):
+    cx, cy, yaw = pose
+    c = square(cx, cy, 0.3, yaw=yaw)
+    tri, diag = plan_recipe("diagonal", c), plan_recipe("diagonal_corners", c)
+    (a,), (b,) = tri.actions, diag.actions
+    assert a.label == b.label
+    assert np.allclose(a.place, b.place, atol=1e-9)
+    line = FoldLine.coerce(tri.fold_lines[0])
+    other = FoldLine.coerce(diag.fold_lines[0])
+    ends = ([other.x, other.y], [other.x + other.dx, other.y + other.dy])
+    assert all(on_line(end, line) for end in ends)
+
+
+@pytest.mark.parametrize("shape", SHAPES[1:])
+@pytest.mark.parametrize("pose", POSES)
+def test_the_triangle_fold_lays_a_far_corner_on_the_cloth_at_45_degrees(pose, shape):
+    cx, cy, yaw = pose
+    c = towel(cx, cy, *shape, yaw=yaw)
+    plan = plan_recipe("diagonal", c)
+    line = FoldLine.coerce(plan.fold_lines[0])
+    (action,) = plan.actions
+    quad = np.array([c[n] for n in CORNER_NAMES])
+    # The pivot is the carried corner's neighbour along the towel's shorter side, on the line.
+    k = CORNER_NAMES.index(action.label)
+    neighbours = [CORNER_NAMES[(k + 1) % 4], CORNER_NAMES[(k - 1) % 4]]
+    pivot = min(neighbours, key=lambda n: np.linalg.norm(c[n] - c[action.label]))
+    assert on_line(c[pivot], line)
+    short = min(shape)
+    assert np.linalg.norm(c[pivot] - c[action.label]) == pytest.approx(short)
+    # The crease runs at 45° to the towel's sides, and the corner lands on the cloth, on the
+    # pivot's other side at the short side's length from it: no overhang.
+    side = unit(c[action.label] - c[pivot])
+    assert abs(unit([line.dx, line.dy]) @ side) == pytest.approx(np.sqrt(0.5))
+    assert inside_convex(action.place[None, :2], quad, tol=1e-9)[0]
+    assert np.linalg.norm(action.place[:2] - c[pivot][:2]) == pytest.approx(short)
+    # Of the allowed folds, the carried corner comes toward the robot, by the short side.
+    moved = action.place[:2] - action.grasp[:2]
+    assert moved[0] < 0
+    assert np.linalg.norm(moved) == pytest.approx(np.sqrt(2) * short)
 
 
 # --- composed goals and predicted outlines -------------------------------------------------------
@@ -311,6 +380,7 @@ EXPECTED_LAYERS = {
     # metrics' rule 2·n_max + 1 − n puts the far third (layer 0 before) at index 3: three layers.
     "thirds": {0: 1 / 3, 1: 1 / 3, 3: 1 / 3},
     "diagonal": {0: 1 / 2, 1: 1 / 2},
+    "diagonal_corners": {0: 1 / 2, 1: 1 / 2},
 }
 EXPECTED_AREA = {
     "half": 1 / 2,
@@ -319,17 +389,27 @@ EXPECTED_AREA = {
     "quarter": 1 / 4,
     "thirds": 1 / 3,
     "diagonal": 1 / 2,
+    "diagonal_corners": 1 / 2,
 }
 
 
-# A diagonal fold of a non-square towel overhangs: see the union test below.
+# A corner-diagonal fold of a non-square towel overhangs: see the union test below; a triangle
+# fold of one lays a triangle of side² / 2 of its area on layer 1 (expected_layers).
 COMPOSE_CASES = [
     (recipe, pose, shape)
     for recipe in RECIPES
     for pose in POSES
     for shape in SHAPES
-    if recipe != "diagonal" or shape[0] == shape[1]
+    if recipe != "diagonal_corners" or shape[0] == shape[1]
 ]
+
+
+def expected_layers(recipe, shape):
+    """Area fraction of each goal layer, and the final outline's fraction of the flat area."""
+    if recipe == "diagonal":
+        laid = min(shape) / (2 * max(shape))  # the triangle: side² / 2 of side × long side
+        return {0: 1 - laid, 1: laid}, 1 - laid
+    return EXPECTED_LAYERS[recipe], EXPECTED_AREA[recipe]
 
 
 @pytest.mark.parametrize(("recipe", "pose", "shape"), COMPOSE_CASES)
@@ -341,25 +421,25 @@ def test_composed_goal_has_the_expected_layers_inside_the_predicted_outline(reci
     lines = [p.fold_lines[0] for p in plans]
     goal, layers = fold_goal(points, lines, thickness=0.002)
     values, counts = np.unique(layers, return_counts=True)
-    expected = EXPECTED_LAYERS[recipe]
+    expected, expected_area = expected_layers(recipe, shape)
     assert set(values.tolist()) == set(expected)
     tol = 1.5 / 30  # one grid row of the staggered grid (the diagonal cuts it unevenly)
     for v, n in zip(values, counts, strict=True):
         assert n / len(points) == pytest.approx(expected[int(v)], abs=tol)
     final = outlines[-1]
     assert area(final) > 0  # counter-clockwise
-    assert area(final) == pytest.approx(EXPECTED_AREA[recipe] * quad_area(flat), rel=1e-9)
+    assert area(final) == pytest.approx(expected_area * quad_area(flat), rel=1e-9)
     assert inside_convex(goal[:, :2], final).all()
     assert final[:, 2] == pytest.approx(flat["near_left"][2])
 
 
 @pytest.mark.parametrize("pose", POSES[:3])
-def test_diagonal_outline_of_a_rectangle_is_the_union_of_the_two_triangles(pose):
+def test_corner_diagonal_outline_of_a_rectangle_is_the_union_of_the_two_triangles(pose):
     cx, cy, yaw = pose
     flat = towel(cx, cy, 0.24, 0.36, yaw=yaw)
-    plan = plan_recipe("diagonal", flat)
+    plan = plan_recipe("diagonal_corners", flat)
     line = FoldLine.coerce(plan.fold_lines[0])
-    outline = predicted_outline("diagonal", 0, flat)
+    outline = predicted_outline("diagonal_corners", 0, flat)
     quad = np.array([flat[n] for n in CORNER_NAMES])
     staying = quad[line.side(quad) < 1e-9]  # the two pivots and the staying corner
     carried = quad[line.side(quad) > 1e-9]
@@ -421,7 +501,8 @@ def test_bad_inputs_are_rejected_with_the_reason():
     with pytest.raises(ConfigError, match="finite"):
         plan_stage("half", 0, dict(good, far_right=np.array([0.5, 0.0])))
     with pytest.raises(
-        ConfigError, match=r"origami.*half, half_y, half_long, quarter, diagonal, thirds"
+        ConfigError,
+        match=r"origami.*half, half_y, half_long, quarter, diagonal, diagonal_corners, thirds",
     ):
         plan_stage("origami", 0, good)
     with pytest.raises(ConfigError, match="origami"):
@@ -488,7 +569,7 @@ def test_stage_grasp_layers_reach_the_actions(monkeypatch):
 def test_a_corner_is_released_above_a_thicker_stack_at_its_place():
     """Thirds, second stage: the far third's single-layer corners land on the crease ends of the
     first fold, which stand higher: each is released above the higher of the two."""
-    c = towel(depth=0.36, width=0.3)
+    c = towel(depth=0.32, width=0.3)
     outline = predicted_outline("thirds", 0, c)
     corners = perceive(outline)
     base = corners["far_left"][2]
