@@ -37,19 +37,8 @@ STAGE_GRASPS = {
     "quarter": [("far_left", "far_right"), ("far_left", "near_left")],
     "diagonal": None,  # one far corner, chosen by the pose and shape
     "diagonal_corners": None,  # one far corner, chosen by the pose
-    "thirds": "thirds",  # near then far third, or on a deep towel right then left (is_deep)
+    "thirds": [("near_left", "near_right"), ("far_left", "far_right")],
 }
-THIRDS_GRASPS = {
-    False: [("near_left", "near_right"), ("far_left", "far_right")],
-    True: [("far_right", "near_right"), ("far_left", "near_left")],
-}
-
-
-def is_deep(corners):
-    """Whether the perceived towel is deeper (near–far) than wide by the recipes' 10 % margin."""
-    depth = np.linalg.norm(corners["far_left"] - corners["near_left"])
-    width = np.linalg.norm(corners["far_left"] - corners["far_right"])
-    return depth > 1.1 * width
 
 
 def towel(cx=0.45, cy=0.0, depth=0.3, width=0.3, yaw=0.0, z=0.752):
@@ -222,10 +211,10 @@ def test_every_stage_is_one_fold_whose_places_mirror_the_grasped_corners(recipe,
         labels = [a.label for a in plan.actions]
         if STAGE_GRASPS[recipe] == "shape":
             # Depth and width as perceived (labels follow the world frame, not the towel's).
-            deep = is_deep(corners)
+            depth = np.linalg.norm(corners["far_left"] - corners["near_left"])
+            width = np.linalg.norm(corners["far_left"] - corners["far_right"])
+            deep = depth > 1.1 * width
             assert labels == (["far_left", "near_left"] if deep else ["far_left", "far_right"])
-        elif STAGE_GRASPS[recipe] == "thirds":
-            assert tuple(labels) == THIRDS_GRASPS[is_deep(stage_corners[0])][k]
         elif STAGE_GRASPS[recipe] is None:
             assert labels in (["far_left"], ["far_right"])
         else:
@@ -277,27 +266,22 @@ def test_quarter_second_line_is_perpendicular_through_the_folded_centre(pose, sh
 
 @pytest.mark.parametrize("shape", SHAPES)
 @pytest.mark.parametrize("pose", POSES)
-def test_thirds_lines_lie_a_third_from_the_first_then_the_opposite_edge(pose, shape):
-    """Near then far third; on a towel deeper than wide, right then left (the long edges carried)."""
+def test_thirds_lines_lie_a_third_from_the_near_then_the_far_edge(pose, shape):
     cx, cy, yaw = pose
     flat = towel(cx, cy, *shape, yaw=yaw)
     plans, _, stage_corners = run_recipe("thirds", flat)
-    # The first moving edge's corner, and the corner across the towel from it on the same side.
-    first, across = ("near_right", "near_left") if is_deep(flat) else ("near_left", "far_left")
-    axis = unit(flat[across] - flat[first])
-    extent = float((flat[across] - flat[first])[:2] @ axis)
+    depth_axis = unit(flat["far_left"] - flat["near_left"])
+    depth = float((flat["far_left"] - flat["near_left"])[:2] @ depth_axis)
+    near = flat["near_left"][:2]
     for plan, fraction in zip(plans, (1 / 3, 2 / 3), strict=True):
         line = FoldLine.coerce(plan.fold_lines[0])
-        # Parallel to the first moving edge, at `fraction` of the original extent from it.
-        assert abs(unit([line.dx, line.dy]) @ axis) < 1e-9
-        offset = (np.array([line.x, line.y]) - flat[first][:2]) @ axis
-        assert offset == pytest.approx(fraction * extent)
-    # After stage 1 the perceived outline spans 2/3 of the extent, up to the far or left edge,
-    # and is long enough the other way that stage 2 keeps the axis.
+        # Parallel to the near edge, at `fraction` of the original depth from it.
+        assert abs(unit([line.dx, line.dy]) @ depth_axis) < 1e-9
+        assert (np.array([line.x, line.y]) - near) @ depth_axis == pytest.approx(fraction * depth)
+    # After stage 1 the perceived outline spans 2/3 of the depth, up to the original far edge.
     c1 = stage_corners[1]
     assert np.allclose(c1["far_left"], flat["far_left"])
-    span = c1[across] - c1[first]
-    assert span[:2] @ axis == pytest.approx(2 / 3 * extent)
+    assert (c1["far_left"] - c1["near_left"])[:2] @ depth_axis == pytest.approx(2 / 3 * depth)
 
 
 @pytest.mark.parametrize("pose", POSES)
@@ -569,7 +553,7 @@ def test_stage_grasp_layers_reach_the_actions(monkeypatch):
 def test_a_corner_is_released_above_a_thicker_stack_at_its_place():
     """Thirds, second stage: the far third's single-layer corners land on the crease ends of the
     first fold, which stand higher: each is released above the higher of the two."""
-    c = towel(depth=0.32, width=0.3)
+    c = towel(depth=0.36, width=0.3)
     outline = predicted_outline("thirds", 0, c)
     corners = perceive(outline)
     base = corners["far_left"][2]

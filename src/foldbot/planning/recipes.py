@@ -41,12 +41,6 @@ Recipes (`RECIPES`; the CLI offers them as `--recipe`, so the half fold's axis i
              the far side moves. Grasps: far_left, then far_right. This order lays the stack's
              top layer toward the robot (the other order, far third first, folded worse:
              docs/experiments.md).
-             On a towel deeper than wide (by LONG_SIDE_MARGIN) the thirds run across y instead,
-             so each carried edge is a long side, as for half_long: stage 1 lays the right third
-             on the middle (grasps far_right, then near_right), stage 2 the left third on top
-             (far_left, then near_left). Stage 2 takes the axis from the outline it sees: the
-             midline across its longer side (the outline stage 1 leaves is at least 1.36 times
-             longer one way than the other, for either axis).
 
 A stage's labels rely on the labelling rule, which is stable while a rectangle's yaw stays away from
 ±45° (mod 90°), where two corners tie for "near_left"; there, noise can rotate the labels by one, and
@@ -80,8 +74,7 @@ RECIPE_HELP = {
     "diagonal": "a far corner onto the side across, at its shorter side's length: a triangle "
     "(on a square, onto the opposite corner; 1 stage)",
     "diagonal_corners": "a far corner across the line through its two neighbours (1 stage)",
-    "thirds": "near third onto the middle, then the far third on top; on a towel deeper than "
-    "wide, the right third, then the left (2 stages)",
+    "thirds": "near third onto the middle, then the far third on top (2 stages)",
 }
 """One line per recipe, for CLI help."""
 MIN_SIDE = 1e-3
@@ -174,8 +167,8 @@ def _half_y(c: dict[str, np.ndarray]) -> _Fold:
 
 
 LONG_SIDE_MARGIN = 1.1
-"""half_long and thirds fold across y only when the near–far depth exceeds the left–right width by
-this factor, so near-square towels keep the x axis whatever the perception noise."""
+"""half_long folds along y only when the near–far depth exceeds the left–right width by this
+factor, so near-square towels keep the `half` axis whatever the perception noise."""
 
 
 def _depth_and_width(c: dict[str, np.ndarray]) -> tuple[float, float]:
@@ -192,22 +185,15 @@ def _half_long(c: dict[str, np.ndarray]) -> _Fold:
     return _half_y(c) if depth > LONG_SIDE_MARGIN * width else _half_x(c)
 
 
-def _first_third(c: dict[str, np.ndarray]) -> _Fold:
-    """The first third onto the middle: the near third, or on a towel deeper than wide the right
-    third (its carried edge is then the long one, so the first carry drags the second corner less).
-    The line lies at 1/3 of each side from the moving edge."""
-    depth, width = _depth_and_width(c)
-    if depth > LONG_SIDE_MARGIN * width:
-        return _edge_fold(c, ("far_right", "near_right"), ("far_left", "near_left"), 2.0 / 3.0)
+def _near_third(c: dict[str, np.ndarray]) -> _Fold:
+    """Near third onto the middle third: the line at 1/3 of each side from the near edge."""
     return _edge_fold(c, ("near_left", "near_right"), ("far_left", "far_right"), 2.0 / 3.0)
 
 
-def _last_third(c: dict[str, np.ndarray]) -> _Fold:
-    """The last third on top, on the outline _first_third left: that outline's midline across its
-    longer side, the far (or, on an outline deeper than wide, the left) side moving."""
-    depth, width = _depth_and_width(c)
-    if depth > width:
-        return _edge_fold(c, ("far_left", "near_left"), ("far_right", "near_right"), 0.5)
+def _far_third(c: dict[str, np.ndarray]) -> _Fold:
+    """Far third on top, from the outline after _near_third: that outline's midline, far moving.
+    (Folding a towel deeper than wide across its width instead, so the carried edges are the long
+    ones, was mixed across suites and is not used: docs/experiments.md.)"""
     return _edge_fold(c, ("far_left", "far_right"), ("near_left", "near_right"), 0.5)
 
 
@@ -276,7 +262,7 @@ _STAGES: dict[str, tuple[Callable[[dict[str, np.ndarray]], _Fold], ...]] = {
     "quarter": (_half_x, _half_y),
     "diagonal": (_triangle,),
     "diagonal_corners": (_corner_diagonal,),
-    "thirds": (_first_third, _last_third),
+    "thirds": (_near_third, _far_third),
 }
 
 
