@@ -5,11 +5,15 @@ import numpy as np
 import pytest
 
 from foldbot.loop import (
+    MIN_ARM_SEPARATION,
     MIN_LEFT,
     LoopConfig,
+    arms_apart,
+    assign_arms,
     corner_to_grasp,
     inset_grasp,
     moving_side_tip,
+    nearest_arm,
     outline_corners,
     place_is_corner,
     regrasp_point,
@@ -199,3 +203,55 @@ def test_outline_corners_are_the_detectors_four_not_a_bump_on_a_side():
     assert len(corners) == 4
     assert not place_is_corner(np.array([0.4, 0.154]), corners, 0.03)
     assert place_is_corner(np.array([0.31, 0.14]), corners, 0.03)
+
+
+# --- two arms ------------------------------------------------------------------------------------
+
+BASES_Y = (0.3, -0.3)  # CellLayout.arm_layouts(2): arm 0 on the left (+y), arm 1 on the right
+
+
+def corner_action(label, grasp_xy, place_xy):
+    return FoldAction(
+        grasp=np.array([*grasp_xy, 0.757]),
+        place=np.array([*place_xy, 0.761]),
+        fold_line=LINE,
+        label=label,
+    )
+
+
+def test_each_corner_goes_to_the_arm_on_its_side():
+    assert nearest_arm(np.array([0.6, 0.12, 0.76]), BASES_Y) == 0
+    assert nearest_arm(np.array([0.6, -0.02, 0.76]), BASES_Y) == 1
+    half = (
+        corner_action("far_right", (0.6, -0.15), (0.3, -0.15)),
+        corner_action("far_left", (0.6, 0.15), (0.3, 0.15)),
+    )
+    assert assign_arms(lambda p: nearest_arm(p, BASES_Y), half) == [1, 0]
+
+
+def test_two_corners_on_one_side_still_get_one_arm_each_left_to_left():
+    # A towel lying off-centre: both grasps nearer the left arm's base.
+    pair = (
+        corner_action("far_right", (0.6, 0.02), (0.3, 0.02)),
+        corner_action("far_left", (0.6, 0.25), (0.3, 0.25)),
+    )
+    assert assign_arms(lambda p: nearest_arm(p, BASES_Y), pair) == [1, 0]
+
+
+def test_corners_too_close_for_two_grippers_are_carried_one_after_the_other():
+    apart = (
+        corner_action("far_left", (0.6, 0.15), (0.3, 0.15)),
+        corner_action("far_right", (0.6, -0.15), (0.3, -0.15)),
+    )
+    assert arms_apart(apart)
+    gap = MIN_ARM_SEPARATION * 0.9
+    close_grasps = (
+        corner_action("a", (0.6, gap / 2), (0.3, 0.15)),
+        corner_action("b", (0.6, -gap / 2), (0.3, -0.15)),
+    )
+    close_places = (
+        corner_action("a", (0.6, 0.15), (0.3, gap / 2)),
+        corner_action("b", (0.6, -0.15), (0.3, -gap / 2)),
+    )
+    assert not arms_apart(close_grasps)
+    assert not arms_apart(close_places)

@@ -1,3 +1,4 @@
+import dataclasses
 import json
 import os
 import subprocess
@@ -95,6 +96,9 @@ def test_episode_folder_follows_the_contract(half_fold_episode):
         ({"perception": "psychic"}, "perception"),
         ({"seed": -1}, "seed"),
         ({"park": "garage"}, "out_of_view"),
+        ({"arms": 3}, "arms must be one of"),
+        ({"arms": True}, "arms must be one of"),
+        ({"garment": "tshirt", "recipe": "retail", "arms": 2}, "two-arm cell folds towels"),
     ],
 )
 def test_bad_episode_config(kwargs, needle):
@@ -121,6 +125,38 @@ def test_failed_grasp_is_retried_after_reobserving(tmp_path):
     # The retry does not repeat the miss: it closes the jaws at the (perceived) table.
     table = cfg.sim.layout.table_height
     assert first["attempts"][1]["grasp"][2] <= table + cfg.motion.stack_grasp_height + 0.002
+
+
+@pytest.mark.slow
+def test_two_arms_carry_a_half_folds_corners_together(tmp_path):
+    cfg = EpisodeConfig(arms=2, towel=TowelSpec(0.24, 0.24, 10), video_fps=0)
+    result = run_episode(cfg, tmp_path / "ep", log=lambda *_: None)
+    assert result["arms"] == 2
+    actions = result["actions"]
+    # One stage, its two far corners carried at once, each by the arm on its side.
+    assert [(a["label"], a["arm"]) for a in actions] == [("far_left", 0), ("far_right", 1)]
+    assert all(a["together"] and a["grasp_success"] for a in actions)
+    assert result["success"] is True
+    assert result["fold_error_mm"] <= 10.0
+
+
+@pytest.mark.slow
+def test_two_arms_redo_the_pair_after_an_injected_grasp_failure(tmp_path):
+    """The first grasp aimed 6 cm off its corner: both arms let go, re-observe, and redo the pair."""
+    cfg = EpisodeConfig(
+        arms=2, towel=TowelSpec(0.24, 0.24, 10), fault_grasp_offset=0.06, video_fps=0
+    )
+    result = run_episode(cfg, tmp_path / "ep", log=lambda *_: None)
+    first = result["actions"][0]
+    attempts = first["attempts"]
+    assert first["retries"] == 1 and len(attempts) == 2
+    assert attempts[0]["grasp_success"][0] is False
+    assert "no cloth" in attempts[0]["grasp_reasons"][0]
+    assert attempts[1]["grasp_success"] == [True, True]
+    # The redone grasp closes at the (perceived) table, as a one-arm retry does.
+    table = cfg.sim.layout.table_height
+    assert attempts[1]["grasps"][0][2] <= table + cfg.motion.stack_grasp_height + 0.002
+    assert all(a["grasp_success"] and a["together"] for a in result["actions"][:2])
 
 
 @pytest.mark.slow
@@ -204,6 +240,41 @@ def test_infeasible_action_is_rejected_before_the_arm_moves(tmp_path):
             executor.plan(segments)
         assert np.array_equal(robot.joint_positions(), q0)
         assert world.steps == 0
+
+
+def test_two_arm_cell_hands_an_action_to_the_arm_that_can_do_it():
+    """Arm 0 (left) cannot reach the table's far right corner; planning hands the action to arm 1
+    before anything moves, and an action neither arm can do is refused naming the first's reason."""
+    from foldbot.errors import UnreachableTargetError
+    from foldbot.pipeline import SimCell, build_sim_cell
+    from foldbot.planning.actions import FoldAction
+    from foldbot.sim.world import SimWorld
+
+    cfg = EpisodeConfig(arms=2, towel=TowelSpec(0.2, 0.2, 6), video_fps=0)
+    with SimWorld(cfg.sim) as world:
+        parts = build_sim_cell(cfg, world)
+        try:
+            cell = SimCell(
+                world, parts.robot, parts.executor, parts.camera, None, cfg.motion,
+                more_executors=parts.more_executors,
+            )  # fmt: skip
+            z = world.layout.table_height + 0.004
+            far_right = FoldAction(
+                grasp=np.array([0.72, -0.28, z]),
+                place=np.array([0.55, -0.28, z]),
+                fold_line=(0.635, 0.0, 0.0, 1.0),
+                label="far_right",
+            )
+            cell.use_arm(0)
+            steps = cell.plan_action(far_right)
+            assert cell.active_arm == 1 and len(steps) == 5
+            beyond = dataclasses.replace(far_right, place=np.array([1.5, -0.28, z]))
+            cell.use_arm(0)
+            with pytest.raises(UnreachableTargetError, match="no IK solution"):
+                cell.plan_action(beyond)
+            assert world.steps == 0
+        finally:
+            parts.model_world.close()
 
 
 def test_towel_size_is_drawn_from_the_seed_within_range():

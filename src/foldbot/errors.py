@@ -15,6 +15,10 @@ class UnreachableTargetError(FoldbotError):
     """Inverse kinematics found no joint configuration for a target pose within tolerance."""
 
 
+class ArmsWouldCollideError(FoldbotError):
+    """Two arms' planned motions would bring them closer than their clearance."""
+
+
 class SimulationDivergedError(FoldbotError):
     """The physics blew up (NaN or cloth vertices far outside the workspace); never scored."""
 

@@ -5,6 +5,9 @@ carry, place → re-observe → retry or go on → verify the stage — written 
 (`pipeline.SimCell`), and so do the ROS nodes (`foldbot.ros.task_node.RosCell`), so the same
 decisions run whether the modules talk by function call or over topics. The loop sees only
 observations (ClothState from images) and the cell's reports; never ground truth.
+
+A cell with two arms (`FoldCell.arms`) carries a stage's two corners at once, one arm each
+(`two_arm_actions`); everything else, and every fallback, runs one arm at a time.
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial import ConvexHull
 
-from foldbot.errors import FoldbotError, UnreachableTargetError
+from foldbot.errors import ArmsWouldCollideError, FoldbotError, UnreachableTargetError
 from foldbot.metrics import FoldLine
 from foldbot.perception.geometry import backproject_pixel, project_points
 from foldbot.perception.keypoints import label_corners, max_area_quad
@@ -35,6 +38,10 @@ from foldbot.planning.recipes import (
 )
 from foldbot.types import GraspResult, Observation
 
+MIN_ARM_SEPARATION = 0.12
+"""A two-arm cell carries a stage's two corners together only when both their grasp points and
+both their place points lie at least this far apart (m); closer, the grippers would meet, and the
+corners are carried one after the other."""
 GRASP_INSET = 0.01
 """A grasp moved onto the cloth lands this far (m) inside the perceived outline."""
 TIP_BAND = 0.01
@@ -130,6 +137,42 @@ class FoldCell(abc.ABC):
     def wait(self, seconds: float) -> None:
         """Let the cloth come to rest for `seconds` of cell time."""
 
+    @property
+    def arms(self) -> int:
+        """Arms in the cell; a cell with two implements the `*_together` methods."""
+        return 1
+
+    @property
+    def active_arm(self) -> int:
+        """The arm single actions use now (use_arm; a cell may switch to another arm in
+        plan_action when this one cannot do the action)."""
+        return 0
+
+    def use_arm(self, arm: int) -> None:
+        """Make `arm` the one plan_action, run_step, release_and_lift and the loop's single
+        actions use (a one-arm cell has only arm 0)."""
+        if arm != 0:
+            raise ValueError(f"this cell has one arm (0), got arm {arm!r}")
+
+    def arm_for(self, point: np.ndarray) -> int:
+        """The arm that should handle a grasp at `point`: the one on its side of the cell."""
+        return 0
+
+    def plan_together(self, actions: list[tuple[int, FoldAction]]) -> list[list[Any]]:
+        """Two-arm cells: each (arm, action)'s motion steps, every waypoint's IK solved before
+        anything moves (UnreachableTargetError names the infeasible one), the arms checked to
+        keep clear of each other (ArmsWouldCollideError)."""
+        raise NotImplementedError("this cell has one arm")
+
+    def run_together(self, steps: list[tuple[int, Any]]) -> list[StepLog]:
+        """Two-arm cells: move each arm along its step at once, then apply the gripper events."""
+        raise NotImplementedError("this cell has one arm")
+
+    def release_and_lift_arm(self, arm: int) -> None:
+        """Open `arm`'s gripper and lift it straight up."""
+        self.use_arm(arm)
+        self.release_and_lift()
+
     def start_stage(self, stage: int) -> bool:
         """Called before stage `stage` (≥ 1) is planned; True when the previous stage's closing
         observation is stale for planning (the oracle switches corner sources)."""
@@ -214,18 +257,34 @@ def run_fold(
         if stage == 0:
             rec.initial_overlay = plan_overlay(obs, state, plan, cell.table_height)
         corner_places = outline_corners(np.asarray(predicted, dtype=float).reshape(-1, 3))
-        for i, planned in enumerate(plan.actions):
-            log(f"stage {stage + 1}, action {i + 1}/{len(plan.actions)}: {planned.label} → place")
-            entry, latest = closed_loop_action(
+        if cell.arms > 1 and len(plan.actions) == 2 and arms_apart(plan.actions):
+            log(f"stage {stage + 1}: {' and '.join(a.label for a in plan.actions)} together")
+            entries, latest = two_arm_actions(
                 cfg,
                 cell,
-                planned,
+                plan.actions,
                 latest,
                 log,
                 inject_fault=cfg.fault_grasp_offset > 0 and not rec.actions,
                 predicted_corners=corner_places,
             )
-            rec.actions.append(entry)
+            rec.actions.extend(entries)
+        else:
+            for i, planned in enumerate(plan.actions):
+                log(
+                    f"stage {stage + 1}, action {i + 1}/{len(plan.actions)}: "
+                    f"{planned.label} → place"
+                )
+                entry, latest = single_arm_action(
+                    cfg,
+                    cell,
+                    planned,
+                    latest,
+                    log,
+                    inject_fault=cfg.fault_grasp_offset > 0 and not rec.actions,
+                    predicted_corners=corner_places,
+                )
+                rec.actions.append(entry)
         cell.park()
         cell.wait(settle_s)
         state, obs = cell.observe()
@@ -234,8 +293,11 @@ def run_fold(
             if extra is None:
                 break
             log(f"stage {stage + 1}: cloth left past the fold line; carrying it over from its tip")
+            cell.use_arm(cell.arm_for(extra.grasp))
             entry = execute_as_planned(cell, state, extra)
             entry.update(kind="finish_stage")
+            if cell.arms > 1:
+                entry["arm"] = cell.active_arm
             rec.actions.append(entry)
             cell.park()
             cell.wait(settle_s)
@@ -322,6 +384,7 @@ def run_open_loop(
     for plan in plans:
         for action in plan.actions:
             log(f"open loop: {action.label} → place")
+            cell.use_arm(cell.arm_for(action.grasp))
             rec.actions.append(execute_as_planned(cell, state, action))
 
 
@@ -572,9 +635,11 @@ def closed_loop_action(
     log: Callable[[str], None] = print,
     inject_fault: bool = False,
     predicted_corners: np.ndarray | None = None,
+    replacing: bool = False,
 ) -> tuple[dict, ClothState]:
     """Execute one pick-and-place, re-observing to grasp the corner where it now is, and
-    verifying the placement; a failed grasp or an off placement is redone (bounded).
+    verifying the placement; a failed grasp or an off placement is redone (bounded). With
+    `replacing`, `planned` re-places a corner that was placed off: its grasp is where it was seen.
 
     `latest` is the state of the newest observation (taken after the cloth last moved);
     `predicted_corners` are the corners of the outline the stage should leave: a placement is
@@ -583,7 +648,6 @@ def closed_loop_action(
     t_sim, t_wall = cell.sim_time, time.perf_counter()
     action, outcome, retries, attempts = planned, {}, 0, []
     state = latest
-    replacing = False
     while True:
         # Earlier actions move the cloth: grasp the corner where it is now. A corner placed off
         # is picked where it was seen to lie: after a fold, the labels that the corner detector
@@ -690,3 +754,226 @@ def execute_action(cell: FoldCell, action: FoldAction) -> dict:
         "grasped_vertices": list(grasp_result.vertex_ids) if grasp_result else [],
         "max_tracking_error": max_err,
     }
+
+
+# --- two arms ------------------------------------------------------------------------------------
+
+
+def arms_apart(actions: tuple[FoldAction, ...]) -> bool:
+    """Whether two actions' grasp points and place points are far enough apart for two grippers
+    to work them at once (MIN_ARM_SEPARATION)."""
+    a, b = actions
+    return bool(
+        np.linalg.norm(a.grasp[:2] - b.grasp[:2]) >= MIN_ARM_SEPARATION
+        and np.linalg.norm(a.place[:2] - b.place[:2]) >= MIN_ARM_SEPARATION
+    )
+
+
+def single_arm_action(
+    cfg: LoopConfig,
+    cell: FoldCell,
+    planned: FoldAction,
+    latest: ClothState,
+    log: Callable[[str], None] = print,
+    **kwargs: Any,
+) -> tuple[dict, ClothState]:
+    """closed_loop_action with the arm on the grasp's side of the cell (a two-arm cell records
+    which in the entry's `arm`)."""
+    arm = cell.arm_for(planned.grasp)
+    cell.use_arm(arm)
+    entry, state = closed_loop_action(cfg, cell, planned, latest, log, **kwargs)
+    if cell.arms > 1:
+        entry["arm"] = cell.active_arm
+    return entry, state
+
+
+def nearest_arm(point: np.ndarray, bases_y: tuple[float, ...]) -> int:
+    """The arm whose base is nearest `point` along y: the one on its side of the cell."""
+    return int(np.argmin([abs(float(point[1]) - by) for by in bases_y]))
+
+
+def assign_arms(arm_for: Callable[[np.ndarray], int], actions: tuple[FoldAction, ...]) -> list[int]:
+    """One arm per action, each on its grasp's side (`arm_for`); if both grasps fall on one arm's
+    side, the grasp further along +y goes to arm 0 (the left arm)."""
+    arms = [arm_for(a.grasp) for a in actions]
+    if len(set(arms)) == len(arms):
+        return arms
+    left_first = sorted(range(len(actions)), key=lambda i: -float(actions[i].grasp[1]))
+    out = [0] * len(actions)
+    for arm, i in enumerate(left_first):
+        out[i] = arm
+    return out
+
+
+def execute_together(cell: FoldCell, pairs: list[tuple[int, FoldAction]]) -> list[dict]:
+    """Plan every arm's pick-and-place (IK on every waypoint of both) before anything moves, then
+    run them step by step on one clock. When a grasp fails, every arm opens and lifts and the
+    pair stops there (nothing is carried by one arm alone)."""
+    try:
+        steps = cell.plan_together(pairs)
+    except UnreachableTargetError as exc:
+        labels = " and ".join(f"'{a.label}'" for _, a in pairs)
+        raise UnreachableTargetError(
+            f"actions {labels} are infeasible (nothing moved): {exc}"
+        ) from exc
+    if len({len(s) for s in steps}) != 1:
+        raise FoldbotError("arms moved together need the same number of motion steps")
+    grasps: list[GraspResult | None] = [None] * len(pairs)
+    max_err = [0.0] * len(pairs)
+    for k in range(len(steps[0])):
+        logs = cell.run_together([(arm, s[k]) for (arm, _), s in zip(pairs, steps, strict=True)])
+        for i, step_log in enumerate(logs):
+            max_err[i] = max(max_err[i], step_log.max_tracking_error)
+            if step_log.grasp is not None:
+                grasps[i] = step_log.grasp
+        if any(g is not None and not g.success for g in grasps):
+            for arm, _ in pairs:
+                cell.release_and_lift_arm(arm)
+            break
+    carried = all(g is not None and g.success for g in grasps)
+    return [
+        {
+            "grasp_success": bool(g and g.success),
+            "grasp_reason": g.reason if g else "no grasp attempted",
+            "grasped_vertices": list(g.vertex_ids) if g else [],
+            "max_tracking_error": err,
+            "carried": carried,
+        }
+        for g, err in zip(grasps, max_err, strict=True)
+    ]
+
+
+def two_arm_actions(
+    cfg: LoopConfig,
+    cell: FoldCell,
+    planned: tuple[FoldAction, ...],
+    latest: ClothState,
+    log: Callable[[str], None] = print,
+    inject_fault: bool = False,
+    predicted_corners: np.ndarray | None = None,
+) -> tuple[list[dict], ClothState]:
+    """A stage's two corners carried at once, one arm each, so neither drags the other.
+
+    Each arm takes the corner on its side (assign_arms); when the arms' planned motions would
+    bring them too close, the other way round, and failing that the corners are carried one arm
+    at a time. Each corner is grasped where it is seen now; when a grasp fails, both arms let go, the cell
+    re-observes and the pair is redone (the failed corner at the table, inside the corner seen,
+    as closed_loop_action retries it), at most `cfg.retries` times. A pair that still fails is
+    done one arm at a time (closed_loop_action). Afterwards each placement that should make a
+    corner is checked, and a corner placed off is re-placed by the arm on its side."""
+    arms = assign_arms(cell.arm_for, planned)
+    t_sim, t_wall = cell.sim_time, time.perf_counter()
+    state, actions = latest, list(planned)
+    failed = [False] * len(planned)
+    attempts: list[dict] = []
+    outcomes: list[dict] = []
+    for attempt in range(cfg.retries + 1):
+        for i, plan_i in enumerate(planned):
+            seen = corner_to_grasp(cfg, state, plan_i.label, actions[i], False)
+            if seen is not None:
+                actions[i] = dataclasses.replace(actions[i], grasp=seen)
+            if failed[i] or (plan_i.layers > 1 and attempt == 0):
+                corner = actions[i].grasp
+                actions[i] = dataclasses.replace(
+                    actions[i],
+                    grasp=stack_grasp_point(state, corner, cfg.stack_grasp_height),
+                    place=plan_i.place,
+                )
+                actions[i] = inset_grasp(state, actions[i], corner, cfg.stack_inset)
+        if inject_fault and attempt == 0:
+            outward = actions[0].grasp[:2] - state.keypoint_array().mean(axis=0)[:2]
+            outward = outward / max(np.linalg.norm(outward), 1e-9) * cfg.fault_grasp_offset
+            actions[0] = dataclasses.replace(actions[0], grasp=actions[0].grasp + [*outward, 0.0])
+        cell.show(
+            state,
+            grasp_points=[a.grasp for a in actions],
+            place_points=[a.place for a in actions],
+            fold_line=line_points(actions[0].fold_line, cell.table_height),
+        )
+        try:
+            try:
+                outcomes = execute_together(cell, list(zip(arms, actions, strict=True)))
+            except ArmsWouldCollideError as exc:
+                log(f"  the arms would meet ({exc}); trying them the other way round")
+                arms = arms[::-1]
+                outcomes = execute_together(cell, list(zip(arms, actions, strict=True)))
+        except ArmsWouldCollideError as exc:
+            log(f"  the arms would meet ({exc}); carrying the corners one arm at a time")
+            entries = []
+            for plan_i in planned:
+                entry, state = single_arm_action(
+                    cfg, cell, plan_i, state, log, predicted_corners=predicted_corners
+                )
+                entry["arms_would_meet"] = str(exc)
+                entries.append(entry)
+            return entries, state
+        cell.park()
+        state, _obs = cell.observe()
+        failed = [not o["grasp_success"] for o in outcomes]
+        attempts.append(
+            {
+                "grasps": [[float(v) for v in a.grasp] for a in actions],
+                "grasp_success": [o["grasp_success"] for o in outcomes],
+                "grasp_reasons": [o["grasp_reason"] for o in outcomes],
+            }
+        )
+        if outcomes[0]["carried"]:
+            break
+        reasons = "; ".join(
+            f"{a.label}: {o['grasp_reason']}"
+            for a, o in zip(planned, outcomes, strict=True)
+            if not o["grasp_success"]
+        )
+        if attempt < cfg.retries:
+            log(f"  grasp failed ({reasons}); both arms let go, re-observed, retry {attempt + 1}")
+        else:
+            log(f"  grasp failed ({reasons}); carrying the corners one arm at a time")
+    pair_sim, pair_wall = cell.sim_time - t_sim, time.perf_counter() - t_wall
+    entries = []
+    for i, plan_i in enumerate(planned):
+        entry = {
+            "kind": "pick_and_place",
+            "label": plan_i.label,
+            "arm": arms[i],
+            "together": True,
+            "grasp": [float(v) for v in actions[i].grasp],
+            "place": [float(v) for v in actions[i].place],
+            "grasp_success": outcomes[i]["grasp_success"],
+            "grasp_reason": outcomes[i]["grasp_reason"],
+            "grasped_vertices": outcomes[i]["grasped_vertices"],
+            "placed_error_m": None,
+            "retries": len(attempts) - 1,
+            "attempts": attempts,
+            "max_tracking_error_m": outcomes[i]["max_tracking_error"],
+            # The pair's time, shared: both entries ran over the same seconds.
+            "sim_seconds": pair_sim / len(planned),
+            "wall_seconds": pair_wall / len(planned),
+        }
+        entries.append(entry)
+    if not outcomes[0]["carried"]:
+        for plan_i in planned:
+            log(f"  {plan_i.label} → place, one arm")
+            entry, state = single_arm_action(
+                cfg, cell, plan_i, state, log, predicted_corners=predicted_corners
+            )
+            entry["after_pair_failed"] = True
+            entries.append(entry)
+        return entries, state
+    for i, plan_i in enumerate(planned):
+        if not place_is_corner(plan_i.place, predicted_corners, cfg.place_tolerance):
+            continue
+        seen = nearest_keypoint(state, actions[i].place, 2 * cfg.regrasp_radius)
+        if seen is None:
+            continue
+        error = float(np.linalg.norm(seen[:2] - actions[i].place[:2]))
+        entries[i]["placed_error_m"] = error
+        if error <= cfg.place_tolerance or cfg.retries < 1:
+            continue
+        log(f"  {plan_i.label} placed {error * 1000:.0f} mm off; re-placing it with one arm")
+        redo = dataclasses.replace(plan_i, grasp=seen)
+        entry, state = single_arm_action(
+            cfg, cell, redo, state, log, predicted_corners=predicted_corners, replacing=True
+        )
+        entry["kind"] = "re_place"
+        entries.append(entry)
+    return entries, state

@@ -19,15 +19,16 @@ from pathlib import Path
 import numpy as np
 
 from foldbot import metrics
+from foldbot.control.bimanual import check_arms_clear, move_joints_together, run_together
 from foldbot.control.executor import ArmExecutor, PlannedSegment
-from foldbot.errors import UnreachableTargetError, require
+from foldbot.errors import ArmsWouldCollideError, UnreachableTargetError, require
 from foldbot.flatten import run_flatten
 from foldbot.garment_loop import run_garment_fold
 from foldbot.garments import sample_garment
 from foldbot.garments.mesh import ClothMesh
 from foldbot.garments.towel import TowelSpec, make_towel
 from foldbot.io.episode import EpisodeWriter
-from foldbot.loop import FoldCell, FoldRecord, LoopConfig, StepLog, run_fold
+from foldbot.loop import FoldCell, FoldRecord, LoopConfig, StepLog, nearest_arm, run_fold
 from foldbot.metrics import score_episode
 from foldbot.perception.estimator import VisionEstimator
 from foldbot.perception.fallback import FirstDetected
@@ -57,6 +58,8 @@ at the robot (world −x): the hem-up and in-half folds then carry far cloth tow
 PERCEPTION_MODES = ("vision", "oracle")
 START_STATES = ("flat", "crumpled")
 """How an episode's cloth starts: settled flat, or crumpled (flattened by the robot first)."""
+ARM_COUNTS = (1, 2)
+"""Arms a cell can have: one, or two side by side (CellLayout.arm_layouts)."""
 PARK_POSES = ("home", "out_of_view")
 """Where the arm waits while the camera looks: home (TCP 0.25 m over the workspace centre; from
 the camera it hides the near edge of a large cloth) or out_of_view (TCP near the robot base,
@@ -114,6 +117,9 @@ class EpisodeConfig:
     perceived coverage reaches the target, or its action budget is spent) before folding."""
     park: str = "home"
     """Where the arm waits while the camera looks (PARK_POSES): home or out_of_view."""
+    arms: int = 1
+    """Arms in the cell: 1, or 2 side by side (CellLayout.arm_layouts), which carry a stage's
+    two corners together (towels; flattening and single actions use the arm on their side)."""
 
     def __post_init__(self) -> None:
         require(
@@ -166,6 +172,14 @@ class EpisodeConfig:
         require(
             self.park in PARK_POSES,
             f"unknown park {self.park!r}; allowed: {', '.join(PARK_POSES)}",
+        )
+        require(
+            self.arms in ARM_COUNTS and not isinstance(self.arms, bool),
+            f"arms must be one of {ARM_COUNTS}, got {self.arms!r}",
+        )
+        require(
+            self.arms == 1 or self.garment == "towel",
+            f"the two-arm cell folds towels; a {self.garment} is folded with arms = 1",
         )
 
 
@@ -248,23 +262,79 @@ class SimCell(FoldCell):
         motion: MotionConfig,
         recorder: _VideoRecorder | None = None,
         park: str = "home",
+        more_executors: tuple[ArmExecutor, ...] = (),
     ) -> None:
         self.world = world
-        self.robot = robot
-        self.executor = executor
+        self.executors = (executor, *more_executors)
+        """One per arm (arm 0 first); `robot` and `executor` are the active arm's."""
+        self.active = 0
         self.camera = camera
         self.estimator = estimator
         self.motion = motion
         self.recorder = recorder
         self.table_height = world.layout.table_height
-        self.park_q = robot.out_of_view_q if park == "out_of_view" else robot.home_q
+        self.park_qs = tuple(
+            e.robot.out_of_view_q if park == "out_of_view" else e.robot.home_q
+            for e in self.executors
+        )
+
+    @property
+    def executor(self) -> ArmExecutor:
+        return self.executors[self.active]
+
+    @property
+    def robot(self):
+        return self.executor.robot
+
+    @property
+    def park_q(self) -> np.ndarray:
+        return self.park_qs[self.active]
+
+    @property
+    def arms(self) -> int:
+        return len(self.executors)
+
+    @property
+    def active_arm(self) -> int:
+        return self.active
+
+    def use_arm(self, arm: int) -> None:
+        require(0 <= arm < self.arms, f"arm must be in [0, {self.arms - 1}], got {arm!r}")
+        self.active = arm
+
+    def arm_for(self, point: np.ndarray) -> int:
+        return nearest_arm(point, tuple(e.robot.layout.robot_base_xyz[1] for e in self.executors))
+
+    def plan_together(self, actions: list[tuple[int, FoldAction]]) -> list[list[PlannedSegment]]:
+        plans = [
+            self.executors[arm].plan(
+                action_segments(action, self.executors[arm].robot.tcp_pose()[0], self.motion)
+            )
+            for arm, action in actions
+        ]
+        check_arms_clear(
+            [(self.executors[arm], plan) for (arm, _), plan in zip(actions, plans, strict=True)]
+        )
+        return plans
+
+    def run_together(self, steps: list[tuple[int, PlannedSegment]]) -> list[StepLog]:
+        logs = run_together([(self.executors[arm], step) for arm, step in steps])
+        return [StepLog(g.name, g.max_tracking_error, g.grasp) for g in logs]
+
+    def release_and_lift_arm(self, arm: int) -> None:
+        previous, self.active = self.active, arm
+        try:
+            self.release_and_lift()
+        finally:
+            self.active = previous
 
     @property
     def sim_time(self) -> float:
         return self.world.sim_time
 
     def observe(self) -> tuple[ClothState, Observation]:
-        obs = self.camera.observe(self.robot.joint_positions(), stamp=self.world.sim_time)
+        robot = self.executors[0].robot
+        obs = self.camera.observe(robot.joint_positions(), stamp=self.world.sim_time)
         state = self.estimator.estimate(obs)
         if self.recorder is not None:
             self.recorder.state = state
@@ -279,7 +349,36 @@ class SimCell(FoldCell):
         return False
 
     def plan_action(self, action: FoldAction) -> list[PlannedSegment]:
-        return self.executor.plan(action_segments(action, self.robot.tcp_pose()[0], self.motion))
+        # A two-arm cell: the active arm (the one on the grasp's side) first; when it cannot do
+        # the action (IK, or it would meet the other arm, parked), the other one, which then
+        # becomes the active arm for run_step.
+        order = [self.active] + [i for i in range(self.arms) if i != self.active]
+        first_error: UnreachableTargetError | None = None
+        for arm in order:
+            try:
+                plan = self._plan_with(arm, action)
+            except UnreachableTargetError as exc:
+                first_error = first_error or exc
+                continue
+            self.active = arm
+            return plan
+        assert first_error is not None
+        raise first_error
+
+    def _plan_with(self, arm: int, action: FoldAction) -> list[PlannedSegment]:
+        ex = self.executors[arm]
+        plan = ex.plan(action_segments(action, ex.robot.tcp_pose()[0], self.motion))
+        if self.arms > 1:  # the other arms wait where they are: the moving one must clear them
+            plans = [(ex, plan)]
+            for other in self.executors:
+                if other is not ex:
+                    q = other.robot.joint_positions()[None, :]
+                    plans.append((other, [dataclasses.replace(s, joint_path=q) for s in plan]))
+            try:
+                check_arms_clear(plans)
+            except ArmsWouldCollideError as exc:
+                raise UnreachableTargetError(f"arm {arm}: {exc}") from exc
+        return plan
 
     def run_step(self, step: PlannedSegment) -> StepLog:
         seg_log = self.executor.run(step)
@@ -297,7 +396,10 @@ class SimCell(FoldCell):
             ) from exc
 
     def park(self) -> None:
-        self.executor.move_joints(self.park_q, "park")
+        if self.arms == 1:
+            self.executor.move_joints(self.park_q, "park")
+        else:
+            move_joints_together(list(zip(self.executors, self.park_qs, strict=True)), "park")
 
     def wait(self, seconds: float) -> None:
         self.world.step(round(seconds / self.world.time_step))
@@ -344,6 +446,7 @@ def episode_result(
         "garment": cfg.garment,
         "recipe": cfg.recipe,
         "robot": cfg.robot,
+        "arms": cfg.arms,
         "seed": cfg.seed,
         "perception": cfg.perception,
         "closed_loop": cfg.closed_loop,
@@ -379,12 +482,16 @@ class SimCellParts:
     executor: ArmExecutor
     model_world: SimWorld
     """The planner's kinematic twin of the arm lives here (never stepped); close it with the cell."""
+    more_executors: tuple[ArmExecutor, ...] = ()
+    """A two-arm cell's second arm (its robot is `more_executors[0].robot`)."""
 
 
 def build_sim_cell(cfg: EpisodeConfig, world: SimWorld) -> SimCellParts:
     """Arm, cloth (seeded size and pose), divergence monitor, camera, oracle and executor."""
     layout = world.layout
-    robot = make_robot(cfg.robot, world.client, layout)
+    arm_layouts = layout.arm_layouts(cfg.arms)
+    robot = make_robot(cfg.robot, world.client, arm_layouts[0])
+    others = [make_robot(cfg.robot, world.client, lay) for lay in arm_layouts[1:]]
     center, yaw = seeded_pose(cfg, layout.workspace_center_xy)
     spec, mesh = seeded_garment(cfg)
     cloth = SoftCloth(world.client, mesh, cfg.cloth, layout.table_height, center, yaw)
@@ -392,10 +499,29 @@ def build_sim_cell(cfg: EpisodeConfig, world: SimWorld) -> SimCellParts:
     camera = RGBDCamera(world.client, cfg.camera)
     oracle = GroundTruthOracle(cloth, camera)
     model_world = SimWorld(dataclasses.replace(cfg.sim, gui=False))
-    model = make_robot(cfg.robot, model_world.client, model_world.layout)
-    executor = ArmExecutor(world, robot, ClothGrasp(world, robot, cloth), model=model)
+    executors = [
+        ArmExecutor(
+            world,
+            arm,
+            ClothGrasp(world, arm, cloth),
+            model=make_robot(cfg.robot, model_world.client, lay),
+            model_table_id=model_world.table_id,
+        )
+        for arm, lay in zip([robot, *others], arm_layouts, strict=True)
+    ]
     return SimCellParts(
-        world, robot, spec, mesh, cloth, center, yaw, camera, oracle, executor, model_world
+        world,
+        robot,
+        spec,
+        mesh,
+        cloth,
+        center,
+        yaw,
+        camera,
+        oracle,
+        executors[0],
+        model_world,
+        tuple(executors[1:]),
     )
 
 
@@ -464,7 +590,15 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
         log(f"settling the cloth ({mesh.vertices.shape[0]} vertices)…")
         settle(world, cloth)
         cell = SimCell(
-            world, robot, executor, camera, estimator, cfg.motion, recorder, park=cfg.park
+            world,
+            robot,
+            executor,
+            camera,
+            estimator,
+            cfg.motion,
+            recorder,
+            park=cfg.park,
+            more_executors=parts.more_executors,
         )
         flattened = None
         if cfg.start == "crumpled":

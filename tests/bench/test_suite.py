@@ -1,5 +1,6 @@
 """Suite files: the repository's suites load, and every bad value gets one clear error."""
 
+import dataclasses
 import math
 
 import pytest
@@ -103,6 +104,24 @@ def test_odd_grid_reaches_the_towel_and_is_left_out_of_specs_by_default(tiny_sui
     assert "odd counts" in suite_from_dict(data).randomised["text"]
 
 
+def test_arms_reach_the_cell_and_are_left_out_of_specs_by_default(tiny_suite_data):
+    data = tiny_suite_data()
+    default = load_one(data)
+    assert default.to_config().arms == 1
+    assert "arms" not in default.as_dict()  # older runs keep resuming
+    data["episode"]["arms"] = 2
+    spec = load_one(data)
+    assert spec.to_config().arms == 2
+    assert EpisodeSpec.from_dict(spec.as_dict()) == spec
+
+
+def test_the_two_arm_suite_folds_the_loop_suites_towels():
+    two, one = load_suite("towel_two_arms"), load_suite("towel_loop")
+    assert {e.arms for e in two.episodes} == {2}
+    # The same episodes but for the arms, so the two cells compare towel for towel.
+    assert [dataclasses.replace(e, arms=1) for e in two.episodes] == list(one.episodes)
+
+
 def test_the_loop_acceptance_suite_parks_out_of_view_over_20_seeds():
     suite = load_suite("towel_loop")
     assert len(suite.episodes) == 80
@@ -161,6 +180,7 @@ def test_unknown_suite_name_lists_the_available_ones():
         (lambda d: d["episode"].update(retries=-1), ["episode.retries", "-1"]),
         (lambda d: d["episode"].update(park="garage"), ["episode.park", "garage", "out_of_view"]),
         (lambda d: d["episode"].update(time_step=0.5), ["episode.time_step", "0.5"]),
+        (lambda d: d["episode"].update(arms=3), ["episode.arms", "3", "1, 2"]),
         (lambda d: d["episode"].update(time_step=0), ["episode.time_step", "0"]),
         (lambda d: d.update(reference={"ravens_speed": "yes"}), ["ravens_speed", "bool"]),
         (lambda d: d.update(name=""), ["name"]),

@@ -115,3 +115,13 @@ def test_the_arm_parks_at_home_unless_told(tmp_path, args, park):
     add_arguments(parser)
     cfg = config_from_args(parser.parse_args(["--out", str(tmp_path / "ep"), *args]))
     assert cfg.park == park
+
+
+def test_arms_option_reaches_the_cell(tmp_path):
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    out = ["--out", str(tmp_path / "ep")]
+    assert config_from_args(parser.parse_args(out)).arms == 1
+    assert config_from_args(parser.parse_args([*out, "--arms", "2"])).arms == 2
+    with pytest.raises(SystemExit):
+        parser.parse_args([*out, "--arms", "3"])

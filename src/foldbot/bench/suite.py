@@ -34,6 +34,7 @@ video_fps = 0                           # video.mp4 frames per simulated second 
 start = "flat"                          # "crumpled": crumple the cloth, flatten it, then fold
 park = "home"                           # "out_of_view": the arm waits outside the camera's image
 time_step = 0.0027778                   # s, physics step (optional; default SimConfig's 1/360)
+arms = 1                                # 2: two arms side by side carry a stage's corners together
 
 [reference]
 ravens_speed = true                     # plain-PyBullet speed reference (ravens_reference.py)
@@ -55,6 +56,7 @@ from typing import Any
 from foldbot.errors import ConfigError
 from foldbot.garments.towel import MAX_RESOLUTION, MIN_RESOLUTION, TowelSpec
 from foldbot.pipeline import (
+    ARM_COUNTS,
     GARMENTS,
     PARK_POSES,
     PERCEPTION_MODES,
@@ -78,7 +80,7 @@ _SCHEMA: dict[str, set[str]] = {
     "axes": {"garment", "recipe", "perception", "loop", "seeds"},
     "towel": {"resolution", "odd_grid", "width", "height"},
     "randomise": {"towel_side", "position_jitter", "yaw_deg"},
-    "episode": {"retries", "video_fps", "start", "park", "time_step"},
+    "episode": {"retries", "video_fps", "start", "park", "time_step", "arms"},
     "reference": {"ravens_speed"},
 }
 
@@ -136,6 +138,8 @@ class EpisodeSpec:
     """Where the arm waits while the camera looks: home or out_of_view."""
     time_step: float | None = None
     """Physics step (s); None = SimConfig's default (1/360 s)."""
+    arms: int = 1
+    """Arms in the cell (EpisodeConfig.arms): 1, or 2 side by side."""
 
     @property
     def id(self) -> str:
@@ -170,6 +174,7 @@ class EpisodeSpec:
             video_fps=self.video_fps,
             start=self.start,
             park=self.park,
+            arms=self.arms,
             sim=SimConfig() if self.time_step is None else SimConfig(time_step=self.time_step),
         )
 
@@ -180,6 +185,8 @@ class EpisodeSpec:
             del d["time_step"]  # runs from before the key existed resume unchanged
         if not d["towel_odd_grid"]:
             del d["towel_odd_grid"]  # likewise
+        if d["arms"] == 1:
+            del d["arms"]  # likewise
         if d["towel_side_range"] is not None:
             d["towel_side_range"] = list(d["towel_side_range"])
         return d
@@ -376,6 +383,12 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
         raise ConfigError(
             f"{where}: episode.park = {park!r} is unknown; allowed: {', '.join(PARK_POSES)}"
         )
+    arms = _get(data, "episode", "arms", int, 1, where)
+    if arms not in ARM_COUNTS:
+        raise ConfigError(
+            f"{where}: episode.arms = {arms!r} is not allowed; allowed: "
+            f"{', '.join(map(str, ARM_COUNTS))}"
+        )
     time_step = ep.get("time_step")
     if time_step is not None:
         time_step = _range(time_step, "episode.time_step", 1e-4, 0.02, where)
@@ -406,6 +419,7 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
                                 start=start,
                                 park=park,
                                 time_step=time_step,
+                                arms=arms,
                             )
                         )
     for spec in specs[:1]:

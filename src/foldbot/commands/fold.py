@@ -8,6 +8,7 @@ from pathlib import Path
 
 from foldbot.garments.towel import TowelSpec
 from foldbot.pipeline import (
+    ARM_COUNTS,
     GARMENTS,
     PARK_POSES,
     PERCEPTION_MODES,
@@ -67,6 +68,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="where the arm waits while the camera looks: home (default, over the workspace) "
         "or out_of_view (near the robot base, outside the image)",
     )
+    parser.add_argument(
+        "--arms",
+        type=int,
+        default=1,
+        choices=ARM_COUNTS,
+        help="arms in the cell: 1 (default), or 2 side by side, which carry a stage's two corners "
+        "together (towels)",
+    )
     parser.add_argument("--seed", type=int, default=0, help="randomisation seed (default 0)")
     parser.add_argument("--width", type=float, default=0.30, help="towel width in m (0.05–1.0)")
     parser.add_argument("--height", type=float, default=0.30, help="towel height in m (0.05–1.0)")
@@ -107,6 +116,7 @@ def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
         seed=args.seed,
         start=args.start,
         park=args.park,
+        arms=args.arms,
         towel=TowelSpec(
             width=args.width,
             height=args.height,

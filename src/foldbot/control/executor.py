@@ -11,10 +11,16 @@ import numpy as np
 from foldbot.control.trajectory import JointTrajectory, time_parametrize
 from foldbot.errors import ConfigError, UnreachableTargetError
 from foldbot.planning.motion import Segment
+from foldbot.sim import import_pybullet
 from foldbot.sim.grasp import ClothGrasp
 from foldbot.sim.robots.base import Robot
 from foldbot.sim.robots.base import gripper_down_quaternion as _down
 from foldbot.types import GraspResult
+
+p = import_pybullet()  # pybullet, its start-up banner silenced (foldbot.sim)
+
+TABLE_CLEARANCE = 0.0
+"""An arm link closer to the table than this (m; 0 = touching) makes a waypoint infeasible."""
 
 
 @dataclass
@@ -57,6 +63,7 @@ class ArmExecutor:
         grasp: ClothGrasp,
         yaw: float = 0.0,
         model: Robot | None = None,
+        model_table_id: int | None = None,
     ) -> None:
         self.world = world
         self.robot = robot
@@ -65,6 +72,9 @@ class ArmExecutor:
         self.model = robot if model is None else model
         """Where IK and FK are computed: a kinematic twin of `robot` in a world of its own keeps
         planning from touching the simulated arm (the ROS planner node plans the same way)."""
+        self.model_table_id = world.table_id if model is None else model_table_id
+        """The table in the model's world, which every planned waypoint must keep the arm clear
+        of (None: not checked, for a twin in a world without one)."""
 
     def joint_path(self, points: np.ndarray, q_seed: np.ndarray) -> np.ndarray:
         """IK for every waypoint, each seeded by the previous solution (N × dof)."""
@@ -78,6 +88,31 @@ class ArmExecutor:
                 raise UnreachableTargetError(f"waypoint {i} of the path: {exc}") from exc
             out.append(q)
         return np.asarray(out)
+
+    def check_table_clearance(self, path: np.ndarray) -> None:
+        """Raise UnreachableTargetError when at some waypoint of the joint path (N × dof) an arm
+        link (Robot.body_link_indices: not the base on its mount, nor the fingers, which close on
+        cloth at the table) would touch the table."""
+        if self.model_table_id is None:
+            return
+        m = self.model
+        for i, q in enumerate(np.asarray(path, dtype=float)):
+            with m.posed(q):
+                for link in m.body_link_indices:
+                    hits = p.getClosestPoints(
+                        m.body_id,
+                        self.model_table_id,
+                        TABLE_CLEARANCE,
+                        linkIndexA=link,
+                        physicsClientId=m.client,
+                    )
+                    if hits:
+                        d = min(h[8] for h in hits)
+                        raise UnreachableTargetError(
+                            f"waypoint {i}: the arm's {m.link_name(link)} would touch the table "
+                            f"({d * 1000:.1f} mm from it; at least {TABLE_CLEARANCE * 1000:.0f} mm "
+                            f"needed) at joints {np.round(q, 3).tolist()} rad"
+                        )
 
     def trajectory_for(self, path: np.ndarray, points: np.ndarray, speed: float) -> JointTrajectory:
         """Time-optimal trajectory along the joint path within the robot's joint velocity,
@@ -116,6 +151,7 @@ class ArmExecutor:
         for seg in segments:
             try:
                 path = self.joint_path(seg.points, q)
+                self.check_table_clearance(path)
             except UnreachableTargetError as exc:
                 raise UnreachableTargetError(f"segment '{seg.name}': {exc}") from exc
             planned.append(
@@ -150,34 +186,73 @@ class ArmExecutor:
         err = float(np.linalg.norm(r.tcp_pose()[0] - r.fk_tcp(q_target)[0]))
         return SegmentLog(name, traj.duration, err)
 
+    def start(self, segment: Segment | PlannedSegment) -> _Run:
+        """Time-parametrise a segment (planning it first if needed) from where the arm really is
+        (it may have drifted by the tracking error); step it with `_Run.command`."""
+        planned = segment if isinstance(segment, PlannedSegment) else self.plan([segment])[0]
+        path = np.array(planned.joint_path, dtype=float)
+        path[0] = self.robot.joint_positions()
+        traj = self.trajectory_for(path, planned.points, planned.segment.speed)
+        return _Run(self, planned.segment, planned.points, traj, _cartesian_arc(planned.points))
+
     def run(self, segment: Segment | PlannedSegment) -> SegmentLog:
         """Move along the segment (planning it first if needed), then apply its gripper event."""
-        planned = segment if isinstance(segment, PlannedSegment) else self.plan([segment])[0]
-        segment, path, points = planned.segment, planned.joint_path, planned.points
-        # Start from where the arm really is (it may have drifted by the tracking error).
-        path = np.array(path, dtype=float)
-        path[0] = self.robot.joint_positions()
-        traj = self.trajectory_for(path, points, segment.speed)
-        # Cartesian reference for monitoring: the TCP waypoints at the trajectory's path coordinate.
-        cum = _cartesian_arc(points)
-        last = len(traj.times) - 1
-        max_err = 0.0
-        for k in range(1, last + 1):
-            self.robot.command_joint_positions(traj.positions[k], traj.velocities[k])
+        run = self.start(segment)
+        for k in range(1, run.samples):
+            run.command(k)
             self.world.step()
-            if k % 8 == 0 or k == last:
-                target = np.array([np.interp(traj.arc[k], cum, points[:, j]) for j in range(3)])
-                max_err = max(max_err, float(np.linalg.norm(self.robot.tcp_pose()[0] - target)))
-        peaks = traj.peaks()
+            run.monitor(k)
+        return run.finish()
+
+
+@dataclass
+class _Run:
+    """One segment being executed: its trajectory, commanded sample by sample, and the largest
+    TCP tracking error seen (checked every 8th step and at the end)."""
+
+    executor: ArmExecutor
+    segment: Segment
+    points: np.ndarray
+    traj: JointTrajectory
+    cum: np.ndarray
+    """Cumulative TCP path length at each waypoint (m): the Cartesian reference for monitoring."""
+    max_err: float = 0.0
+
+    @property
+    def samples(self) -> int:
+        return len(self.traj.times)
+
+    def command(self, k: int) -> None:
+        """Command sample k (held at the last sample, at rest, once the trajectory has ended)."""
+        robot, last = self.executor.robot, self.samples - 1
+        if k <= last:
+            robot.command_joint_positions(self.traj.positions[k], self.traj.velocities[k])
+        else:
+            robot.command_joint_positions(self.traj.positions[last], np.zeros(robot.dof))
+
+    def monitor(self, k: int) -> None:
+        """After the step that followed command(k): update the tracking error."""
+        last = self.samples - 1
+        if k > last or not (k % 8 == 0 or k == last):
+            return
+        target = np.array(
+            [np.interp(self.traj.arc[k], self.cum, self.points[:, j]) for j in range(3)]
+        )
+        err = float(np.linalg.norm(self.executor.robot.tcp_pose()[0] - target))
+        self.max_err = max(self.max_err, err)
+
+    def finish(self) -> SegmentLog:
+        """The segment's log, after its gripper event (close → the grasp result)."""
+        peaks = self.traj.peaks()
         log = SegmentLog(
-            segment.name,
-            traj.duration,
-            max_err,
+            self.segment.name,
+            self.traj.duration,
+            self.max_err,
             peak_joint_velocity=peaks["velocity"],
             peak_joint_acceleration=peaks["acceleration"],
         )
-        if segment.gripper == "close":
-            log.grasp = self.grasp.close()
-        elif segment.gripper == "open":
-            self.grasp.open()
+        if self.segment.gripper == "close":
+            log.grasp = self.executor.grasp.close()
+        elif self.segment.gripper == "open":
+            self.executor.grasp.open()
         return log

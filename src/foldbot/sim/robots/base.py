@@ -178,7 +178,7 @@ class Robot(abc.ABC):
                 physicsClientId=self.client,
             )
         # Home: gripper down over the workspace centre, HOME_HEIGHT_ABOVE_TABLE above the table.
-        cx, cy = layout.workspace_center_xy
+        cx, cy = layout.workspace_center_xy if layout.home_xy is None else layout.home_xy
         self.home_q: np.ndarray = _frozen(self.HOME_SEED)
         """Gripper-down posture with the TCP HOME_HEIGHT_ABOVE_TABLE over the workspace centre."""
         self.reset_joints(self.home_q)
@@ -318,6 +318,31 @@ class Robot(abc.ABC):
         finally:
             for j, s in zip(joints, saved, strict=True):
                 p.resetJointState(self.body_id, j, s[0], s[1], physicsClientId=self.client)
+
+    @contextmanager
+    def posed(self, q: Sequence[float] | np.ndarray) -> Iterator[None]:
+        """Put the arm at angles `q` for a check (e.g. clearance), restoring the state on exit."""
+        q = self._check_q(q)
+        with self._preserved_state():
+            self._set_arm(q)
+            yield
+
+    @property
+    def body_link_indices(self) -> tuple[int, ...]:
+        """The arm's links that must keep clear of the table and of other arms: every link but
+        the base (mounted on the table) and the fingers (they close on cloth at the table)."""
+        fingers = set(self.finger_link_indices)
+        return tuple(
+            j
+            for j in range(p.getNumJoints(self.body_id, physicsClientId=self.client))
+            if j not in fingers
+        )
+
+    def link_name(self, link: int) -> str:
+        """The URDF name of link index `link` (-1: the base)."""
+        if link < 0:
+            return "base"
+        return p.getJointInfo(self.body_id, link, physicsClientId=self.client)[12].decode()
 
     def _set_arm(self, q: np.ndarray) -> None:
         for j, v in zip(self.arm_joint_indices, q, strict=True):

@@ -1,0 +1,204 @@
+"""Would a second arm fold better? A physics probe with ideal grippers, one against two.
+
+For each seed of `towel_loop` (its towel, pose and mesh): settle the towel, then fold it with
+kinematic grippers that hold GROUND-TRUTH vertices (a probe for comparison, not the cell's
+perception or arm). Each stage is planned by `planning.recipes.plan_stage` on the ground-truth
+outline corners; each of its actions holds every vertex within `--reach` (table plane) of the
+planned grasp point, all layers, and carries them along the planner's arc (`planning.motion`:
+the carry arc at 0.25 m/s, the last 1 cm lowered at a third of that) onto the place point,
+then lets go. With `--grippers 1` the actions run one after the other (what the one-arm cell
+does, without its arm, perception or missed grasps); with `--grippers 2` a stage's two actions
+run together, both grippers on the same clock. The fold is scored as the episodes are
+(metrics.score_episode). Each seed runs in its own process; one JSON line per seed on stdout.
+
+    .venv/bin/python scripts/measure_two_grippers.py --recipe half --grippers 2 --seeds 0-9
+"""
+
+from __future__ import annotations
+
+# isort: off
+import foldbot  # noqa: F401  first: caps numpy's SIMD level before numpy loads (foldbot.simd)
+
+# isort: on
+import argparse
+import json
+import subprocess
+import sys
+
+import numpy as np
+
+from foldbot.bench.suite import parse_seeds
+
+SETTLE_AFTER_STAGE_S = 1.0
+
+
+def _smooth(u: np.ndarray) -> np.ndarray:
+    """Cubic ease-in/out on [0, 1] (zero speed at both ends)."""
+    return u * u * (3.0 - 2.0 * u)
+
+
+def _timed_path(points: np.ndarray, speed: float, dt: float) -> np.ndarray:
+    """Positions at every physics step along a polyline, eased, at `speed` nominal (m/s)."""
+    seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    n = max(2, int(np.ceil(cum[-1] / speed / dt)) + 1)
+    s = _smooth(np.linspace(0.0, 1.0, n)) * cum[-1]
+    return np.column_stack([np.interp(s, cum, points[:, j]) for j in range(3)])
+
+
+class KinematicGripper:
+    """A collision-free body driven by a fixed constraint; cloth vertices are anchored to it."""
+
+    def __init__(self, client: int, cloth) -> None:
+        import pybullet as p
+
+        self.p, self.client, self.cloth = p, client, cloth
+        self.body = p.createMultiBody(0.05, -1, -1, [0, 0, 2.0], physicsClientId=client)
+        self.cid = p.createConstraint(
+            self.body, -1, -1, -1, p.JOINT_FIXED, [0, 0, 0], [0, 0, 0], [0, 0, 2.0],
+            physicsClientId=client,
+        )  # fmt: skip
+        p.changeConstraint(self.cid, maxForce=500.0, physicsClientId=client)
+        self.anchors: list[int] = []
+
+    def move_to(self, pos: np.ndarray, teleport: bool = False) -> None:
+        if teleport:
+            self.p.resetBasePositionAndOrientation(
+                self.body, pos.tolist(), [0, 0, 0, 1], physicsClientId=self.client
+            )
+        self.p.changeConstraint(
+            self.cid, jointChildPivot=pos.tolist(), maxForce=500.0, physicsClientId=self.client
+        )
+
+    def hold(self, vertices: np.ndarray) -> None:
+        for v in vertices:
+            self.anchors.append(
+                self.p.createSoftBodyAnchor(
+                    self.cloth.body_id, self.cloth.sim_index(int(v)), self.body, -1,
+                    physicsClientId=self.client,
+                )
+            )  # fmt: skip
+
+    def release(self) -> None:
+        for a in self.anchors:
+            self.p.removeConstraint(a, physicsClientId=self.client)
+        self.anchors.clear()
+
+
+def measure(seed: int, recipe: str, grippers: int, reach: float) -> dict:
+    """One seed's fold with ideal grippers (runs in the calling process)."""
+    from foldbot import metrics
+    from foldbot.bench.suite import load_suite
+    from foldbot.pipeline import build_sim_cell
+    from foldbot.planning.motion import MotionConfig, carry_arc, line_path
+    from foldbot.planning.recipes import plan_stage, recipe_stages
+    from foldbot.sim.cloth import settle
+    from foldbot.sim.world import SimWorld
+
+    spec = next(e for e in load_suite("towel_loop").episodes if e.seed == seed)
+    cfg = spec.to_config()
+    mcfg = MotionConfig()
+    out: dict = {"seed": seed, "recipe": recipe, "grippers": grippers}
+    try:
+        with SimWorld(cfg.sim) as world:
+            parts = build_sim_cell(cfg, world)
+            parts.model_world.close()
+            cloth, oracle = parts.cloth, parts.oracle
+            settle(world, cloth)
+            initial = oracle.cloth_vertices()
+            tools = [KinematicGripper(world.client, cloth) for _ in range(grippers)]
+            dt = world.time_step
+            lines, held = [], []
+            up = np.array([0.0, 0.0, 1.0])
+            for stage in range(recipe_stages(recipe)):
+                corners = oracle.outline_corners() if stage else oracle.labelled_corners()
+                plan = plan_stage(recipe, stage, corners)
+                lines.append(plan.fold_lines[0])
+                v = oracle.cloth_vertices()
+                grabs = []
+                for action in plan.actions:  # held vertices chosen on the stage's start
+                    d = np.linalg.norm(v[:, :2] - action.grasp[:2], axis=1)
+                    grab = np.flatnonzero(d <= reach)
+                    grabs.append(grab if grab.size else np.array([int(d.argmin())]))
+                    held.append(int(grabs[-1].size))
+                pairs = list(zip(plan.actions, grabs, strict=True))
+                for i in range(0, len(pairs), grippers):
+                    batch = []
+                    v = oracle.cloth_vertices()
+                    for action, grab in pairs[i : i + grippers]:
+                        start = v[grab].mean(axis=0)  # where the held cloth is now
+                        end = action.place.copy()
+                        end[2] += max(0.0, start[2] - action.grasp[2])
+                        pre = end + up * mcfg.place_height
+                        carry = _timed_path(carry_arc(start, pre, mcfg), mcfg.cartesian_speed, dt)
+                        lower = _timed_path(
+                            line_path(pre, end, 0.003), mcfg.cartesian_speed / 3, dt
+                        )
+                        batch.append((grab, np.vstack([carry, lower])))
+                    for tool, (grab, path) in zip(tools, batch, strict=False):
+                        tool.move_to(path[0], teleport=True)
+                        tool.hold(grab)
+                    n = max(len(path) for _, path in batch)
+                    for k in range(n):
+                        for tool, (_, path) in zip(tools, batch, strict=False):
+                            tool.move_to(path[min(k, len(path) - 1)])
+                        world.step()
+                    for tool, _ in zip(tools, batch, strict=False):
+                        tool.release()
+                        tool.move_to(np.array([0.0, 0.0, 2.0]), teleport=True)
+                    world.step(round(0.3 / dt))
+                world.step(round(SETTLE_AFTER_STAGE_S / dt))
+            final = oracle.cloth_vertices()
+            score = metrics.score_episode(initial, final, parts.mesh.faces, lines, cloth.thickness)
+            out.update(
+                fold_error_mm=round(score.fold_error_mm, 2),
+                normalized=round(score.normalized_performance, 3),
+                success=bool(score.success),
+                held_vertices=held,
+                size_cm=[round(100 * parts.spec.width, 1), round(100 * parts.spec.height, 1)],
+                sim_s=round(world.sim_time, 2),
+            )
+    except Exception as exc:  # a diverged cloth is a result here, not a crash
+        out["error"] = f"{type(exc).__name__}: {exc}"[:200]
+    return out
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--recipe", default="half", help="a towel recipe (default half)")
+    ap.add_argument("--grippers", type=int, choices=(1, 2), default=2)
+    ap.add_argument("--seeds", default="0-9", help="seeds: '0-9', '0,3,5' or one seed")
+    ap.add_argument(
+        "--reach", type=float, default=0.012,
+        help="hold every vertex within this distance (m, table plane) of a grasp point",
+    )  # fmt: skip
+    ap.add_argument("--one", type=int, help=argparse.SUPPRESS)  # child process: one seed
+    args = ap.parse_args()
+    if args.one is not None:
+        print(json.dumps(measure(args.one, args.recipe, args.grippers, args.reach)), flush=True)
+        return 0
+    rows = []
+    for seed in parse_seeds(args.seeds):
+        cmd = [sys.executable, __file__, "--one", str(seed), "--recipe", args.recipe]
+        cmd += ["--grippers", str(args.grippers), "--reach", str(args.reach)]
+        res = subprocess.run(cmd, capture_output=True, text=True, check=False)
+        line = res.stdout.strip().splitlines()[-1] if res.stdout.strip() else ""
+        row = (
+            json.loads(line) if line.startswith("{") else {"seed": seed, "error": res.stderr[-200:]}
+        )
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+    ok = [r for r in rows if "error" not in r]
+    if ok:
+        err = np.array([r["fold_error_mm"] for r in ok])
+        print(
+            f"# {args.recipe}, {args.grippers} gripper(s): {len(rows)} seeds, "
+            f"{len(rows) - len(ok)} diverged; success {sum(r['success'] for r in ok)}; fold error "
+            f"mean {err.mean():.1f} / median {np.median(err):.1f} mm",
+            file=sys.stderr,
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
