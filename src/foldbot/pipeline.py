@@ -119,7 +119,7 @@ class EpisodeConfig:
     """Where the arm waits while the camera looks (PARK_POSES): home or out_of_view."""
     arms: int = 1
     """Arms in the cell: 1, or 2 side by side (CellLayout.arm_layouts), which carry a stage's
-    two corners together (towels; flattening and single actions use the arm on their side)."""
+    two corners together (flat towels; single actions use the arm on their side)."""
 
     def __post_init__(self) -> None:
         require(
@@ -180,6 +180,11 @@ class EpisodeConfig:
         require(
             self.arms == 1 or self.garment == "towel",
             f"the two-arm cell folds towels; a {self.garment} is folded with arms = 1",
+        )
+        require(
+            self.arms == 1 or self.start == "flat",
+            f"the two-arm cell starts from a flat towel; start {self.start!r} runs with arms = 1 "
+            "(crumpling and flattening with two arms diverged in both trials)",
         )
 
 
