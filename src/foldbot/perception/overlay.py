@@ -31,8 +31,18 @@ def _px(uv: np.ndarray) -> tuple[int, int]:
     return int(np.rint(uv[0])), int(np.rint(uv[1]))
 
 
+_OUTLINE_OFFSETS = ((-1, -1), (0, -1), (1, -1), (-1, 0), (1, 0), (-1, 1), (0, 1), (1, 1))
+
+
 def _text(img: np.ndarray, text: str, org: tuple[int, int], color: tuple[int, int, int]) -> None:
-    cv2.putText(img, text, org, cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 3, cv2.LINE_AA)
+    """`text` in `color` with a 1-pixel black outline, readable on any background. The outline is
+    the same 1-pixel-stroke text shifted by a pixel each way: OpenCV advances each character by
+    its stroke thickness, so a thick black copy underneath would drift right of the text."""
+    x, y = org
+    for dx, dy in _OUTLINE_OFFSETS:
+        cv2.putText(
+            img, text, (x + dx, y + dy), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1, cv2.LINE_AA
+        )
     cv2.putText(img, text, org, cv2.FONT_HERSHEY_SIMPLEX, 0.4, color, 1, cv2.LINE_AA)
 
 
