@@ -140,7 +140,6 @@ def _execute_pull(
                     place_points=[action.place],
                     fold_line=line_points(action.fold_line, cell.table_height),
                 )
-                cell.use_arm(cell.arm_for(action.grasp))  # a two-arm cell: the arm on its side
                 outcome = execute_action(cell, action)
                 attempts.append(
                     {

@@ -169,9 +169,13 @@ class FoldCell(abc.ABC):
         raise NotImplementedError("this cell has one arm")
 
     def release_and_lift_arm(self, arm: int) -> None:
-        """Open `arm`'s gripper and lift it straight up."""
+        """Open `arm`'s gripper and lift it straight up (the active arm stays as it was)."""
+        previous = self.active_arm
         self.use_arm(arm)
-        self.release_and_lift()
+        try:
+            self.release_and_lift()
+        finally:
+            self.use_arm(previous)
 
     def start_stage(self, stage: int) -> bool:
         """Called before stage `stage` (≥ 1) is planned; True when the previous stage's closing
@@ -652,25 +656,16 @@ def closed_loop_action(
         # Earlier actions move the cloth: grasp the corner where it is now. A corner placed off
         # is picked where it was seen to lie: after a fold, the labels that the corner detector
         # gives the new outline's corners need not match the plan's.
-        seen = corner_to_grasp(cfg, state, planned.label, action, replacing)
-        if seen is not None:
-            action = dataclasses.replace(action, grasp=seen)
         last_failed = bool(attempts) and not attempts[-1]["grasp_success"]
-        if last_failed or (planned.layers > 1 and not attempts):
-            # A stack, or a corner the jaws just missed (a crease's cloth lies below and inside
-            # the corner the camera sees; the same grasp again would miss again): close the jaws
-            # at the table, a little inside the perceived corner, under every layer there.
-            corner = action.grasp
-            action = dataclasses.replace(
-                action,
-                grasp=stack_grasp_point(state, action.grasp, cfg.stack_grasp_height),
-                place=planned.place,
-            )
-            action = inset_grasp(state, action, corner, cfg.stack_inset)
-        if inject_fault and not attempts:
-            outward = action.grasp[:2] - state.keypoint_array().mean(axis=0)[:2]
-            outward = outward / max(np.linalg.norm(outward), 1e-9) * cfg.fault_grasp_offset
-            action = dataclasses.replace(action, grasp=action.grasp + [*outward, 0.0])
+        action = aim_grasp(
+            cfg,
+            state,
+            planned,
+            action,
+            replacing=replacing,
+            at_table=last_failed or (planned.layers > 1 and not attempts),
+            inject_fault=inject_fault and not attempts,
+        )
         show_action(cell, state, action)
         outcome = execute_action(cell, action)
         placed_error = None
@@ -717,6 +712,38 @@ def closed_loop_action(
         "sim_seconds": cell.sim_time - t_sim,
         "wall_seconds": time.perf_counter() - t_wall,
     }, state
+
+
+def aim_grasp(
+    cfg: LoopConfig,
+    state: ClothState,
+    planned: FoldAction,
+    action: FoldAction,
+    replacing: bool,
+    at_table: bool,
+    inject_fault: bool,
+) -> FoldAction:
+    """`action` aimed at the corner `planned` grasps as the newest observation `state` shows it
+    (corner_to_grasp). With `at_table` (a stack, or a corner the jaws just missed: a crease's
+    cloth lies below and inside the corner the camera sees, so the same grasp again would miss
+    again) the jaws close at the table, a little inside the perceived corner, under every layer
+    there. `inject_fault` aims it `cfg.fault_grasp_offset` outward, onto bare table."""
+    seen = corner_to_grasp(cfg, state, planned.label, action, replacing)
+    if seen is not None:
+        action = dataclasses.replace(action, grasp=seen)
+    if at_table:
+        corner = action.grasp
+        action = dataclasses.replace(
+            action,
+            grasp=stack_grasp_point(state, action.grasp, cfg.stack_grasp_height),
+            place=planned.place,
+        )
+        action = inset_grasp(state, action, corner, cfg.stack_inset)
+    if inject_fault:
+        outward = action.grasp[:2] - state.keypoint_array().mean(axis=0)[:2]
+        outward = outward / max(np.linalg.norm(outward), 1e-9) * cfg.fault_grasp_offset
+        action = dataclasses.replace(action, grasp=action.grasp + [*outward, 0.0])
+    return action
 
 
 def show_action(cell: FoldCell, state: ClothState, action: FoldAction) -> None:
@@ -868,22 +895,18 @@ def two_arm_actions(
     attempts: list[dict] = []
     outcomes: list[dict] = []
     for attempt in range(cfg.retries + 1):
-        for i, plan_i in enumerate(planned):
-            seen = corner_to_grasp(cfg, state, plan_i.label, actions[i], False)
-            if seen is not None:
-                actions[i] = dataclasses.replace(actions[i], grasp=seen)
-            if failed[i] or (plan_i.layers > 1 and attempt == 0):
-                corner = actions[i].grasp
-                actions[i] = dataclasses.replace(
-                    actions[i],
-                    grasp=stack_grasp_point(state, corner, cfg.stack_grasp_height),
-                    place=plan_i.place,
-                )
-                actions[i] = inset_grasp(state, actions[i], corner, cfg.stack_inset)
-        if inject_fault and attempt == 0:
-            outward = actions[0].grasp[:2] - state.keypoint_array().mean(axis=0)[:2]
-            outward = outward / max(np.linalg.norm(outward), 1e-9) * cfg.fault_grasp_offset
-            actions[0] = dataclasses.replace(actions[0], grasp=actions[0].grasp + [*outward, 0.0])
+        actions = [
+            aim_grasp(
+                cfg,
+                state,
+                plan_i,
+                actions[i],
+                replacing=False,
+                at_table=failed[i] or (plan_i.layers > 1 and attempt == 0),
+                inject_fault=inject_fault and attempt == 0 and i == 0,
+            )
+            for i, plan_i in enumerate(planned)
+        ]
         cell.show(
             state,
             grasp_points=[a.grasp for a in actions],

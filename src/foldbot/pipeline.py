@@ -19,8 +19,13 @@ from pathlib import Path
 import numpy as np
 
 from foldbot import metrics
-from foldbot.control.bimanual import check_arms_clear, move_joints_together, run_together
-from foldbot.control.executor import ArmExecutor, PlannedSegment
+from foldbot.control.bimanual import check_arms_clear
+from foldbot.control.executor import (
+    ArmExecutor,
+    PlannedSegment,
+    move_joints_together,
+    run_together,
+)
 from foldbot.errors import ArmsWouldCollideError, UnreachableTargetError, require
 from foldbot.flatten import run_flatten
 from foldbot.garment_loop import run_garment_fold
@@ -292,10 +297,6 @@ class SimCell(FoldCell):
         return self.executor.robot
 
     @property
-    def park_q(self) -> np.ndarray:
-        return self.park_qs[self.active]
-
-    @property
     def arms(self) -> int:
         return len(self.executors)
 
@@ -325,13 +326,6 @@ class SimCell(FoldCell):
     def run_together(self, steps: list[tuple[int, PlannedSegment]]) -> list[StepLog]:
         logs = run_together([(self.executors[arm], step) for arm, step in steps])
         return [StepLog(g.name, g.max_tracking_error, g.grasp) for g in logs]
-
-    def release_and_lift_arm(self, arm: int) -> None:
-        previous, self.active = self.active, arm
-        try:
-            self.release_and_lift()
-        finally:
-            self.active = previous
 
     @property
     def sim_time(self) -> float:
@@ -401,10 +395,7 @@ class SimCell(FoldCell):
             ) from exc
 
     def park(self) -> None:
-        if self.arms == 1:
-            self.executor.move_joints(self.park_q, "park")
-        else:
-            move_joints_together(list(zip(self.executors, self.park_qs, strict=True)), "park")
+        move_joints_together(list(zip(self.executors, self.park_qs, strict=True)), "park")
 
     def wait(self, seconds: float) -> None:
         self.world.step(round(seconds / self.world.time_step))

@@ -1,10 +1,10 @@
-"""The executor's planning checks (foldbot.control.executor): every waypoint keeps the arm clear of
-the table, on a real UR5 in a PyBullet world."""
+"""The executor (foldbot.control.executor): every planned waypoint keeps the arm clear of the
+table, and several arms move on one clock; on real UR5s in a PyBullet world."""
 
 import numpy as np
 import pytest
 
-from foldbot.control.executor import ArmExecutor
+from foldbot.control.executor import ArmExecutor, move_joints_together, run_together
 from foldbot.errors import UnreachableTargetError
 from foldbot.planning.motion import Segment, line_path
 from foldbot.sim.robots import make_robot
@@ -45,3 +45,58 @@ def test_a_twin_without_a_table_is_not_checked():
         assert ArmExecutor(world, robot, grasp=None, model=twin).model_table_id is None
         checked = ArmExecutor(world, robot, None, model=twin, model_table_id=model_world.table_id)
         assert checked.model_table_id == model_world.table_id
+
+
+@pytest.fixture
+def two_arms():
+    with SimWorld() as world:
+        arms = [make_robot("ur5", world.client, lay) for lay in world.layout.arm_layouts(2)]
+        yield world, [ArmExecutor(world, arm, grasp=None) for arm in arms]
+
+
+def test_both_arms_move_at_once_and_the_shorter_move_waits(two_arms):
+    world, (left, right) = two_arms
+    z = world.layout.table_height + 0.1
+    a0, b0 = left.robot.tcp_pose()[0], right.robot.tcp_pose()[0]
+    a1 = np.array([0.50, 0.15, z])  # a long move
+    b1 = b0 + [0.0, 0.0, -0.05]  # a short one
+    steps = [
+        (left, left.plan([Segment("long", line_path(a0, a1), 0.25)])[0]),
+        (right, right.plan([Segment("short", line_path(b0, b1), 0.25)])[0]),
+    ]
+    long_samples = len(left.start(steps[0][1]).traj.times)
+    logs = run_together(steps)
+    # One clock: the world stepped as long as the longer move, not the sum of both.
+    assert world.steps == long_samples - 1
+    assert np.linalg.norm(left.robot.tcp_pose()[0] - a1) < 0.01
+    assert np.linalg.norm(right.robot.tcp_pose()[0] - b1) < 0.01
+    assert [log.name for log in logs] == ["long", "short"]
+    assert all(log.max_tracking_error < 0.02 for log in logs)
+    assert logs[0].duration > logs[1].duration
+
+
+def test_both_arms_park_together(two_arms):
+    world, arms = two_arms
+    targets = [(ex, ex.robot.out_of_view_q) for ex in arms]
+    logs = move_joints_together(targets, "park")
+    for ex in arms:
+        assert np.abs(ex.robot.joint_positions() - ex.robot.out_of_view_q).max() < 0.02
+    assert world.steps == round(max(log.duration for log in logs) / world.time_step)
+    # Already there: nothing moves.
+    before = world.steps
+    move_joints_together(targets, "park")
+    assert world.steps == before
+
+
+def test_arms_in_different_worlds_are_refused(two_arms):
+    _world, (left, _right) = two_arms
+    with SimWorld() as other:
+        stranger = ArmExecutor(other, make_robot("ur5", other.client, other.layout), grasp=None)
+        a0 = left.robot.tcp_pose()[0]
+        s0 = stranger.robot.tcp_pose()[0]
+        steps = [
+            (left, left.plan([Segment("a", line_path(a0, a0 + [0, 0, 0.02]), 0.25)])[0]),
+            (stranger, stranger.plan([Segment("b", line_path(s0, s0 + [0, 0, 0.02]), 0.25)])[0]),
+        ]
+        with pytest.raises(ValueError, match="share one world"):
+            run_together(steps)

@@ -1,12 +1,12 @@
-"""Two arms on one clock: segments and joint moves of several arms stepped together, each arm
-under its own time-parametrised trajectory; an arm whose trajectory ends first holds its last
-sample until the others have arrived, and only then do the gripper events happen."""
+"""Two arms planned together keep clear of each other: their planned motions checked on the
+planning twins. (Moving them on one clock is control.executor's run_together and
+move_joints_together.)"""
 
 from __future__ import annotations
 
 import numpy as np
 
-from foldbot.control.executor import ArmExecutor, PlannedSegment, SegmentLog
+from foldbot.control.executor import ArmExecutor, PlannedSegment
 from foldbot.errors import ArmsWouldCollideError
 from foldbot.sim import import_pybullet
 
@@ -44,48 +44,3 @@ def check_arms_clear(
                             f"{mb.link_name(h[4])} would come {h[8] * 1000:.0f} mm apart "
                             f"(at least {clearance * 1000:.0f} mm needed)"
                         )
-
-
-def run_together(steps: list[tuple[ArmExecutor, PlannedSegment]]) -> list[SegmentLog]:
-    """Move every arm along its segment at once (one physics world), then apply each segment's
-    gripper event; returns one log per arm, in order."""
-    if not steps:
-        return []
-    world = steps[0][0].world
-    if any(ex.world is not world for ex, _ in steps):
-        raise ValueError("arms stepped together must share one world")
-    runs = [ex.start(step) for ex, step in steps]
-    for k in range(1, max(r.samples for r in runs)):
-        for r in runs:
-            r.command(k)
-        world.step()
-        for r in runs:
-            r.monitor(k)
-    return [r.finish() for r in runs]
-
-
-def move_joints_together(
-    targets: list[tuple[ArmExecutor, np.ndarray]], name: str = "joint_move"
-) -> list[SegmentLog]:
-    """Rest-to-rest joint-space moves of every arm at once (e.g. parking both)."""
-    if not targets:
-        return []
-    world = targets[0][0].world
-    trajs = []
-    for ex, q in targets:
-        q = np.asarray(q, dtype=float)
-        q0 = ex.robot.joint_positions()
-        trajs.append(None if np.abs(q - q0).max() < 1e-4 else ex.joint_move_trajectory(q0, q))
-    steps = max((len(t.times) for t in trajs if t is not None), default=0)
-    for k in range(1, steps):
-        for (ex, _), t in zip(targets, trajs, strict=True):
-            if t is not None:
-                i = min(k, len(t.times) - 1)
-                v = t.velocities[i] if k < len(t.times) else np.zeros(ex.robot.dof)
-                ex.robot.command_joint_positions(t.positions[i], v)
-        world.step()
-    logs = []
-    for (ex, q), t in zip(targets, trajs, strict=True):
-        err = float(np.linalg.norm(ex.robot.tcp_pose()[0] - ex.robot.fk_tcp(q)[0]))
-        logs.append(SegmentLog(name, 0.0 if t is None else t.duration, err if t else 0.0))
-    return logs

@@ -96,23 +96,20 @@ class ArmExecutor:
         if self.model_table_id is None:
             return
         m = self.model
+        links = set(m.body_link_indices)
         for i, q in enumerate(np.asarray(path, dtype=float)):
             with m.posed(q):
-                for link in m.body_link_indices:
-                    hits = p.getClosestPoints(
-                        m.body_id,
-                        self.model_table_id,
-                        TABLE_CLEARANCE,
-                        linkIndexA=link,
-                        physicsClientId=m.client,
-                    )
-                    if hits:
-                        d = min(h[8] for h in hits)
-                        raise UnreachableTargetError(
-                            f"waypoint {i}: the arm's {m.link_name(link)} would touch the table "
-                            f"({d * 1000:.1f} mm from it; at least {TABLE_CLEARANCE * 1000:.0f} mm "
-                            f"needed) at joints {np.round(q, 3).tolist()} rad"
-                        )
+                hits = p.getClosestPoints(
+                    m.body_id, self.model_table_id, TABLE_CLEARANCE, physicsClientId=m.client
+                )
+            hits = [h for h in hits if h[3] in links]
+            if hits:
+                h = min(hits, key=lambda c: c[8])
+                raise UnreachableTargetError(
+                    f"waypoint {i}: the arm's {m.link_name(h[3])} would touch the table "
+                    f"({h[8] * 1000:.1f} mm from it; at least {TABLE_CLEARANCE * 1000:.0f} mm "
+                    f"needed) at joints {np.round(q, 3).tolist()} rad"
+                )
 
     def trajectory_for(self, path: np.ndarray, points: np.ndarray, speed: float) -> JointTrajectory:
         """Time-optimal trajectory along the joint path within the robot's joint velocity,
@@ -174,17 +171,7 @@ class ArmExecutor:
     def move_joints(self, q_target: np.ndarray, name: str = "joint_move") -> SegmentLog:
         """Move in joint space (no Cartesian path) to `q_target` under the joint limits: used to
         park the arm, where a straight TCP line could pass near a singularity."""
-        q_target = np.asarray(q_target, dtype=float)
-        q0 = self.robot.joint_positions()
-        if np.abs(q_target - q0).max() < 1e-4:
-            return SegmentLog(name, 0.0, 0.0)
-        r = self.robot
-        traj = self.joint_move_trajectory(q0, q_target)
-        for k in range(1, len(traj.times)):
-            r.command_joint_positions(traj.positions[k], traj.velocities[k])
-            self.world.step()
-        err = float(np.linalg.norm(r.tcp_pose()[0] - r.fk_tcp(q_target)[0]))
-        return SegmentLog(name, traj.duration, err)
+        return move_joints_together([(self, q_target)], name)[0]
 
     def start(self, segment: Segment | PlannedSegment) -> _Run:
         """Time-parametrise a segment (planning it first if needed) from where the arm really is
@@ -197,12 +184,7 @@ class ArmExecutor:
 
     def run(self, segment: Segment | PlannedSegment) -> SegmentLog:
         """Move along the segment (planning it first if needed), then apply its gripper event."""
-        run = self.start(segment)
-        for k in range(1, run.samples):
-            run.command(k)
-            self.world.step()
-            run.monitor(k)
-        return run.finish()
+        return run_together([(self, segment)])[0]
 
 
 @dataclass
@@ -256,3 +238,53 @@ class _Run:
         elif self.segment.gripper == "open":
             self.executor.grasp.open()
         return log
+
+
+def run_together(steps: list[tuple[ArmExecutor, Segment | PlannedSegment]]) -> list[SegmentLog]:
+    """Move every arm along its segment at once (one physics world, one clock: an arm whose
+    trajectory ends first holds its last sample), then apply each segment's gripper event;
+    returns one log per arm, in order."""
+    if not steps:
+        return []
+    world = steps[0][0].world
+    if any(ex.world is not world for ex, _ in steps):
+        raise ValueError("arms stepped together must share one world")
+    runs = [ex.start(step) for ex, step in steps]
+    for k in range(1, max(r.samples for r in runs)):
+        for r in runs:
+            r.command(k)
+        world.step()
+        for r in runs:
+            r.monitor(k)
+    return [r.finish() for r in runs]
+
+
+def move_joints_together(
+    targets: list[tuple[ArmExecutor, np.ndarray]], name: str = "joint_move"
+) -> list[SegmentLog]:
+    """Rest-to-rest joint-space moves of every arm at once (one clock, as run_together); an arm
+    already at its target does not move."""
+    if not targets:
+        return []
+    world = targets[0][0].world
+    trajs: list[JointTrajectory | None] = []
+    for ex, q in targets:
+        q = np.asarray(q, dtype=float)
+        q0 = ex.robot.joint_positions()
+        trajs.append(None if np.abs(q - q0).max() < 1e-4 else ex.joint_move_trajectory(q0, q))
+    steps = max((len(t.times) for t in trajs if t is not None), default=0)
+    for k in range(1, steps):
+        for (ex, _), t in zip(targets, trajs, strict=True):
+            if t is not None:
+                i = min(k, len(t.times) - 1)
+                v = t.velocities[i] if k < len(t.times) else np.zeros(ex.robot.dof)
+                ex.robot.command_joint_positions(t.positions[i], v)
+        world.step()
+    logs = []
+    for (ex, q), t in zip(targets, trajs, strict=True):
+        if t is None:
+            logs.append(SegmentLog(name, 0.0, 0.0))
+            continue
+        err = float(np.linalg.norm(ex.robot.tcp_pose()[0] - ex.robot.fk_tcp(q)[0]))
+        logs.append(SegmentLog(name, t.duration, err))
+    return logs

@@ -350,9 +350,7 @@ class Robot(abc.ABC):
 
     def fk_tcp(self, q: Sequence[float] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """TCP pose (position, quaternion xyzw) at arm angles `q`, leaving the state untouched."""
-        q = self._check_q(q)
-        with self._preserved_state():
-            self._set_arm(q)
+        with self.posed(q):
             return self.tcp_pose()
 
     # ------------------------------------------------------------------ inverse kinematics
