@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from foldbot.loop import (
+    MAX_CLOTH_CREASE_ROOM,
     MIN_ARM_SEPARATION,
     MIN_LEFT,
     LoopConfig,
@@ -19,6 +20,7 @@ from foldbot.loop import (
     regrasp_point,
     shifted_grasp,
     stack_grasp_point,
+    stage_crease_room,
     tip_action,
 )
 from foldbot.metrics import FoldLine
@@ -191,6 +193,33 @@ def test_a_shifted_grasp_still_lands_the_aimed_point_on_its_place():
     assert moved.grasp == pytest.approx([0.59, 0.07, 0.76])
     # Mirrored across x = 0.45: along the line the shift is kept, across it reversed.
     assert moved.place == pytest.approx([0.31, 0.07, 0.77])
+
+
+def test_a_corner_laid_short_of_a_corner_is_not_checked_against_it():
+    """Thirds' second stage with 12 mm of crease room: the far corners land on the stack's sides,
+    24 mm short of its crease corners (within the placement tolerance of them), where the corner
+    detector sees no corner; a place on a corner is one to round-off."""
+    corners = np.array(
+        [[0.3, 0.15, 0.76], [0.3, -0.15, 0.76], [0.45, -0.15, 0.76], [0.45, 0.15, 0.76]]
+    )
+    assert not place_is_corner(np.array([0.324, 0.15, 0.77]), corners)
+    assert place_is_corner(np.array([0.3005, 0.1498, 0.77]), corners)
+    assert place_is_corner(np.array([0.324, 0.15, 0.77]), corners, tol=0.03)
+
+
+def test_the_crease_room_is_the_laid_layers_rise_seen_in_depth():
+    cfg = LoopConfig(recipe="thirds", layer_thickness=0.011)
+    assert stage_crease_room(cfg, 0.013) == pytest.approx(0.013)
+    # A bunch seen rising 4 cm is no single layer: capped.
+    assert stage_crease_room(cfg, 0.04) == pytest.approx(MAX_CLOTH_CREASE_ROOM)
+    # Depth told nothing (or the open loop): the cloth's layer thickness, capped as well (a 1 m
+    # towel meshed with 8 vertices is 5.7 cm thick in Bullet).
+    assert stage_crease_room(cfg, None) == pytest.approx(0.011)
+    thick = LoopConfig(recipe="thirds", layer_thickness=0.057)
+    assert stage_crease_room(thick, None) == pytest.approx(MAX_CLOTH_CREASE_ROOM)
+    # Set in the configuration, it wins.
+    fixed = LoopConfig(recipe="thirds", layer_thickness=0.011, crease_room=0.0)
+    assert stage_crease_room(fixed, 0.013) == 0.0
 
 
 def test_outline_corners_are_the_detectors_four_not_a_bump_on_a_side():

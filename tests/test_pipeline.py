@@ -161,6 +161,24 @@ def test_two_arms_redo_the_pair_after_an_injected_grasp_failure(tmp_path):
 
 
 @pytest.mark.slow
+def test_thirds_second_fold_leaves_the_laid_third_the_crease_room_seen_in_depth(tmp_path):
+    """Thirds' second fold line lies on the free edge the first laid: it moves by the height that
+    layer was seen to rise, and the far corners, laid that short of the stack's crease corners,
+    are not checked against those corners (nor re-placed onto them)."""
+    cfg = EpisodeConfig(recipe="thirds", arms=2, towel=TowelSpec(0.27, 0.27, 9), video_fps=0)
+    result = run_episode(cfg, tmp_path / "ep", log=lambda *_: None)
+    first, second = result["stages"]
+    rise = first["laid_layer_rise_m"]
+    assert rise is not None and 0.005 < rise < 0.03
+    assert first["crease_room_m"] is None
+    assert second["crease_room_m"] == pytest.approx(rise)
+    stage2 = [a for a in result["actions"] if a["label"].startswith("far_")]
+    assert [a["kind"] for a in stage2] == ["pick_and_place", "pick_and_place"]
+    assert all(a["grasp_success"] and a["placed_error_m"] is None for a in stage2)
+    assert np.isfinite(result["fold_error_mm"])
+
+
+@pytest.mark.slow
 def test_same_seed_same_episode(tmp_path):
     args = ["fold", "--recipe", "diagonal", "--seed", "3", "--width", "0.24", "--height", "0.24"]
     args += ["--resolution", "8", "--video-fps", "0", "--out"]

@@ -284,6 +284,40 @@ def test_thirds_lines_lie_a_third_from_the_near_then_the_far_edge(pose, shape):
     assert (c1["far_left"] - c1["near_left"])[:2] @ depth_axis == pytest.approx(2 / 3 * depth)
 
 
+@pytest.mark.parametrize("shape", SHAPES)
+@pytest.mark.parametrize("pose", POSES[:3])
+def test_thirds_second_line_leaves_crease_room_past_the_laid_third(pose, shape):
+    """Stage 2's line lies on the laid near third's free edge; the crease room moves it that far
+    toward the far edge (its moving side), so the far corners land twice the room short of the
+    stack's crease corners, and the predicted outline and cover move with it."""
+    cx, cy, yaw = pose
+    flat = towel(cx, cy, *shape, yaw=yaw)
+    stack = perceive(predicted_outline("thirds", 0, flat))
+    room = 0.012
+    plain, roomy = plan_stage("thirds", 1, stack), plan_stage("thirds", 1, stack, crease_room=room)
+    a, b = FoldLine.coerce(plain.fold_lines[0]), FoldLine.coerce(roomy.fold_lines[0])
+    assert abs(unit([a.dx, a.dy]) @ unit([-b.dy, b.dx])) < 1e-9  # parallel
+    # b lies `room` onto a's moving side (normalised side() is the signed distance).
+    assert a.side(np.array([[b.x, b.y, 0.0]]))[0] / np.hypot(a.dx, a.dy) == pytest.approx(room)
+    for p, q in zip(plain.actions, roomy.actions, strict=True):
+        assert p.label == q.label and np.allclose(p.grasp, q.grasp)
+        assert np.linalg.norm((q.place - p.place)[:2]) == pytest.approx(2 * room)
+        assert b.side(q.place[None])[0] < 0 < b.side(q.grasp[None])[0]
+    laid = predicted_cover("thirds", 1, stack, crease_room=room)
+    assert area(laid) == pytest.approx(area(predicted_cover("thirds", 1, stack)) - room * shape[1])
+    # The staying part, which the laid far third lies on, is `room` deeper.
+    assert area(predicted_outline("thirds", 1, stack, crease_room=room)) == pytest.approx(
+        area(predicted_outline("thirds", 1, stack)) + room * shape[1]
+    )
+    # Stages whose line lies along no laid edge take no room.
+    for recipe, stage, corners in (("thirds", 0, flat), ("half", 0, flat), ("quarter", 1, stack)):
+        roomy, plain = (plan_stage(recipe, stage, corners, crease_room=r) for r in (room, 0.0))
+        assert roomy.fold_lines == plain.fold_lines
+        assert all(
+            np.allclose(p.place, q.place) for p, q in zip(plain.actions, roomy.actions, strict=True)
+        )
+
+
 @pytest.mark.parametrize("pose", POSES)
 def test_corner_diagonal_runs_through_opposite_corners_and_brings_a_far_corner_closer(pose):
     cx, cy, yaw = pose
@@ -500,6 +534,11 @@ def test_bad_inputs_are_rejected_with_the_reason():
             predicted_outline(recipe, stage, good)
     with pytest.raises(ConfigError, match="integer"):
         plan_stage("quarter", 1.0, good)
+    for room in (-0.001, 0.2, float("nan"), True, "1cm"):
+        with pytest.raises(ConfigError, match=r"crease_room = .* must be a number in \[0, 0.05\]"):
+            plan_stage("thirds", 1, good, crease_room=room)
+        with pytest.raises(ConfigError, match="crease_room"):
+            predicted_cover("thirds", 1, good, crease_room=room)
 
 
 def test_planning_never_imports_the_simulator():

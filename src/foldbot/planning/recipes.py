@@ -40,7 +40,10 @@ Recipes (`RECIPES`; the CLI offers them as `--recipe`, so the half fold's axis i
              outline's midline: it joins the midpoints of the perceived left and right sides, and
              the far side moves. Grasps: far_left, then far_right. This order lays the stack's
              top layer toward the robot (the other order, far third first, folded worse:
-             docs/experiments.md).
+             docs/experiments.md). The midline is where stage 1 laid the near third's free edge,
+             so the line moves `crease_room` toward the far edge: a crease folded right on that
+             edge pushes the whole laid third back toward the robot (by 2–3 cm in the simulated
+             cloth), a crease just past it wraps around it.
 
 A stage's labels rely on the labelling rule, which is stable while a rectangle's yaw stays away from
 ±45° (mod 90°), where two corners tie for "near_left"; there, noise can rotate the labels by one, and
@@ -147,11 +150,17 @@ def _edge_fold(
     moving: tuple[str, str],
     staying: tuple[str, str],
     fraction: float,
+    room: float = 0.0,
 ) -> _Fold:
     """Fold whose line crosses the two sides staying[i]→moving[i] at `fraction` of their length
-    from the staying corner; the moving corners are carried, in the given order."""
-    a = c[staying[0]] + fraction * (c[moving[0]] - c[staying[0]])
-    b = c[staying[1]] + fraction * (c[moving[1]] - c[staying[1]])
+    from the staying corner, plus `room` (m) further along them; the moving corners are carried,
+    in the given order."""
+
+    def crossing(i: int) -> np.ndarray:
+        side = c[moving[i]] - c[staying[i]]
+        return c[staying[i]] + (fraction + room / float(np.linalg.norm(side[:2]))) * side
+
+    a, b = crossing(0), crossing(1)
     probe = (c[moving[0]] + c[moving[1]]) / 2
     return _Fold(_oriented_line(a, b, probe), moving)
 
@@ -190,11 +199,12 @@ def _near_third(c: dict[str, np.ndarray]) -> _Fold:
     return _edge_fold(c, ("near_left", "near_right"), ("far_left", "far_right"), 2.0 / 3.0)
 
 
-def _far_third(c: dict[str, np.ndarray]) -> _Fold:
-    """Far third on top, from the outline after _near_third: that outline's midline, far moving.
+def _far_third(c: dict[str, np.ndarray], crease_room: float = 0.0) -> _Fold:
+    """Far third on top, from the outline after _near_third: that outline's midline, far moving,
+    moved `crease_room` toward the far edge so the crease clears the laid near third's free edge.
     (Folding a towel deeper than wide across its width instead, so the carried edges are the long
     ones, was mixed across suites and is not used: docs/experiments.md.)"""
-    return _edge_fold(c, ("far_left", "far_right"), ("near_left", "near_right"), 0.5)
+    return _edge_fold(c, ("far_left", "far_right"), ("near_left", "near_right"), 0.5, crease_room)
 
 
 TRIANGLE_SLACK = 1.05
@@ -266,6 +276,19 @@ _STAGES: dict[str, tuple[Callable[[dict[str, np.ndarray]], _Fold], ...]] = {
 }
 
 
+_CREASE_ROOM_STAGES = frozenset({("thirds", 1)})
+"""Stages whose fold line lies along the free edge of a layer an earlier stage laid: they take
+`crease_room` (other stages ignore it)."""
+MAX_CREASE_ROOM = 0.05
+"""Largest accepted crease room (m): a few cloth thicknesses, far more than a crease needs."""
+
+
+def takes_crease_room(recipe: str, stage_index: int) -> bool:
+    """Whether a stage's fold line lies along an earlier layer's free edge, so that plan_stage
+    moves it by `crease_room` (thirds' second stage)."""
+    return (recipe, stage_index) in _CREASE_ROOM_STAGES
+
+
 def recipe_stages(recipe: str) -> int:
     """Number of stages (folds, each planned on freshly perceived corners) of a recipe."""
     if recipe not in _STAGES:
@@ -273,8 +296,10 @@ def recipe_stages(recipe: str) -> int:
     return len(_STAGES[recipe])
 
 
-def _stage_fold(recipe: str, stage_index: int, corners: dict[str, np.ndarray]) -> _Fold:
-    """Validate the recipe, stage index and corners, and compute that stage's fold."""
+def _stage_fold(
+    recipe: str, stage_index: int, corners: dict[str, np.ndarray], crease_room: float = 0.0
+) -> _Fold:
+    """Validate the recipe, stage index, corners and crease room, and compute that stage's fold."""
     n = recipe_stages(recipe)
     if isinstance(stage_index, bool) or not isinstance(stage_index, int | np.integer):
         raise ConfigError(f"stage index {stage_index!r} must be an integer in [0, {n - 1}]")
@@ -283,19 +308,32 @@ def _stage_fold(recipe: str, stage_index: int, corners: dict[str, np.ndarray]) -
             f"stage index {stage_index} is out of range for recipe {recipe!r} "
             f"({n} stage{'s' if n > 1 else ''}: 0..{n - 1})"
         )
-    return _STAGES[recipe][int(stage_index)](_require_corners(corners))
+    room = float(crease_room) if isinstance(crease_room, int | float | np.floating) else None
+    if isinstance(crease_room, bool) or room is None or not 0.0 <= room <= MAX_CREASE_ROOM:
+        raise ConfigError(
+            f"crease_room = {crease_room!r} must be a number in [0, {MAX_CREASE_ROOM}] (m)"
+        )
+    stage = _STAGES[recipe][int(stage_index)]
+    c = _require_corners(corners)
+    return stage(c, room) if takes_crease_room(recipe, int(stage_index)) else stage(c)
 
 
 def plan_stage(
-    recipe: str, stage_index: int, corners: dict[str, np.ndarray], place_lift: float = 0.004
+    recipe: str,
+    stage_index: int,
+    corners: dict[str, np.ndarray],
+    place_lift: float = 0.004,
+    crease_room: float = 0.0,
 ) -> FoldPlan:
     """Plan one stage of a recipe on the corners perceived at its start: its one fold line and the
     one-gripper pick-and-place actions (grasp a corner, release at its mirror, lifted).
 
     The release height is `place_lift` above the higher of the grasped corner and the corner
     nearest the place point, so a corner laid onto a thicker stack (thirds' second stage) is not
-    pushed into it."""
-    fold = _stage_fold(recipe, stage_index, corners)
+    pushed into it. `crease_room` (m, ≥ 0) moves a fold line that lies along an earlier layer's
+    free edge (thirds' second stage) that far onto its moving side; the closed loop passes the
+    height that layer rose, seen in depth (about one cloth thickness)."""
+    fold = _stage_fold(recipe, stage_index, corners, crease_room)
     c = _require_corners(corners)
     layers = _GRASP_LAYERS.get((recipe, int(stage_index)), 1)
     actions = []
@@ -428,10 +466,13 @@ def _fold_outline(quad: np.ndarray, line: FoldLine) -> np.ndarray:
     return out if _signed_area(out) > 0 else out[::-1]
 
 
-def predicted_outline(recipe: str, stage_index: int, corners: dict[str, np.ndarray]) -> np.ndarray:
+def predicted_outline(
+    recipe: str, stage_index: int, corners: dict[str, np.ndarray], crease_room: float = 0.0
+) -> np.ndarray:
     """Top-view outline (N×3, counter-clockwise, at the corners' mean z) the cloth should have after
-    a stage, to compare with the perceived mask: the corner quad folded along the stage's line."""
-    fold = _stage_fold(recipe, stage_index, corners)
+    a stage, to compare with the perceived mask: the corner quad folded along the stage's line
+    (`crease_room` as for plan_stage)."""
+    fold = _stage_fold(recipe, stage_index, corners, crease_room)
     c = _require_corners(corners)
     quad = np.array([c[n][:2] for n in CORNER_NAMES])
     xy = _fold_outline(quad, FoldLine(*fold.line))
@@ -440,12 +481,17 @@ def predicted_outline(recipe: str, stage_index: int, corners: dict[str, np.ndarr
 
 
 def predicted_cover(
-    recipe: str, stage_index: int, corners: dict[str, np.ndarray], crease_band: float = 0.0
+    recipe: str,
+    stage_index: int,
+    corners: dict[str, np.ndarray],
+    crease_band: float = 0.0,
+    crease_room: float = 0.0,
 ) -> np.ndarray:
     """Top-view region (N×3, counter-clockwise, at the corners' mean z) a stage lays its moved cloth
     on: the corner quad's moving part mirrored across the stage's fold line, less the band of
-    `crease_band` (m) along the line where the crease's bend stands (empty when nothing is left)."""
-    fold = _stage_fold(recipe, stage_index, corners)
+    `crease_band` (m) along the line where the crease's bend stands (empty when nothing is left;
+    `crease_room` as for plan_stage)."""
+    fold = _stage_fold(recipe, stage_index, corners, crease_room)
     c = _require_corners(corners)
     quad = np.array([c[n][:2] for n in CORNER_NAMES])
     line = FoldLine(*fold.line)

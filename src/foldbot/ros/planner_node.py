@@ -70,8 +70,11 @@ class MotionPlanner:
         kind = req.get("kind")
         if kind == "stage":
             corners = {k: np.array(v, dtype=float) for k, v in req["corners"].items()}
-            plan = plan_stage(req["recipe"], int(req["stage"]), corners, float(req["place_lift"]))
-            outline = predicted_outline(req["recipe"], int(req["stage"]), corners)
+            room = float(req.get("crease_room", 0.0))
+            plan = plan_stage(
+                req["recipe"], int(req["stage"]), corners, float(req["place_lift"]), room
+            )
+            outline = predicted_outline(req["recipe"], int(req["stage"]), corners, room)
             return {
                 "fold_lines": [list(line) for line in plan.fold_lines],
                 "actions": [a.as_dict() for a in plan.actions],

@@ -252,7 +252,12 @@ class RosCell(FoldCell):
         return state, obs
 
     def plan_stage(
-        self, recipe: str, stage: int, corners: dict[str, np.ndarray], place_lift: float
+        self,
+        recipe: str,
+        stage: int,
+        corners: dict[str, np.ndarray],
+        place_lift: float,
+        crease_room: float = 0.0,
     ) -> tuple[FoldPlan, np.ndarray]:
         seen = self.latest_state
         if seen is not None and _same_corners(corners, corners_of(seen)):
@@ -260,7 +265,14 @@ class RosCell(FoldCell):
             source = {"keypoints_stamp": seen.stamp}
         else:  # e.g. the open loop's predicted corners of a later stage
             source = {"corners": {k: [float(x) for x in v] for k, v in corners.items()}}
-        reply = self._plan("stage", recipe=recipe, stage=stage, place_lift=place_lift, **source)
+        reply = self._plan(
+            "stage",
+            recipe=recipe,
+            stage=stage,
+            place_lift=place_lift,
+            crease_room=crease_room,
+            **source,
+        )
         plan = FoldPlan(
             recipe=recipe,
             fold_lines=tuple(tuple(line) for line in reply["fold_lines"]),
