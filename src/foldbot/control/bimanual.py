@@ -8,9 +8,6 @@ import numpy as np
 
 from foldbot.control.executor import ArmExecutor, PlannedSegment
 from foldbot.errors import ArmsWouldCollideError
-from foldbot.sim import import_pybullet
-
-p = import_pybullet()  # pybullet, its start-up banner silenced (foldbot.sim)
 
 ARM_CLEARANCE = 0.02
 """Two arms' links must stay this far apart (m) at every step of a motion planned together: a
@@ -34,13 +31,11 @@ def check_arms_clear(
                     qa = sa.joint_path[round(u * (na - 1))]
                     qb = sb.joint_path[round(u * (nb - 1))]
                     with ma.posed(qa), mb.posed(qb):
-                        hits = p.getClosestPoints(
-                            ma.body_id, mb.body_id, clearance, physicsClientId=ma.client
-                        )
-                    if hits:
-                        h = min(hits, key=lambda c: c[8])
+                        hit = ma.nearest_within(mb.body_id, clearance)
+                    if hit is not None:
+                        link_a, link_b, dist = hit
                         raise ArmsWouldCollideError(
-                            f"segment '{sa.segment.name}': the arms' {ma.link_name(h[3])} and "
-                            f"{mb.link_name(h[4])} would come {h[8] * 1000:.0f} mm apart "
+                            f"segment '{sa.segment.name}': the arms' {ma.link_name(link_a)} and "
+                            f"{mb.link_name(link_b)} would come {dist * 1000:.0f} mm apart "
                             f"(at least {clearance * 1000:.0f} mm needed)"
                         )

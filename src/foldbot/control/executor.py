@@ -11,13 +11,10 @@ import numpy as np
 from foldbot.control.trajectory import JointTrajectory, time_parametrize
 from foldbot.errors import ConfigError, UnreachableTargetError
 from foldbot.planning.motion import Segment
-from foldbot.sim import import_pybullet
 from foldbot.sim.grasp import ClothGrasp
 from foldbot.sim.robots.base import Robot
 from foldbot.sim.robots.base import gripper_down_quaternion as _down
 from foldbot.types import GraspResult
-
-p = import_pybullet()  # pybullet, its start-up banner silenced (foldbot.sim)
 
 TABLE_CLEARANCE = 0.0
 """An arm link closer to the table than this (m; 0 = touching) makes a waypoint infeasible."""
@@ -99,15 +96,12 @@ class ArmExecutor:
         links = set(m.body_link_indices)
         for i, q in enumerate(np.asarray(path, dtype=float)):
             with m.posed(q):
-                hits = p.getClosestPoints(
-                    m.body_id, self.model_table_id, TABLE_CLEARANCE, physicsClientId=m.client
-                )
-            hits = [h for h in hits if h[3] in links]
-            if hits:
-                h = min(hits, key=lambda c: c[8])
+                hit = m.nearest_within(self.model_table_id, TABLE_CLEARANCE, links)
+            if hit is not None:
+                link, _, dist = hit
                 raise UnreachableTargetError(
-                    f"waypoint {i}: the arm's {m.link_name(h[3])} would touch the table "
-                    f"({h[8] * 1000:.1f} mm from it; at least {TABLE_CLEARANCE * 1000:.0f} mm "
+                    f"waypoint {i}: the arm's {m.link_name(link)} would touch the table "
+                    f"({dist * 1000:.1f} mm from it; at least {TABLE_CLEARANCE * 1000:.0f} mm "
                     f"needed) at joints {np.round(q, 3).tolist()} rad"
                 )
 

@@ -246,3 +246,23 @@ def test_shipped_urdf_matches_its_generator() -> None:
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     assert URDF_PATH.read_text() == module.build(), "rerun urdf/make_ur5_urdf.py"
+
+
+def test_nearest_within_finds_a_body_by_the_tcp_and_only_when_close(robot: UR5) -> None:
+    """A small ball 3 cm under the TCP (jaws open) is nearest a finger, over 3 cm away: found within
+    6 cm, not within 3 cm, and not at all among the shoulder and upper-arm links."""
+    tcp, _ = robot.tcp_pose()
+    shape = p.createCollisionShape(p.GEOM_SPHERE, radius=0.002, physicsClientId=robot.client)
+    ball = p.createMultiBody(
+        0, shape, basePosition=(tcp + [0, 0, -0.03]).tolist(), physicsClientId=robot.client
+    )
+    try:
+        hit = robot.nearest_within(ball, 0.06)
+        assert hit is not None
+        link, other, dist = hit
+        assert link in robot.finger_link_indices and other == -1
+        assert 0.03 < dist < 0.06
+        assert robot.nearest_within(ball, 0.03) is None
+        assert robot.nearest_within(ball, 0.06, links=robot.arm_joint_indices[:3]) is None
+    finally:
+        p.removeBody(ball, physicsClientId=robot.client)

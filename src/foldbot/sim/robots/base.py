@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import abc
 import math
-from collections.abc import Iterator, Sequence
+from collections.abc import Collection, Iterator, Sequence
 from contextlib import contextmanager
 from typing import ClassVar
 
@@ -337,6 +337,20 @@ class Robot(abc.ABC):
             for j in range(p.getNumJoints(self.body_id, physicsClientId=self.client))
             if j not in fingers
         )
+
+    def nearest_within(
+        self, other_body: int, distance: float, links: Collection[int] | None = None
+    ) -> tuple[int, int, float] | None:
+        """In the current pose, the closest pair of points between this arm (only its `links`, if
+        given) and body `other_body` when within `distance` (m): (own link, other's link, distance
+        in m); None when nothing is that close."""
+        hits = p.getClosestPoints(self.body_id, other_body, distance, physicsClientId=self.client)
+        if links is not None:
+            hits = [h for h in hits if h[3] in links]
+        if not hits:
+            return None
+        h = min(hits, key=lambda c: c[8])
+        return int(h[3]), int(h[4]), float(h[8])
 
     def link_name(self, link: int) -> str:
         """The URDF name of link index `link` (-1: the base)."""
