@@ -7,8 +7,17 @@ import numpy as np
 import pytest
 
 from foldbot.errors import PerceptionError
-from foldbot.garment_loop import garment_keypoints, outline_distance, snap_to_cloth
+from foldbot.garment_loop import (
+    RETRY_INSET,
+    corrected_grasp,
+    garment_keypoints,
+    outline_distance,
+    snap_to_cloth,
+)
+from foldbot.loop import GRASP_INSET, LoopConfig
 from foldbot.perception.state import ClothState
+from foldbot.planning.actions import FoldAction
+from foldbot.types import CameraIntrinsics, Observation
 
 Z = 0.752
 
@@ -56,3 +65,26 @@ def test_an_unrecognised_garment_is_a_perception_failure():
     for n in names:
         s.keypoints[n] = (np.array([0.45, 0.0, Z]), 0.8)
     assert set(garment_keypoints(s, "retail")) >= set(names)
+
+
+def overhead_view(surface_z: float, camera_z: float = 1.5) -> Observation:
+    """A camera 1.5 m up over (0.45, 0) looking straight down at a flat surface at `surface_z`."""
+    K = np.array([[300.0, 0.0, 160.0], [0.0, 300.0, 120.0], [0.0, 0.0, 1.0]])
+    T = np.eye(4)
+    T[:3, :3] = np.diag([1.0, -1.0, -1.0])  # camera x = world x, y = −y, z (forward) = −z
+    T[:3, 3] = [0.45, 0.0, camera_z]
+    depth = np.full((240, 320), camera_z - surface_z, np.float32)
+    return Observation(np.zeros((240, 320, 3), np.uint8), depth, CameraIntrinsics(320, 240, K), T)
+
+
+def test_a_retried_tip_grasp_closes_farther_inside_the_cloth():
+    s, obs = square_state(), overhead_view(Z)
+    line = (0.45, 0.0, 0.0, -1.0)  # moving side: x > 0.45, whose tip is the +x side at 0.55
+    planned = FoldAction(np.array([0.55, 0.0, Z]), np.array([0.35, 0.0, Z]), line, "legs")
+    first = corrected_grasp(LoopConfig(recipe="leg_over_leg"), s, obs, planned, planned, True)
+    again = corrected_grasp(LoopConfig(recipe="leg_over_leg"), s, obs, planned, first, True, 1)
+    assert first.grasp[0] == pytest.approx(0.55 - GRASP_INSET, abs=1e-6)
+    assert again.grasp[0] == pytest.approx(0.55 - GRASP_INSET - RETRY_INSET, abs=1e-6)
+    # Placed at its mirror across the line, at the height the camera sees the cloth.
+    assert again.place[0] == pytest.approx(0.45 - (again.grasp[0] - 0.45), abs=1e-6)
+    assert again.grasp[2] == pytest.approx(Z, abs=1e-3)

@@ -67,6 +67,31 @@ def test_garment_fold_end_to_end(tmp_path, garment, recipe, stages):
 
 
 @pytest.mark.slow
+def test_two_arms_carry_a_pants_leg_by_waist_and_hem_together(tmp_path):
+    cfg = EpisodeConfig(
+        garment="pants",
+        recipe="leg_over_leg",
+        seed=1,
+        garment_edge_length=0.03,
+        arms=2,
+        video_fps=0,
+    )
+    result = run_episode(cfg, tmp_path / "ep", log=lambda *_: None)
+    assert result["arms"] == 2
+    # Leg over leg: the waist corner and the leg's hem carried at once, one arm each.
+    first = [a for a in result["actions"] if a["fold_line"] == result["fold_lines"][0]]
+    assert [a["label"] for a in first] == ["left_waist", "left_leg"]
+    assert all(a["together"] and a["grasp_success"] for a in first)
+    assert sorted(a["arm"] for a in first) == [0, 1]
+    # In half, the leg stack carried from its tip by one arm at a time.
+    second = [a for a in result["actions"] if a["fold_line"] == result["fold_lines"][1]]
+    assert second and not any(a.get("together") for a in second)
+    assert all(a["arm"] in (0, 1) for a in second if not a.get("skipped"))
+    assert result["coverage"] < 0.75
+    assert np.isfinite(result["fold_error_mm"])
+
+
+@pytest.mark.slow
 def test_crumpled_towel_is_flattened_then_folded(tmp_path):
     # A fresh process: Bullet's soft-body state is process-global, and a crumpled heap is where
     # it is least forgiving (other seeds of this coarse towel diverge or lose the cloth).

@@ -5,8 +5,9 @@ stage against the outline the plan predicts.
 A folded garment hides its keypoints, so unlike the towel loop (foldbot.loop), later stages are not
 re-planned from new keypoints: their grasp points come from the first observation, and each grasp is
 corrected onto the cloth the camera sees now (a point the earlier carries left on bare table moves
-to the nearest perceived cloth). A failed grasp is retried (bounded). Written against `FoldCell`, so
-the same code drives any cell; it never reads ground truth.
+to the nearest perceived cloth). A failed grasp is retried (bounded). In a two-arm cell a stage's two
+grasps are carried at once, one arm each (garment_pair); a stack carried from its tip, one arm.
+Written against `FoldCell`, so the same code drives any cell; it never reads ground truth.
 """
 
 from __future__ import annotations
@@ -18,15 +19,18 @@ from collections.abc import Callable
 import cv2
 import numpy as np
 
-from foldbot.errors import FoldbotError, PerceptionError
+from foldbot.errors import ArmsWouldCollideError, FoldbotError, PerceptionError
 from foldbot.loop import (
     GRASP_INSET,
     FoldCell,
     FoldRecord,
     LoopConfig,
+    arms_apart,
+    assign_arms,
     corners_of,
     execute_action,
     execute_as_planned,
+    execute_together,
     finish_fold,
     line_points,
     open_loop_entry,
@@ -41,12 +45,17 @@ from foldbot.perception.state import ClothState, fold_check_iou, polygon_mask
 from foldbot.planning.actions import FoldAction
 from foldbot.planning.garment_recipes import (
     GarmentPlan,
+    GarmentStage,
     fold_outline,
     plan_garment,
     recipe_keypoints,
 )
 from foldbot.types import Observation
 
+RETRY_INSET = 0.015
+"""A tip grasp retried after a miss closes this much farther inside the cloth (m) per retry: a
+folded tip's outline runs a crease's bulge past its mesh vertices, so the same point misses
+again (pants seed 4 in two arms: twice 15 mm from the nearest vertex)."""
 _SKIPPED = {
     "grasp_success": True,
     "grasp_reason": "skipped: an earlier carry already moved this part",
@@ -104,6 +113,35 @@ def predicted_mask(parts: list[np.ndarray], height: float, obs: Observation) -> 
     return mask
 
 
+def corrected_grasp(
+    cfg: LoopConfig,
+    state: ClothState,
+    obs: Observation,
+    planned: FoldAction,
+    action: FoldAction,
+    from_tip: bool = False,
+    retry: int = 0,
+) -> FoldAction:
+    """`action` with its grasp moved onto the cloth seen now: onto the perceived cloth in x, y
+    (or, `from_tip`, where the cloth left past the line reaches farthest, and on the `retry`-th
+    retry after a miss RETRY_INSET farther in each time) and onto the perceived surface height
+    there (a stack: at the table, under every layer)."""
+    if from_tip:
+        action = tip_action(state, planned, GRASP_INSET + retry * RETRY_INSET) or action
+    else:
+        seen = snap_to_cloth(state, planned.grasp, cfg.regrasp_radius)
+        if seen is not None:
+            action = dataclasses.replace(action, grasp=seen)
+    top = surface_height(obs, action.grasp)
+    if planned.layers == 1 and top is not None:
+        action = dataclasses.replace(action, grasp=np.r_[action.grasp[:2], top])
+    if planned.layers > 1:
+        action = dataclasses.replace(
+            action, grasp=stack_grasp_point(state, action.grasp, cfg.stack_grasp_height)
+        )
+    return action
+
+
 def garment_action(
     cfg: LoopConfig,
     cell: FoldCell,
@@ -133,19 +171,8 @@ def garment_action(
         entry.update(skipped=True)
         return entry, state, obs
     while True:
-        if from_tip:
-            action = tip_action(state, planned) or action
-        else:
-            seen = snap_to_cloth(state, planned.grasp, cfg.regrasp_radius)
-            if seen is not None:
-                action = dataclasses.replace(action, grasp=seen)
-        top = surface_height(obs, action.grasp)
-        if planned.layers == 1 and top is not None:
-            action = dataclasses.replace(action, grasp=np.r_[action.grasp[:2], top])
-        if planned.layers > 1:
-            action = dataclasses.replace(
-                action, grasp=stack_grasp_point(state, action.grasp, cfg.stack_grasp_height)
-            )
+        action = corrected_grasp(cfg, state, obs, planned, action, from_tip, retries)
+        cell.use_arm(cell.arm_for(action.grasp))
         show_action(cell, state, action)
         outcome = execute_action(cell, action)
         cell.park()
@@ -168,7 +195,102 @@ def garment_action(
     entry = open_loop_entry(action, outcome, cell.sim_time - t_sim, time.perf_counter() - t_wall)
     entry.update(label=planned.label, placed_error_m=attempts[-1]["placed_error_m"])
     entry.update(retries=retries, attempts=attempts)
+    if cell.arms > 1:
+        entry["arm"] = cell.active_arm
     return entry, state, obs
+
+
+def garment_pair(
+    cfg: LoopConfig,
+    cell: FoldCell,
+    planned: tuple[FoldAction, ...],
+    latest: ClothState,
+    latest_obs: Observation,
+    log: Callable[[str], None] = print,
+) -> tuple[list[dict], ClothState, Observation]:
+    """A stage's two grasps (a side's hem corner and cuff, a leg's waist corner and hem) carried
+    at once, one arm each, so the edge between them is folded rather than dragged by one end.
+
+    Each grasp is corrected onto the cloth seen now (corrected_grasp); each arm takes the grasp on
+    its side (assign_arms), the other way round when their motions would meet. A failed grasp
+    makes both arms let go; the cell re-observes and redoes the pair (at most `cfg.retries`
+    times); a pair that still fails, or whose arms would meet either way, is done one arm at a
+    time (garment_action)."""
+    t_sim, t_wall = cell.sim_time, time.perf_counter()
+    state, obs = latest, latest_obs
+    arms = assign_arms(cell.arm_for, planned)
+    attempts: list[dict] = []
+    outcomes: list[dict] = []
+    actions = list(planned)
+    for attempt in range(cfg.retries + 1):
+        actions = [corrected_grasp(cfg, state, obs, p, p) for p in planned]
+        cell.show(
+            state,
+            grasp_points=[a.grasp for a in actions],
+            place_points=[a.place for a in actions],
+            fold_line=line_points(actions[0].fold_line, cell.table_height),
+        )
+        try:
+            try:
+                outcomes = execute_together(cell, list(zip(arms, actions, strict=True)))
+            except ArmsWouldCollideError as exc:
+                log(f"  the arms would meet ({exc}); trying them the other way round")
+                arms = arms[::-1]
+                outcomes = execute_together(cell, list(zip(arms, actions, strict=True)))
+        except ArmsWouldCollideError as exc:
+            log(f"  the arms would meet ({exc}); carrying them one arm at a time")
+            entries = []
+            for p in planned:
+                entry, state, obs = garment_action(cfg, cell, p, state, obs, log)
+                entry["arms_would_meet"] = str(exc)
+                entries.append(entry)
+            return entries, state, obs
+        cell.park()
+        state, obs = cell.observe()
+        attempts.append(
+            {
+                "grasps": [[float(v) for v in a.grasp] for a in actions],
+                "grasp_success": [o["grasp_success"] for o in outcomes],
+                "grasp_reasons": [o["grasp_reason"] for o in outcomes],
+            }
+        )
+        if outcomes[0]["carried"]:
+            break
+        reasons = "; ".join(
+            f"{a.label}: {o['grasp_reason']}"
+            for a, o in zip(planned, outcomes, strict=True)
+            if not o["grasp_success"]
+        )
+        if attempt < cfg.retries:
+            log(f"  grasp failed ({reasons}); both arms let go, re-observed, retry {attempt + 1}")
+        else:
+            log(f"  grasp failed ({reasons}); carrying them one arm at a time")
+    pair_sim, pair_wall = cell.sim_time - t_sim, time.perf_counter() - t_wall
+    entries = []
+    for i, p in enumerate(planned):
+        entry = open_loop_entry(actions[i], outcomes[i], pair_sim / 2, pair_wall / 2)
+        off = max(0.0, -outline_distance(state, actions[i].place)) if state.detected else None
+        entry.update(label=p.label, arm=arms[i], together=True, attempts=attempts)
+        entry.update(retries=len(attempts) - 1, placed_error_m=off)
+        entries.append(entry)
+    if not outcomes[0]["carried"]:
+        for p in planned:
+            log(f"  {p.label} → place, one arm")
+            entry, state, obs = garment_action(cfg, cell, p, state, obs, log)
+            entry["after_pair_failed"] = True
+            entries.append(entry)
+    return entries, state, obs
+
+
+def together(cell: FoldCell, stage: GarmentStage) -> bool:
+    """Whether `cell` carries `stage`'s grasps at once: two arms, two grasps far enough apart
+    (arms_apart), and not a stack carried from its tip (one layer at a time)."""
+    return (
+        cell.arms > 1
+        and not stage.from_tip
+        and len(stage.actions) == 2
+        and arms_apart(stage.actions)
+    )
 
 
 def plan_overlay_all(
@@ -205,15 +327,21 @@ def run_garment_fold(
     parts = [np.asarray(state.outline_world, dtype=float)[:, :2]]
     for i, stage in enumerate(plan.stages):
         rec.fold_lines.append(stage.fold_line)
-        for j, planned in enumerate(stage.actions):
-            log(f"stage {i + 1}, action {j + 1}/{len(stage.actions)}: {planned.label} → place")
-            if cfg.closed_loop:
-                entry, state, obs = garment_action(
-                    cfg, cell, planned, state, obs, log, from_tip=stage.from_tip
-                )
-            else:
-                entry = execute_as_planned(cell, state, planned)
-            rec.actions.append(entry)
+        if cfg.closed_loop and together(cell, stage):
+            log(f"stage {i + 1}: {' and '.join(a.label for a in stage.actions)} together")
+            entries, state, obs = garment_pair(cfg, cell, stage.actions, state, obs, log)
+            rec.actions.extend(entries)
+        else:
+            for j, planned in enumerate(stage.actions):
+                log(f"stage {i + 1}, action {j + 1}/{len(stage.actions)}: {planned.label} → place")
+                if cfg.closed_loop:
+                    entry, state, obs = garment_action(
+                        cfg, cell, planned, state, obs, log, from_tip=stage.from_tip
+                    )
+                else:
+                    cell.use_arm(cell.arm_for(planned.grasp))
+                    entry = execute_as_planned(cell, state, planned)
+                rec.actions.append(entry)
         parts = fold_outline(parts, stage.fold_line)
         if not cfg.closed_loop:
             rec.stages.append({"stage": i, "fold_line": list(stage.fold_line), "verified": None})

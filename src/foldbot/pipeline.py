@@ -124,7 +124,8 @@ class EpisodeConfig:
     """Where the arm waits while the camera looks (PARK_POSES): home or out_of_view."""
     arms: int = 1
     """Arms in the cell: 1, or 2 side by side (CellLayout.arm_layouts), which carry a stage's
-    two corners together (flat towels; single actions use the arm on their side)."""
+    two grasps together (a towel's corners, a garment side's hem and cuff, a pants leg's waist
+    and hem; single actions use the arm on their side). Flat starts only."""
 
     def __post_init__(self) -> None:
         require(
@@ -181,10 +182,6 @@ class EpisodeConfig:
         require(
             self.arms in ARM_COUNTS and not isinstance(self.arms, bool),
             f"arms must be one of {ARM_COUNTS}, got {self.arms!r}",
-        )
-        require(
-            self.arms == 1 or self.garment == "towel",
-            f"the two-arm cell folds towels; a {self.garment} is folded with arms = 1",
         )
         require(
             self.arms == 1 or self.start == "flat",

@@ -115,10 +115,14 @@ def test_arms_reach_the_cell_and_are_left_out_of_specs_by_default(tiny_suite_dat
     assert EpisodeSpec.from_dict(spec.as_dict()) == spec
 
 
-def test_the_two_arm_suite_folds_the_loop_suites_towels():
-    two, one = load_suite("towel_two_arms"), load_suite("towel_loop")
+@pytest.mark.parametrize(
+    ("two_arms", "one_arm"),
+    [("towel_two_arms", "towel_loop"), ("tshirt_two_arms", "tshirt"), ("pants_two_arms", "pants")],
+)
+def test_the_two_arm_suites_fold_the_one_arm_suites_cloths(two_arms, one_arm):
+    two, one = load_suite(two_arms), load_suite(one_arm)
     assert {e.arms for e in two.episodes} == {2}
-    # The same episodes but for the arms, so the two cells compare towel for towel.
+    # The same episodes but for the arms, so the two cells compare cloth for cloth.
     assert [dataclasses.replace(e, arms=1) for e in two.episodes] == list(one.episodes)
 
 
@@ -131,7 +135,9 @@ def test_the_loop_acceptance_suite_parks_out_of_view_over_20_seeds():
     assert {(e.towel_resolution, e.towel_odd_grid) for e in suite.episodes} == {(17, True)}
 
 
-@pytest.mark.parametrize("name", ["tshirt", "pants", "towel_crumpled"])
+@pytest.mark.parametrize(
+    "name", ["tshirt", "pants", "tshirt_two_arms", "pants_two_arms", "towel_crumpled"]
+)
 def test_the_garment_and_crumpled_suites_park_at_home(name):
     # Measured: parked out of view, garments folded worse and crumpled towels diverged more.
     assert {e.park for e in load_suite(name).episodes} == {"home"}

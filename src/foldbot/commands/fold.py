@@ -73,8 +73,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=int,
         default=1,
         choices=ARM_COUNTS,
-        help="arms in the cell: 1 (default), or 2 side by side, which carry a stage's two corners "
-        "together (flat towels)",
+        help="arms in the cell: 1 (default), or 2 side by side, which carry a stage's two grasps "
+        "together (flat towels and garments)",
     )
     parser.add_argument("--seed", type=int, default=0, help="randomisation seed (default 0)")
     parser.add_argument("--width", type=float, default=0.30, help="towel width in m (0.05–1.0)")
