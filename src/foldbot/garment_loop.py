@@ -142,6 +142,18 @@ def corrected_grasp(
     return action
 
 
+def inward(state: ClothState, action: FoldAction, distance: float) -> FoldAction:
+    """`action` with its grasp moved `distance` (m) in the table plane toward the perceived
+    cloth's centre: where a pair's retry aims after the jaws closed on no cloth (a coarse mesh's
+    vertices can lie farther in than the perceived edge)."""
+    outline = np.asarray(state.outline_world, dtype=float).reshape(-1, 3)
+    if not state.detected or len(outline) < 3 or distance <= 0.0:
+        return action
+    to_centre = outline[:, :2].mean(axis=0) - action.grasp[:2]
+    step = to_centre / max(float(np.linalg.norm(to_centre)), 1e-9) * distance
+    return dataclasses.replace(action, grasp=np.r_[action.grasp[:2] + step, action.grasp[2]])
+
+
 def garment_action(
     cfg: LoopConfig,
     cell: FoldCell,
@@ -214,16 +226,23 @@ def garment_pair(
     Each grasp is corrected onto the cloth seen now (corrected_grasp); each arm takes the grasp on
     its side (assign_arms), the other way round when their motions would meet. A failed grasp
     makes both arms let go; the cell re-observes and redoes the pair (at most `cfg.retries`
-    times); a pair that still fails, or whose arms would meet either way, is done one arm at a
-    time (garment_action)."""
+    times, a missed grasp RETRY_INSET farther toward the cloth's centre each time); a pair
+    that still fails, or whose arms would meet either way, is done one arm at a time
+    (garment_action)."""
     t_sim, t_wall = cell.sim_time, time.perf_counter()
     state, obs = latest, latest_obs
     arms = assign_arms(cell.arm_for, planned)
     attempts: list[dict] = []
     outcomes: list[dict] = []
     actions = list(planned)
+    failed = [False] * len(planned)
     for attempt in range(cfg.retries + 1):
-        actions = [corrected_grasp(cfg, state, obs, p, p) for p in planned]
+        actions = [
+            inward(state, corrected_grasp(cfg, state, obs, p, p), attempt * RETRY_INSET)
+            if failed[i]
+            else corrected_grasp(cfg, state, obs, p, p)
+            for i, p in enumerate(planned)
+        ]
         cell.show(
             state,
             grasp_points=[a.grasp for a in actions],
@@ -247,6 +266,7 @@ def garment_pair(
             return entries, state, obs
         cell.park()
         state, obs = cell.observe()
+        failed = [not o["grasp_success"] for o in outcomes]
         attempts.append(
             {
                 "grasps": [[float(v) for v in a.grasp] for a in actions],
