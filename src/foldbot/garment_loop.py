@@ -33,7 +33,9 @@ from foldbot.loop import (
     execute_together,
     finish_fold,
     line_points,
+    missed_grasps,
     open_loop_entry,
+    pair_attempt,
     require_in_view,
     show_action,
     stack_grasp_point,
@@ -267,20 +269,10 @@ def garment_pair(
         cell.park()
         state, obs = cell.observe()
         failed = [not o["grasp_success"] for o in outcomes]
-        attempts.append(
-            {
-                "grasps": [[float(v) for v in a.grasp] for a in actions],
-                "grasp_success": [o["grasp_success"] for o in outcomes],
-                "grasp_reasons": [o["grasp_reason"] for o in outcomes],
-            }
-        )
+        attempts.append(pair_attempt(actions, outcomes))
         if outcomes[0]["carried"]:
             break
-        reasons = "; ".join(
-            f"{a.label}: {o['grasp_reason']}"
-            for a, o in zip(planned, outcomes, strict=True)
-            if not o["grasp_success"]
-        )
+        reasons = missed_grasps(planned, outcomes)
         if attempt < cfg.retries:
             log(f"  grasp failed ({reasons}); both arms let go, re-observed, retry {attempt + 1}")
         else:

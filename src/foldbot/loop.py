@@ -907,6 +907,24 @@ def execute_together(cell: FoldCell, pairs: list[tuple[int, FoldAction]]) -> lis
     ]
 
 
+def pair_attempt(actions: list[FoldAction], outcomes: list[dict]) -> dict:
+    """One try of a pair, as the entries' `attempts` record it: grasps aimed, and what they held."""
+    return {
+        "grasps": [[float(v) for v in a.grasp] for a in actions],
+        "grasp_success": [o["grasp_success"] for o in outcomes],
+        "grasp_reasons": [o["grasp_reason"] for o in outcomes],
+    }
+
+
+def missed_grasps(planned: tuple[FoldAction, ...], outcomes: list[dict]) -> str:
+    """The log's words for a pair's failed grasps: each missed action's label and reason."""
+    return "; ".join(
+        f"{a.label}: {o['grasp_reason']}"
+        for a, o in zip(planned, outcomes, strict=True)
+        if not o["grasp_success"]
+    )
+
+
 def two_arm_actions(
     cfg: LoopConfig,
     cell: FoldCell,
@@ -970,20 +988,10 @@ def two_arm_actions(
         cell.park()
         state, _obs = cell.observe()
         failed = [not o["grasp_success"] for o in outcomes]
-        attempts.append(
-            {
-                "grasps": [[float(v) for v in a.grasp] for a in actions],
-                "grasp_success": [o["grasp_success"] for o in outcomes],
-                "grasp_reasons": [o["grasp_reason"] for o in outcomes],
-            }
-        )
+        attempts.append(pair_attempt(actions, outcomes))
         if outcomes[0]["carried"]:
             break
-        reasons = "; ".join(
-            f"{a.label}: {o['grasp_reason']}"
-            for a, o in zip(planned, outcomes, strict=True)
-            if not o["grasp_success"]
-        )
+        reasons = missed_grasps(planned, outcomes)
         if attempt < cfg.retries:
             log(f"  grasp failed ({reasons}); both arms let go, re-observed, retry {attempt + 1}")
         else:
