@@ -42,3 +42,39 @@ def test_arms_that_would_meet_are_refused_before_moving(two_arms):
     own = left.plan([Segment("own", line_path(a0, np.array([0.45, 0.2, z])), 0.25)])
     check_arms_clear([(left, own), (right, _still(right, q_right, own))])
     assert world.steps == 0, "checking moves nothing"
+
+
+def test_arms_are_checked_at_the_instants_they_pass_through(two_arms):
+    """A slow arm passing, mid-way, where a fast arm has already arrived and waits is refused: the
+    fast arm holds its end while the slow one passes (the instant the executor will run), which
+    pairing the two paths by their fraction done would miss (the fast arm then still far away)."""
+    from foldbot.control.bimanual import check_arms_clear, step_timelines
+    from foldbot.errors import ArmsWouldCollideError
+
+    world, (left, right) = two_arms
+    meet = np.array([0.45, 0.0, world.layout.table_height + 0.15])
+    a0, b0 = left.robot.tcp_pose()[0], right.robot.tcp_pose()[0]
+    there_and_back = np.vstack([line_path(a0, meet), line_path(meet, a0)[1:]])
+    slow = left.plan([Segment("pass", there_and_back, 0.05)])
+    fast = right.plan([Segment("pass", line_path(b0, meet), 1.0)])
+    (slow_line,), (fast_line,) = step_timelines(left, slow), step_timelines(right, fast)
+    assert len(slow_line) > 4 * len(fast_line), "one physics step per sample; the slow arm is slow"
+    np.testing.assert_allclose(fast_line[-1], fast[0].joint_path[-1], atol=1e-6)
+    # At the same fraction of their paths the arms are far apart: the slow arm reaches the meeting
+    # point half-way, when the fast one is half-way too.
+    half = right.model.fk_tcp(fast[0].joint_path[len(fast[0].joint_path) // 2])[0]
+    assert np.linalg.norm(half - meet) > 0.1
+    with pytest.raises(ArmsWouldCollideError, match=r"segment .pass.*overlap by"):
+        check_arms_clear([(left, slow), (right, fast)])
+    assert world.steps == 0, "checking moves nothing"
+
+
+def test_an_arm_standing_still_is_one_configuration(two_arms):
+    from foldbot.control.bimanual import step_timelines
+
+    _world, (left, _right) = two_arms
+    q = left.robot.joint_positions()
+    target = left.robot.tcp_pose()[0] + [0.0, 0.0, -0.1]
+    move = left.plan([Segment("down", line_path(left.robot.tcp_pose()[0], target), 0.2)])
+    (still,) = step_timelines(left, _still(left, q, move))
+    np.testing.assert_allclose(still, q[None, :])
