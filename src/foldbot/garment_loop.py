@@ -30,7 +30,6 @@ from foldbot.loop import (
     corners_of,
     execute_action,
     execute_as_planned,
-    execute_together,
     finish_fold,
     line_points,
     missed_grasps,
@@ -38,6 +37,7 @@ from foldbot.loop import (
     pair_attempt,
     require_in_view,
     show_action,
+    show_and_carry_pair,
     stack_grasp_point,
     surface_height,
     tip_action,
@@ -245,19 +245,8 @@ def garment_pair(
             else corrected_grasp(cfg, state, obs, p, p)
             for i, p in enumerate(planned)
         ]
-        cell.show(
-            state,
-            grasp_points=[a.grasp for a in actions],
-            place_points=[a.place for a in actions],
-            fold_line=line_points(actions[0].fold_line, cell.table_height),
-        )
         try:
-            try:
-                outcomes = execute_together(cell, list(zip(arms, actions, strict=True)))
-            except ArmsWouldCollideError as exc:
-                log(f"  the arms would meet ({exc}); trying them the other way round")
-                arms = arms[::-1]
-                outcomes = execute_together(cell, list(zip(arms, actions, strict=True)))
+            outcomes, arms = show_and_carry_pair(cell, state, arms, actions, log)
         except ArmsWouldCollideError as exc:
             log(f"  the arms would meet ({exc}); carrying them one arm at a time")
             entries = []

@@ -907,6 +907,30 @@ def execute_together(cell: FoldCell, pairs: list[tuple[int, FoldAction]]) -> lis
     ]
 
 
+def show_and_carry_pair(
+    cell: FoldCell,
+    state: ClothState,
+    arms: list[int],
+    actions: list[FoldAction],
+    log: Callable[[str], None] = print,
+) -> tuple[list[dict], list[int]]:
+    """Show a pair's grasps, places and fold line, then carry it (execute_together) with the arms
+    as assigned, or the other way round when they would meet; returns the outcomes and the arms
+    used. ArmsWouldCollideError when they would meet either way (nothing moved)."""
+    cell.show(
+        state,
+        grasp_points=[a.grasp for a in actions],
+        place_points=[a.place for a in actions],
+        fold_line=line_points(actions[0].fold_line, cell.table_height),
+    )
+    try:
+        return execute_together(cell, list(zip(arms, actions, strict=True))), arms
+    except ArmsWouldCollideError as exc:
+        log(f"  the arms would meet ({exc}); trying them the other way round")
+        arms = arms[::-1]
+        return execute_together(cell, list(zip(arms, actions, strict=True))), arms
+
+
 def pair_attempt(actions: list[FoldAction], outcomes: list[dict]) -> dict:
     """One try of a pair, as the entries' `attempts` record it: grasps aimed, and what they held."""
     return {
@@ -962,19 +986,8 @@ def two_arm_actions(
             )
             for i, plan_i in enumerate(planned)
         ]
-        cell.show(
-            state,
-            grasp_points=[a.grasp for a in actions],
-            place_points=[a.place for a in actions],
-            fold_line=line_points(actions[0].fold_line, cell.table_height),
-        )
         try:
-            try:
-                outcomes = execute_together(cell, list(zip(arms, actions, strict=True)))
-            except ArmsWouldCollideError as exc:
-                log(f"  the arms would meet ({exc}); trying them the other way round")
-                arms = arms[::-1]
-                outcomes = execute_together(cell, list(zip(arms, actions, strict=True)))
+            outcomes, arms = show_and_carry_pair(cell, state, arms, actions, log)
         except ArmsWouldCollideError as exc:
             log(f"  the arms would meet ({exc}); carrying the corners one arm at a time")
             entries = []
