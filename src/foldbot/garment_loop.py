@@ -49,7 +49,6 @@ from foldbot.planning.garment_recipes import (
     GarmentPlan,
     GarmentStage,
     fold_outline,
-    plan_garment,
     recipe_keypoints,
 )
 from foldbot.types import Observation
@@ -320,7 +319,7 @@ def run_garment_fold(
         raise FoldbotError(f"no garment found before folding: {state.reason}")
     if cfg.require_full_view:
         require_in_view(state)
-    plan = plan_garment(
+    plan = cell.plan_garment(
         cfg.recipe, garment_keypoints(state, cfg.recipe), cfg.place_lift, cfg.layer_thickness
     )
     height = float(np.median(state.keypoint_array()[:, 2]))

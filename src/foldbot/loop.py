@@ -30,6 +30,7 @@ from foldbot.perception.layers import deepest_gap, layer_cover
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState, fold_check_iou
 from foldbot.planning.actions import FoldAction, FoldPlan
+from foldbot.planning.garment_recipes import GarmentPlan, plan_garment
 from foldbot.planning.recipes import (
     plan_stage,
     predicted_cover,
@@ -129,6 +130,13 @@ class FoldCell(abc.ABC):
             plan_stage(recipe, stage, corners, place_lift, crease_room),
             predicted_outline(recipe, stage, corners, crease_room),
         )
+
+    def plan_garment(
+        self, recipe: str, keypoints: dict[str, np.ndarray], place_lift: float, thickness: float
+    ) -> GarmentPlan:
+        """A garment recipe's every stage, planned from the keypoints perceived on the flat
+        garment (planning.garment_recipes.plan_garment)."""
+        return plan_garment(recipe, keypoints, place_lift, thickness)
 
     @abc.abstractmethod
     def plan_action(self, action: FoldAction) -> list[Any]:

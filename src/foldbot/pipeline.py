@@ -35,9 +35,7 @@ from foldbot.garments.towel import TowelSpec, make_towel
 from foldbot.io.episode import EpisodeWriter
 from foldbot.loop import FoldCell, FoldRecord, LoopConfig, StepLog, nearest_arm, run_fold
 from foldbot.metrics import score_episode
-from foldbot.perception.estimator import VisionEstimator
-from foldbot.perception.fallback import FirstDetected
-from foldbot.perception.garment_keypoints import GarmentEstimator
+from foldbot.perception.fallback import vision_estimator
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState
 from foldbot.planning.actions import FoldAction
@@ -520,12 +518,9 @@ def build_sim_cell(cfg: EpisodeConfig, world: SimWorld) -> SimCellParts:
 
 def make_estimator(cfg: EpisodeConfig, oracle: GroundTruthOracle):
     """The episode's eyes: vision (RGB-D only) or the named ground-truth oracle, for its garment."""
-    if cfg.garment == "towel":
-        return VisionEstimator() if cfg.perception == "vision" else OracleEstimator(oracle)
     if cfg.perception == "vision":
-        # Keypoints on the flat garment; once folded, the outline and mask of any cloth.
-        return FirstDetected(GarmentEstimator(cfg.garment), VisionEstimator())
-    return GarmentOracleEstimator(oracle)
+        return vision_estimator(cfg.garment)
+    return OracleEstimator(oracle) if cfg.garment == "towel" else GarmentOracleEstimator(oracle)
 
 
 def crumple_and_flatten(

@@ -17,6 +17,12 @@ from foldbot.commands.ros_fold import add_arguments, fold_args_text
         (["ros-fold", "--out", "{tmp}/e", "--record", "{tmp}/run.txt"], "must name a .bag"),
         (["ros-fold", "--out", "{tmp}/e", "--resolution", "2"], "resolution"),
         (["ros-fold", "--out", "{tmp}/e", "--port", "0"], "--port"),
+        (["ros-fold", "--out", "{tmp}/e", "--arms", "2"], "ros-fold drives one arm"),
+        (["ros-fold", "--out", "{tmp}/e", "--start", "crumpled"], "starts from a flat cloth"),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--garment", "pants", "--garment-edge-length", "1"],
+            "garment_edge_length must be in [0.005, 0.1] m, got 1.0",
+        ),
         (["ros-replay", "{tmp}/missing.bag", "--rate", "0"], "--rate"),
         (["export-bag", "{tmp}", "--out", "{tmp}/x.txt"], "must end in .bag"),
     ],
@@ -42,3 +48,14 @@ def test_fold_options_reach_the_nodes():
     assert "--odd-grid" in fold_args_text(parser.parse_args(["--out", "e"])).split()
     words = fold_args_text(parser.parse_args(["--out", "e", "--no-odd-grid"])).split()
     assert "--no-odd-grid" in words
+
+
+def test_garment_options_reach_the_nodes():
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    args = ["--out", "e", "--garment", "tshirt", "--garment-edge-length", "0.03"]
+    words = fold_args_text(parser.parse_args([*args, "--park", "out_of_view"])).split()
+    # A garment's own default recipe, its mesh and the park pose reach every node.
+    assert words[words.index("--recipe") + 1] == "retail"
+    assert words[words.index("--garment-edge-length") + 1] == "0.03"
+    assert words[words.index("--park") + 1] == "out_of_view"

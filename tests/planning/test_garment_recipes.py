@@ -12,6 +12,7 @@ from foldbot.metrics import FoldLine
 from foldbot.planning.garment_recipes import (
     PANTS_KEYPOINTS,
     TSHIRT_KEYPOINTS,
+    GarmentPlan,
     fold_outline,
     plan_garment,
 )
@@ -148,3 +149,17 @@ def test_fold_outline_halves_a_square():
     # A line missing the polygon leaves it whole.
     (whole,) = fold_outline([square], (0.0, 2.0, 1.0, 0.0))
     assert abs(_signed_area(whole)) == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize(("recipe", "uv"), [("retail", TSHIRT_UV), ("leg_over_leg", PANTS_UV)])
+def test_plan_survives_its_json_form(recipe, uv):
+    """The ROS planner node sends a garment plan as JSON: every stage, line and action field
+    (layers and from_tip included) comes back as it was."""
+    import json
+
+    plan = plan_garment(recipe, placed(uv, math.pi / 2 + 0.1), place_lift=0.004, thickness=0.01)
+    again = GarmentPlan.from_dict(json.loads(json.dumps(plan.as_dict())))
+    assert again.recipe == plan.recipe and again.fold_lines == plan.fold_lines
+    for a, b in zip(plan.stages, again.stages, strict=True):
+        assert a.from_tip == b.from_tip
+        assert [x.as_dict() for x in a.actions] == [x.as_dict() for x in b.actions]

@@ -143,3 +143,37 @@ def test_exported_bag_plays_back_in_ros(ros_run, tmp_path):
         core.terminate()
         core.wait(timeout=30)
     assert "fold_error_mm" in text
+
+
+@pytest.fixture(scope="module")
+def ros_pants(tmp_path_factory):
+    """Pants (a coarse 3 cm mesh) folded leg over leg, then in half, over topics, recorded."""
+    tmp = tmp_path_factory.mktemp("ros_pants")
+    out, bag = tmp / "episode", tmp / "run.bag"
+    proc = foldbot(
+        "ros-fold", "--garment", "pants", "--garment-edge-length", "0.03", "--seed", "1",
+        "--video-fps", "2", "--out", str(out), "--record", str(bag), "--port", str(free_port()),
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    return out, bag
+
+
+def test_pants_fold_over_topics(ros_pants):
+    out, _bag = ros_pants
+    result = json.loads((out / "result.json").read_text())
+    assert result["transport"] == "ros" and result["garment"] == "pants"
+    assert result["recipe"] == "leg_over_leg" and "garment_spec" in result
+    assert rescore(out).fold_error_mm == pytest.approx(result["fold_error_mm"])
+    # Planned by the planner node from the perceived keypoints: two folds, the stages verified.
+    assert len(result["fold_lines"]) == 2 and [s["stage"] for s in result["stages"]] == [0, 1]
+    assert {"overlay_stage1.png", "overlay_stage2.png"} <= {p.name for p in out.iterdir()}
+    carried = [a for a in result["actions"] if not a.get("skipped")]
+    assert len(carried) >= 3 and all(a["grasp_success"] for a in carried)
+    assert result["coverage"] < 0.5  # legs stacked, then folded in half: a quarter or so is left
+
+
+def test_pants_replay_gives_the_live_keypoints(ros_pants):
+    _out, bag = ros_pants
+    proc = foldbot("ros-replay", str(bag), "--port", str(free_port()), "--rate", "2")
+    assert proc.returncode == 0, proc.stdout + proc.stderr[-3000:]
+    assert "same keypoints as the live run" in proc.stdout

@@ -93,6 +93,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "mass-spring mesh creases only at vertices (default; --resolution 16 becomes 17). "
         "--no-odd-grid keeps the proportional counts",
     )
+    parser.add_argument(
+        "--garment-edge-length",
+        type=float,
+        default=None,
+        metavar="M",
+        help="a tshirt's or pants' mesh edge length in m (0.005–0.1; default 0.025): coarser "
+        "meshes simulate faster",
+    )
     parser.add_argument("--mass", type=float, default=None, help="cloth mass in kg (default 0.1)")
     parser.add_argument(
         "--video-fps", type=float, default=10.0, help="video frames per simulated second (0 = off)"
@@ -123,6 +131,7 @@ def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
             resolution=args.resolution,
             odd_grid=args.odd_grid,
         ),
+        garment_edge_length=args.garment_edge_length,
         cloth=cloth,
         sim=SimConfig(gui=args.gui),
         video_fps=args.video_fps,

@@ -1,4 +1,4 @@
-"""`foldbot ros-fold`: fold a towel over ROS 1 topics — roslaunch brings up the sim, perception,
+"""`foldbot ros-fold`: fold a towel, T-shirt or pants over ROS 1 topics — roslaunch brings up the sim, perception,
 planner and task nodes (and roscore when none runs) — and write the same episode folder as
 `foldbot fold`. `--record BAG` records the run with rosbag.
 
@@ -70,14 +70,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def fold_args_text(args: argparse.Namespace) -> str:
     """The episode's `foldbot fold` options as one shell-quoted string (the nodes parse it)."""
     words = [
-        *("--garment", args.garment, "--recipe", args.recipe or "half", "--robot", args.robot),
-        *("--perception", args.perception, "--seed", str(args.seed)),
+        *("--garment", args.garment, "--recipe", args.recipe or fold.DEFAULT_RECIPES[args.garment]),
+        *("--robot", args.robot),
+        *("--perception", args.perception, "--seed", str(args.seed), "--park", args.park),
         *("--width", repr(args.width), "--height", repr(args.height)),
         *("--resolution", str(args.resolution), "--video-fps", repr(args.video_fps)),
         *("--out", str(Path(args.out).resolve())),
     ]
     if args.mass is not None:
         words += ["--mass", repr(args.mass)]
+    if args.garment_edge_length is not None:
+        words += ["--garment-edge-length", repr(args.garment_edge_length)]
     words.append("--odd-grid" if args.odd_grid else "--no-odd-grid")
     if args.overwrite:
         words.append("--overwrite")
@@ -90,13 +93,13 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError("--gui is not available over ROS; use `foldbot fold --gui`")
     if args.start != "flat":
         raise ConfigError(
-            f"ros-fold starts from a flat towel, got --start {args.start}; "
+            f"ros-fold starts from a flat cloth, got --start {args.start}; "
             "crumpled starts run in process with `foldbot fold --start crumpled`"
         )
-    if args.garment != "towel":
+    if args.arms != 1:
         raise ConfigError(
-            f"ros-fold folds towels only, got --garment {args.garment}; "
-            "fold other garments in process with `foldbot fold`"
+            f"ros-fold drives one arm, got --arms {args.arms}; "
+            "the two-arm cell runs in process with `foldbot fold --arms 2`"
         )
     if args.perception != "vision":
         raise ConfigError(

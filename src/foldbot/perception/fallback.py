@@ -32,3 +32,14 @@ class FirstDetected:
             if state.detected:
                 return state
         return state
+
+
+def vision_estimator(garment: str) -> Estimator:
+    """The RGB-D estimator for `garment`: a towel's corners (VisionEstimator), or a garment's
+    keypoints on the flat garment and, once folded, the outline and mask of any cloth."""
+    from foldbot.perception.estimator import VisionEstimator
+    from foldbot.perception.garment_keypoints import GarmentEstimator
+
+    if garment == "towel":
+        return VisionEstimator()
+    return FirstDetected(GarmentEstimator(garment), VisionEstimator())

@@ -30,6 +30,17 @@ class FoldAction:
             "fold_line": [float(v) for v in self.fold_line],
         }
 
+    @classmethod
+    def from_dict(cls, d: dict) -> FoldAction:
+        """The action from its `as_dict()` form."""
+        return cls(
+            grasp=np.array(d["grasp"], dtype=float),
+            place=np.array(d["place"], dtype=float),
+            fold_line=tuple(float(v) for v in d["fold_line"]),
+            label=d.get("label", ""),
+            layers=int(d.get("layers", 1)),
+        )
+
 
 @dataclass(frozen=True)
 class FoldPlan:

@@ -124,6 +124,35 @@ class GarmentPlan:
     def fold_lines(self) -> tuple[Line, ...]:
         return tuple(s.fold_line for s in self.stages)
 
+    def as_dict(self) -> dict:
+        """JSON-ready form (the ROS planner node's reply)."""
+        return {
+            "recipe": self.recipe,
+            "stages": [
+                {
+                    "fold_line": [float(v) for v in s.fold_line],
+                    "actions": [a.as_dict() for a in s.actions],
+                    "from_tip": s.from_tip,
+                }
+                for s in self.stages
+            ],
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> GarmentPlan:
+        """The plan from its `as_dict()` form."""
+        return cls(
+            d["recipe"],
+            tuple(
+                GarmentStage(
+                    tuple(float(v) for v in s["fold_line"]),
+                    tuple(FoldAction.from_dict(a) for a in s["actions"]),
+                    bool(s.get("from_tip", False)),
+                )
+                for s in d["stages"]
+            ),
+        )
+
 
 def recipe_keypoints(recipe: str) -> tuple[str, ...]:
     """Keypoints a garment recipe needs; ConfigError for an unknown recipe."""

@@ -237,13 +237,8 @@ def cloud_array(msg: PointCloud2) -> np.ndarray:
 
 
 def fold_action_from(d: dict) -> FoldAction:
-    """A FoldAction from its `as_dict()` form."""
-    return FoldAction(
-        grasp=np.array(d["grasp"], dtype=float),
-        place=np.array(d["place"], dtype=float),
-        fold_line=tuple(float(v) for v in d["fold_line"]),
-        label=d.get("label", ""),
-    )
+    """A FoldAction from its `as_dict()` form (every field, `layers` included)."""
+    return FoldAction.from_dict(d)
 
 
 def string_msg(payload: dict) -> String:

@@ -1,5 +1,6 @@
 """The perception node: synchronised RGB-D frames + camera_info (+ the camera pose from
-/tf_static) → VisionEstimator → cloth/keypoints (geometry_msgs/PoseArray, world frame, corners
+/tf_static) → the RGB-D estimator for the episode's garment (perception.fallback.vision_estimator)
+→ cloth/keypoints (geometry_msgs/PoseArray, world frame, corners
 in CORNER_LABELS order), cloth/mask (mono8) and cloth/state (the full ClothState as JSON),
 all stamped with the frame's stamp so a consumer can match them to the image."""
 
@@ -16,16 +17,20 @@ from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
 
-from foldbot.perception.estimator import VisionEstimator
+from foldbot.errors import ConfigError
+from foldbot.garments import GARMENTS
+from foldbot.perception.fallback import vision_estimator
 from foldbot.ros import CAMERA_FRAME, TOPICS, WORLD_FRAME, convert
+from foldbot.ros.node_args import FOLD_ARGS_PARAM, parse_fold_args
 from foldbot.types import Observation
 
 
 class PerceptionNode:
-    """Runs the vision estimator on every synchronised frame (images in, values out)."""
+    """Runs the vision estimator for `garment` on every synchronised frame (images in, values
+    out)."""
 
-    def __init__(self, queue_size: int = 200) -> None:
-        self.estimator = VisionEstimator()
+    def __init__(self, garment: str = "towel", queue_size: int = 200) -> None:
+        self.estimator = vision_estimator(garment)
         self.T_world_camera: np.ndarray | None = None
         self._lock = threading.Lock()
         self._pending: list[tuple[Image, Image, CameraInfo]] = []
@@ -81,8 +86,21 @@ class PerceptionNode:
         self.pub_keypoints.publish(convert.keypoints_msg(state, stamp, WORLD_FRAME))
 
 
+def node_garment() -> str:
+    """The garment to perceive: the private parameter ~garment (a replay sets it), else the
+    episode's (/foldbot/fold_args), else a towel."""
+    garment = rospy.get_param("~garment", "")
+    if garment:
+        if garment not in GARMENTS:
+            raise ConfigError(f"~garment {garment!r} is not one of {', '.join(GARMENTS)}")
+        return garment
+    if rospy.has_param(FOLD_ARGS_PARAM):
+        return parse_fold_args(rospy.get_param(FOLD_ARGS_PARAM))[1].garment
+    return "towel"
+
+
 def main(argv: list[str] | None = None) -> int:
     rospy.init_node("foldbot_perception", argv=argv if argv is not None else sys.argv)
-    PerceptionNode()
+    PerceptionNode(node_garment())
     rospy.spin()
     return 0

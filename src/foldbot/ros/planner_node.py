@@ -1,10 +1,11 @@
-"""The planner node: perceived corners (cloth/keypoints) → fold plan (planning.recipes) → joint
-trajectories (IK on every waypoint, ruckig time law: control.executor), on request.
+"""The planner node: perceived corners (cloth/keypoints) → fold plan (planning.recipes), or a
+garment's perceived keypoints → its whole plan (planning.garment_recipes) → joint trajectories
+(IK on every waypoint, ruckig time law: control.executor), on request.
 
 It keeps its own kinematic model of the cell (the same URDF in a private, never-stepped PyBullet
 world) for IK; it sees no cloth. Requests and responses are JSON on planner/request and
-planner/response (kinds: stage, action, park, lift); a response echoes the request's id and, for
-motions, carries each step's sampled trajectory and gripper event."""
+planner/response (kinds: stage, garment, action, lift, time, park); a response echoes the
+request's id and, for motions, carries each step's sampled trajectory and gripper event."""
 
 from __future__ import annotations
 
@@ -21,6 +22,7 @@ from std_msgs.msg import String
 
 from foldbot.control.executor import ArmExecutor
 from foldbot.errors import FoldbotError
+from foldbot.planning.garment_recipes import plan_garment
 from foldbot.planning.motion import Segment, action_segments, line_path
 from foldbot.planning.recipes import plan_stage, predicted_outline
 from foldbot.ros import TOPICS, convert
@@ -64,9 +66,11 @@ class MotionPlanner:
     def handle(self, req: dict) -> dict:
         """One request → its response payload (raises FoldbotError on bad or infeasible ones).
 
-        stage: corners → fold plan; action / lift: joint paths (IK) of the motion's steps;
+        stage: corners → fold plan; garment: a garment's keypoints → its plan, every stage;
+        action / lift: joint paths (IK) of the motion's steps;
         time: a step's joint path, starting where the arm now is → its trajectory (ruckig);
-        park: the joint-space trajectory to the park pose."""
+        park: the joint-space trajectory to the park pose (home or out of view, as the episode
+        says)."""
         kind = req.get("kind")
         if kind == "stage":
             corners = {k: np.array(v, dtype=float) for k, v in req["corners"].items()}
@@ -80,6 +84,12 @@ class MotionPlanner:
                 "actions": [a.as_dict() for a in plan.actions],
                 "predicted_outline": np.asarray(outline).tolist(),
             }
+        if kind == "garment":
+            keypoints = {k: np.array(v, dtype=float) for k, v in req["keypoints"].items()}
+            plan = plan_garment(
+                req["recipe"], keypoints, float(req["place_lift"]), float(req["thickness"])
+            )
+            return {"plan": plan.as_dict()}
         if kind == "time":
             traj = self.executor.trajectory_for(
                 np.array(req["path"], dtype=float),
@@ -93,19 +103,21 @@ class MotionPlanner:
             action = convert.fold_action_from(req["action"])
             return {"steps": self._ik_steps(action_segments(action, start, self.cfg.motion), q)}
         if kind == "lift":
-            up = start + [0.0, 0.0, float(req["height"])]
+            up = start + [0.0, 0.0, float(req.get("height", self.cfg.motion.retreat_height))]
             return {
                 "steps": self._ik_steps(
                     [Segment("lift", line_path(start, up), self.cfg.motion.free_speed)], q
                 )
             }
         if kind == "park":
-            if np.abs(self.robot.home_q - q).max() < 1e-4:
+            park = self.robot.out_of_view_q if self.cfg.park == "out_of_view" else self.robot.home_q
+            if np.abs(park - q).max() < 1e-4:
                 return {"trajectory": None}
-            traj = self.executor.joint_move_trajectory(q, self.robot.home_q)
+            traj = self.executor.joint_move_trajectory(q, park)
             return {"trajectory": self._trajectory("park", traj)}
         raise FoldbotError(
-            f"unknown planner request kind {kind!r}; allowed: stage, action, lift, time, park"
+            f"unknown planner request kind {kind!r}; allowed: stage, garment, action, lift, time, "
+            "park"
         )
 
 

@@ -62,6 +62,19 @@ def recorded_states(bag_path: Path) -> dict[float, dict]:
     return {k: v for k, v in out.items() if k in replayable}
 
 
+def recorded_garment(states: dict[float, dict]) -> str:
+    """The garment the live run perceived, from its keypoint names (a towel's corners, or a
+    T-shirt's / pants' named keypoints), so the replay runs the same estimator."""
+    from foldbot.garments.pants import PANTS_KEYPOINTS
+    from foldbot.garments.tshirt import TSHIRT_KEYPOINTS
+
+    seen = {label for d in states.values() for label in d["keypoints"]}
+    for garment, names in (("tshirt", TSHIRT_KEYPOINTS), ("pants", PANTS_KEYPOINTS)):
+        if seen & set(names):
+            return garment
+    return "towel"
+
+
 def _start(cmd: list[str], env: dict, log) -> subprocess.Popen:
     return subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT)
 
@@ -100,7 +113,14 @@ def replay(
         node = ROS_PACKAGE_DIR / "foldbot_ros" / "nodes" / "perception_node"
         procs.append(
             _start(
-                [sys.executable, str(node), "__name:=foldbot_perception_replay"], env, sys.stderr
+                [
+                    sys.executable,
+                    str(node),
+                    "__name:=foldbot_perception_replay",
+                    f"_garment:={recorded_garment(live)}",
+                ],
+                env,
+                sys.stderr,
             )
         )
         replayed: dict[float, dict] = {}

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import queue
 import sys
+import time
 
 import numpy as np
 import rospy
@@ -30,6 +31,9 @@ from foldbot.ros import BASE_FRAME, CAMERA_FRAME, TOPICS, WORLD_FRAME, convert
 from foldbot.ros.node_args import CAMERA_RATE_PARAM, FOLD_ARGS_PARAM, parse_fold_args
 from foldbot.sim.cloth import settle
 from foldbot.sim.world import SimWorld
+
+SUBSCRIBER_WAIT_S = 60.0
+"""Longest wall time the first camera frame waits for a subscriber (the perception node)."""
 
 
 class SimNode:
@@ -111,6 +115,22 @@ class SimNode:
         ]
         self.pub["tf"].publish(TFMessage(transforms=tfs))
 
+    def wait_for_camera_subscribers(self, timeout_s: float = SUBSCRIBER_WAIT_S) -> None:
+        """Hold the first frame until something subscribes to the camera's images and info (the
+        perception node): frames are not latched, and the task waits for that one's perception."""
+        deadline = time.monotonic() + timeout_s
+        topics = ("color", "depth", "color_info")
+        while not rospy.is_shutdown():
+            missing = [TOPICS[t] for t in topics if self.pub[t].get_num_connections() == 0]
+            if not missing:
+                return
+            if time.monotonic() > deadline:
+                rospy.logwarn(
+                    "no subscriber on %s after %.0f s; publishing anyway", missing, timeout_s
+                )
+                return
+            time.sleep(0.05)
+
     def publish_ground_truth(self) -> None:
         """Ground truth for scoring only (the task node's metrics), never for perception."""
         t = self.world.sim_time
@@ -191,6 +211,7 @@ class SimNode:
         rospy.loginfo("settling the cloth (%d vertices)", mesh.vertices.shape[0])
         settle(self.world, self.parts.cloth)
         self.publish_ground_truth()
+        self.wait_for_camera_subscribers()
         self.report({"command": "ready", "ok": True, "frame_stamp": self.publish_frame()})
         while not rospy.is_shutdown():
             try:

@@ -27,13 +27,15 @@ from tf2_msgs.msg import TFMessage
 from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
 
 from foldbot import errors
+from foldbot.garment_loop import run_garment_fold
 from foldbot.io.episode import EpisodeWriter
 from foldbot.loop import FoldCell, StepLog, corners_of, run_fold
 from foldbot.metrics import score_episode
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState
-from foldbot.pipeline import episode_result, loop_config, seeded_pose, seeded_towel
+from foldbot.pipeline import episode_result, loop_config, seeded_garment, seeded_pose
 from foldbot.planning.actions import FoldAction, FoldPlan
+from foldbot.planning.garment_recipes import GarmentPlan
 from foldbot.ros import CAMERA_FRAME, TOPICS, WORLD_FRAME, convert
 from foldbot.ros.node_args import FOLD_ARGS_PARAM, parse_fold_args
 from foldbot.sim.layout import CellLayout
@@ -41,6 +43,8 @@ from foldbot.types import GraspResult, Observation
 
 REPLY_TIMEOUT_S = 300.0
 """Longest wall time to wait for a node's reply before the fold is abandoned."""
+FRAME_RETRY_S = 10.0
+"""Wall time after which a resting frame whose perception has not arrived is asked for again."""
 
 
 def _raise_remote(reply: dict, what: str) -> None:
@@ -221,22 +225,35 @@ class RosCell(FoldCell):
         self._clock = float(reply["sim_time"])
         return reply
 
+    def _have_frame(self, key: float) -> bool:
+        return (
+            key in self.states
+            and key in self.masks
+            and key in self.frames
+            and key in self._infos
+            and key in self.depths
+        )
+
     def observe(self) -> tuple[ClothState, Observation]:
         key = round(self.rest_stamp, 6)
         deadline = time.monotonic() + REPLY_TIMEOUT_S
+        ask_again = time.monotonic() + FRAME_RETRY_S
+        while True:
+            with self.perceived:
+                while not self._have_frame(key) and time.monotonic() < ask_again:
+                    if time.monotonic() > deadline or rospy.is_shutdown():
+                        raise errors.FoldbotError(
+                            f"no perception result for the frame at t = {self.rest_stamp:.3f} s"
+                        )
+                    self.perceived.wait(0.2)
+                if self._have_frame(key):
+                    break
+            # A subscriber that joined late missed the frame (frames are not latched): the
+            # resting cell publishes it again at the same stamp (a zero-second wait).
+            self.wait(0.0)
+            key = round(self.rest_stamp, 6)
+            ask_again = time.monotonic() + FRAME_RETRY_S
         with self.perceived:
-            while not (
-                key in self.states
-                and key in self.masks
-                and key in self.frames
-                and key in self._infos
-                and key in self.depths
-            ):
-                if time.monotonic() > deadline or rospy.is_shutdown():
-                    raise errors.FoldbotError(
-                        f"no perception result for the frame at t = {self.rest_stamp:.3f} s"
-                    )
-                self.perceived.wait(0.5)
             state = convert.state_from(self.states[key], self.masks[key])
             color, info, depth = self.frames[key], self._infos[key], self.depths[key]
         if self.T_world_camera is None:
@@ -280,6 +297,18 @@ class RosCell(FoldCell):
         )
         return plan, np.array(reply["predicted_outline"], dtype=float)
 
+    def plan_garment(
+        self, recipe: str, keypoints: dict[str, np.ndarray], place_lift: float, thickness: float
+    ) -> GarmentPlan:
+        reply = self._plan(
+            "garment",
+            recipe=recipe,
+            keypoints={k: [float(x) for x in v] for k, v in keypoints.items()},
+            place_lift=place_lift,
+            thickness=thickness,
+        )
+        return GarmentPlan.from_dict(reply["plan"])
+
     def plan_action(self, action: FoldAction) -> list[dict]:
         return self._plan("action", action=action.as_dict(), q=self.joint_positions().tolist())[
             "steps"
@@ -321,7 +350,8 @@ class RosCell(FoldCell):
 
     def release_and_lift(self) -> None:
         self._command(lambda: self.pub_gripper.publish(String(data="open")), "gripper open")
-        for step in self._plan("lift", q=self.joint_positions().tolist(), height=0.08)["steps"]:
+        # Straight up by the episode's retreat height (the planner node's MotionConfig).
+        for step in self._plan("lift", q=self.joint_positions().tolist())["steps"]:
             self.run_step(step)
 
     def park(self) -> None:
@@ -355,21 +385,25 @@ def run_task(fold_args: str, log=rospy.loginfo) -> dict:
         cell.wait_ready()
         initial = convert.cloud_array(cell.truth.take(lambda m: True, "initial ground truth"))
         mesh = cell.mesh.take(lambda m: True, "cloth mesh from the sim node")
-        record = run_fold(loop_config(cfg), cell, log)
+        thickness = float(mesh["thickness"])  # the loop's layer height where depth tells nothing
+        fold = run_fold if cfg.garment == "towel" else run_garment_fold
+        record = fold(loop_config(cfg, thickness), cell, log)
         final = cell.ground_truth()
         faces = np.array(mesh["faces"], dtype=np.int64)
-        score = score_episode(initial, final, faces, record.fold_lines, float(mesh["thickness"]))
+        score = score_episode(initial, final, faces, record.fold_lines, thickness)
         with cell._lock:
             cell.video = None
             if record.initial_overlay is not None:
                 writer.write_image("overlay_initial.png", record.initial_overlay)
+            for k, image in enumerate(record.stage_overlays, start=1):
+                writer.write_image(f"overlay_stage{k}.png", image)
             writer.write_image(
                 "overlay_final.png", draw_overlay(record.final_obs, record.final_state)
             )
-            writer.write_cloth(faces, initial, final, float(mesh["thickness"]))
+            writer.write_cloth(faces, initial, final, thickness)
             result = episode_result(
                 cfg,
-                seeded_towel(cfg),
+                seeded_garment(cfg)[0],
                 seeded_pose(cfg, layout.workspace_center_xy),
                 score,
                 record,
