@@ -36,3 +36,12 @@ def require(condition: bool, message: str) -> None:
     """Raise ConfigError with `message` unless `condition` holds."""
     if not condition:
         raise ConfigError(message)
+
+
+def reported_error(report: dict, what: str) -> FoldbotError:
+    """The error another process reported (JSON: `error`, `error_type`) as the same foldbot error
+    type (FoldbotError for any other name), its message prefixed with `what`."""
+    cls = globals().get(str(report.get("error_type", "")), FoldbotError)
+    if not (isinstance(cls, type) and issubclass(cls, FoldbotError)):
+        cls = FoldbotError
+    return cls(f"{what}: {report.get('error', 'failed')}")

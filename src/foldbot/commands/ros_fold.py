@@ -13,8 +13,10 @@ import shlex
 import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
+from foldbot import errors
 from foldbot.commands import fold
 from foldbot.errors import ConfigError, FoldbotError, OutputError
 
@@ -136,11 +138,18 @@ def run(args: argparse.Namespace) -> int:
     ]
     result_file = out / "result.json"
     before = result_file.stat().st_mtime_ns if result_file.is_file() else None
-    proc = subprocess.run(cmd, env=ros_env(args.port), check=False)
+    with tempfile.TemporaryDirectory(prefix="foldbot-ros-") as tmp:
+        error_file = Path(tmp) / "error.json"
+        proc = subprocess.run(
+            [*cmd, f"error_file:={error_file}"], env=ros_env(args.port), check=False
+        )
+        failure = json.loads(error_file.read_text()) if error_file.is_file() else None
     if not result_file.is_file() or result_file.stat().st_mtime_ns == before:
+        if failure is not None:  # the task node's own error, as `foldbot fold` would name it
+            raise errors.reported_error(failure, "over ROS")
         raise FoldbotError(
             f"the ROS fold wrote no episode (roslaunch exit code {proc.returncode}); "
-            "see the task node's error above"
+            "see the nodes' output above"
         )
     result = json.loads(result_file.read_text())
     print(

@@ -12,6 +12,9 @@ from foldbot.pipeline import EpisodeConfig
 
 FOLD_ARGS_PARAM = "/foldbot/fold_args"
 CAMERA_RATE_PARAM = "/foldbot/camera_rate"
+ERROR_FILE_PARAM = "/foldbot/error_file"
+"""Where the task node writes its error (JSON: error, error_type) when the fold fails, for
+`foldbot ros-fold` to report; empty: nowhere."""
 
 
 def fold_parser() -> argparse.ArgumentParser:

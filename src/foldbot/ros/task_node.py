@@ -37,7 +37,7 @@ from foldbot.pipeline import episode_result, loop_config, seeded_garment, seeded
 from foldbot.planning.actions import FoldAction, FoldPlan
 from foldbot.planning.garment_recipes import GarmentPlan
 from foldbot.ros import CAMERA_FRAME, TOPICS, WORLD_FRAME, convert
-from foldbot.ros.node_args import FOLD_ARGS_PARAM, parse_fold_args
+from foldbot.ros.node_args import ERROR_FILE_PARAM, FOLD_ARGS_PARAM, parse_fold_args
 from foldbot.sim.layout import CellLayout
 from foldbot.types import GraspResult, Observation
 
@@ -49,10 +49,7 @@ FRAME_RETRY_S = 10.0
 
 def _raise_remote(reply: dict, what: str) -> None:
     """Re-raise a node's reported error as the same foldbot error type."""
-    cls = getattr(errors, reply.get("error_type", ""), errors.FoldbotError)
-    if not (isinstance(cls, type) and issubclass(cls, errors.FoldbotError)):
-        cls = errors.FoldbotError
-    raise cls(f"{what}: {reply.get('error', 'failed')}")
+    raise errors.reported_error(reply, what)
 
 
 def _same_corners(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> bool:
@@ -424,11 +421,11 @@ def main(argv: list[str] | None = None) -> int:
     try:
         result = run_task(rospy.get_param(FOLD_ARGS_PARAM))
     except errors.FoldbotError as exc:
-        pub.publish(
-            String(
-                data=json.dumps({"ok": False, "error": str(exc), "error_type": type(exc).__name__})
-            )
-        )
+        failure = {"ok": False, "error": str(exc), "error_type": type(exc).__name__}
+        pub.publish(String(data=json.dumps(failure)))
+        error_file = rospy.get_param(ERROR_FILE_PARAM, "")
+        if error_file:
+            Path(error_file).write_text(json.dumps(failure))
         rospy.logerr("fold failed: %s", exc)
         print(f"foldbot: error: {exc}", file=sys.stderr, flush=True)
         rospy.signal_shutdown("fold failed")

@@ -1,0 +1,20 @@
+"""Errors reported by another process (a ROS node) come back as the same foldbot error type."""
+
+import pytest
+
+from foldbot import errors
+
+
+@pytest.mark.parametrize(
+    ("name", "cls"),
+    [
+        ("PerceptionError", errors.PerceptionError),
+        ("SimulationDivergedError", errors.SimulationDivergedError),
+        ("KeyError", errors.FoldbotError),  # not a foldbot error: the base type
+        ("reported_error", errors.FoldbotError),  # not a class at all
+        ("", errors.FoldbotError),
+    ],
+)
+def test_reported_error_keeps_its_type_and_says_where(name, cls):
+    exc = errors.reported_error({"error": "no cloth", "error_type": name}, "over ROS")
+    assert type(exc) is cls and str(exc) == "over ROS: no cloth"
