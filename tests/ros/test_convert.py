@@ -9,7 +9,6 @@ pytest.importorskip("rospy", reason="ROS 1 Python packages not installed (script
 
 from foldbot.errors import FoldbotError
 from foldbot.perception.state import ClothState
-from foldbot.planning.actions import FoldAction
 from foldbot.ros import convert
 from foldbot.types import CameraIntrinsics
 
@@ -95,21 +94,6 @@ def test_point_cloud_round_trip():
     np.testing.assert_allclose(
         convert.cloud_array(convert.cloud_msg(pts, 0.0, "world")), pts, atol=1e-7
     )
-
-
-def test_fold_action_round_trip():
-    a = FoldAction(
-        np.array([0.6, 0.1, 0.76]),
-        np.array([0.3, 0.1, 0.77]),
-        (0.45, 0.2, 0.0, -0.4),
-        "far_left",
-        layers=2,
-    )
-    b = convert.fold_action_from(json.loads(json.dumps(a.as_dict())))
-    np.testing.assert_array_equal(a.grasp, b.grasp)
-    np.testing.assert_array_equal(a.place, b.place)
-    # A stack grasp stays one (it used to come back as a one-layer grasp over the topics).
-    assert a.fold_line == b.fold_line and a.label == b.label and b.layers == 2
 
 
 def test_corners_from_pose_array_need_all_four():

@@ -1,6 +1,6 @@
-"""`foldbot ros-fold`: fold a towel, T-shirt or pants over ROS 1 topics — roslaunch brings up the sim, perception,
-planner and task nodes (and roscore when none runs) — and write the same episode folder as
-`foldbot fold`. `--record BAG` records the run with rosbag.
+"""`foldbot ros-fold`: fold a towel, T-shirt or pants over ROS 1 topics — roslaunch brings up
+the sim, perception, planner and task nodes (and roscore when none runs) — and write the same
+episode folder as `foldbot fold`. `--record BAG` records the run with rosbag.
 
 Needs ROS 1 from Debian (scripts/install_ros.sh)."""
 

@@ -20,7 +20,6 @@ from trajectory_msgs.msg import JointTrajectoryPoint
 from foldbot.errors import FoldbotError
 from foldbot.perception.keypoints import CORNER_LABELS
 from foldbot.perception.state import ClothState
-from foldbot.planning.actions import FoldAction
 from foldbot.types import CameraIntrinsics
 
 _ENCODINGS = {"rgb8": (np.uint8, 3), "mono8": (np.uint8, 1), "32FC1": (np.float32, 1)}
@@ -234,11 +233,6 @@ def cloud_array(msg: PointCloud2) -> np.ndarray:
         list(point_cloud2.read_points(msg, field_names=("x", "y", "z"), skip_nans=False)),
         dtype=float,
     ).reshape(-1, 3)
-
-
-def fold_action_from(d: dict) -> FoldAction:
-    """A FoldAction from its `as_dict()` form (every field, `layers` included)."""
-    return FoldAction.from_dict(d)
 
 
 def string_msg(payload: dict) -> String:

@@ -22,6 +22,7 @@ from std_msgs.msg import String
 
 from foldbot.control.executor import ArmExecutor
 from foldbot.errors import FoldbotError
+from foldbot.planning.actions import FoldAction
 from foldbot.planning.garment_recipes import plan_garment
 from foldbot.planning.motion import Segment, action_segments, line_path
 from foldbot.planning.recipes import plan_stage, predicted_outline
@@ -100,7 +101,7 @@ class MotionPlanner:
         q = np.array(req["q"], dtype=float)
         start = self.robot.fk_tcp(q)[0]
         if kind == "action":
-            action = convert.fold_action_from(req["action"])
+            action = FoldAction.from_dict(req["action"])
             return {"steps": self._ik_steps(action_segments(action, start, self.cfg.motion), q)}
         if kind == "lift":
             up = start + [0.0, 0.0, float(req.get("height", self.cfg.motion.retreat_height))]

@@ -47,11 +47,6 @@ FRAME_RETRY_S = 10.0
 """Wall time after which a resting frame whose perception has not arrived is asked for again."""
 
 
-def _raise_remote(reply: dict, what: str) -> None:
-    """Re-raise a node's reported error as the same foldbot error type."""
-    raise errors.reported_error(reply, what)
-
-
 def _same_corners(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> bool:
     return a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
 
@@ -189,7 +184,7 @@ class RosCell(FoldCell):
         publish()
         reply = self.results.take(lambda r: True, f"reply from the sim node to {what}")
         if not reply.get("ok"):
-            _raise_remote(reply, what)
+            raise errors.reported_error(reply, what)
         self.rest_stamp = float(reply["frame_stamp"])
         self.rest_q = np.array(reply["q"], dtype=float)
         self._clock = float(reply["sim_time"])
@@ -200,7 +195,7 @@ class RosCell(FoldCell):
         self.pub_plan.publish(String(data=json.dumps({"id": rid, "kind": kind, **payload})))
         reply = self.plans.take(lambda r: r.get("id") == rid, f"{kind} plan from the planner node")
         if not reply.get("ok"):
-            _raise_remote(reply, f"planning {kind}")
+            raise errors.reported_error(reply, f"planning {kind}")
         return reply
 
     def joint_positions(self) -> np.ndarray:
@@ -290,7 +285,7 @@ class RosCell(FoldCell):
         plan = FoldPlan(
             recipe=recipe,
             fold_lines=tuple(tuple(line) for line in reply["fold_lines"]),
-            actions=tuple(convert.fold_action_from(a) for a in reply["actions"]),
+            actions=tuple(FoldAction.from_dict(a) for a in reply["actions"]),
         )
         return plan, np.array(reply["predicted_outline"], dtype=float)
 
