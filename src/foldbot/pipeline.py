@@ -56,8 +56,9 @@ from foldbot.types import Observation
 GARMENTS = ("towel", *GARMENT_RECIPES)
 """Garment kinds: the towel (planning.recipes) and the garments of planning.garment_recipes."""
 GARMENT_YAW = math.pi / 2
-"""A garment (not a towel) lies with this base yaw, so its top (neck / waist, mesh +y) points
-at the robot (world −x): the hem-up and in-half folds then carry far cloth toward the arm."""
+"""A garment (not a towel) lies with this base yaw by default (EpisodeConfig.garment_yaw), so its
+top (neck / waist, mesh +y) points at the robot (world −x): the hem-up and in-half folds then
+carry far cloth toward the arm."""
 PERCEPTION_MODES = ("vision", "oracle")
 START_STATES = ("flat", "crumpled")
 """How an episode's cloth starts: settled flat, or crumpled (flattened by the robot first)."""
@@ -89,6 +90,10 @@ class EpisodeConfig:
     resolution stays `towel.resolution` vertices along the longer side)."""
     garment_edge_length: float | None = None
     """Mesh edge length (m) of a T-shirt or pants; None = the garment module's default."""
+    garment_yaw: float = GARMENT_YAW
+    """Base yaw (rad) of a T-shirt or pants, to which the seed's yaw draw is added: π/2 (the
+    default) turns its top (mesh +y) toward the robot, π or 0 lays it sideways (top toward −y or
+    +y). Perception is not told it: the garment estimator finds the top from the shape."""
     cloth: ClothConfig = field(default_factory=ClothConfig)
     sim: SimConfig = field(default_factory=SimConfig)
     motion: MotionConfig = field(default_factory=MotionConfig)
@@ -158,6 +163,10 @@ class EpisodeConfig:
                 0.005 <= self.garment_edge_length <= 0.1,
                 f"garment_edge_length must be in [0.005, 0.1] m, got {self.garment_edge_length!r}",
             )
+        require(
+            math.isfinite(self.garment_yaw) and abs(self.garment_yaw) <= 2 * math.pi,
+            f"garment_yaw must be in [-2π, 2π] rad, got {self.garment_yaw!r}",
+        )
         require(self.retries >= 0, f"retries must be ≥ 0, got {self.retries!r}")
         require(
             0.0 <= self.fault_grasp_offset <= 0.2,
@@ -244,12 +253,12 @@ def seeded_pose(
     cfg: EpisodeConfig, center: tuple[float, float]
 ) -> tuple[tuple[float, float], float]:
     """The cloth's centre (x, y) and yaw (rad) on the table for this episode's seed (a garment
-    other than the towel adds GARMENT_YAW)."""
+    other than the towel adds `cfg.garment_yaw`)."""
     rng = np.random.default_rng(cfg.seed)
     dx, dy = rng.uniform(-cfg.position_jitter, cfg.position_jitter, size=2)
     yaw = float(rng.uniform(-cfg.yaw_range, cfg.yaw_range))
     if cfg.garment != "towel":
-        yaw += GARMENT_YAW
+        yaw += cfg.garment_yaw
     return (center[0] + float(dx), center[1] + float(dy)), yaw
 
 

@@ -115,6 +115,20 @@ def test_arms_reach_the_cell_and_are_left_out_of_specs_by_default(tiny_suite_dat
     assert EpisodeSpec.from_dict(spec.as_dict()) == spec
 
 
+def test_garment_yaw_reaches_the_pose_and_is_left_out_of_specs_by_default(tiny_suite_data):
+    data = tiny_suite_data()
+    default = load_one(data)
+    assert default.to_config().garment_yaw == pytest.approx(math.pi / 2)
+    assert "garment_yaw_deg" not in default.as_dict()  # older runs keep resuming
+    data["randomise"] = {"garment_yaw_deg": 0}
+    spec = load_one(data)
+    assert spec.to_config().garment_yaw == 0.0
+    assert EpisodeSpec.from_dict(spec.as_dict()) == spec
+    data["randomise"] = {"garment_yaw_deg": 400}
+    with pytest.raises(ConfigError, match=r"randomise\.garment_yaw_deg = 400"):
+        load_one(data)
+
+
 @pytest.mark.parametrize(
     ("two_arms", "one_arm"),
     [("towel_two_arms", "towel_loop"), ("tshirt_two_arms", "tshirt"), ("pants_two_arms", "pants")],
@@ -124,6 +138,17 @@ def test_the_two_arm_suites_fold_the_one_arm_suites_cloths(two_arms, one_arm):
     assert {e.arms for e in two.episodes} == {2}
     # The same episodes but for the arms, so the two cells compare cloth for cloth.
     assert [dataclasses.replace(e, arms=1) for e in two.episodes] == list(one.episodes)
+
+
+@pytest.mark.parametrize("garment", ["tshirt", "pants"])
+def test_the_sideways_suites_turn_the_two_arm_suites_garments(garment):
+    upright, sideways = (
+        load_suite(f"{garment}_two_arms"),
+        load_suite(f"{garment}_two_arms_sideways"),
+    )
+    assert {e.to_config().garment_yaw for e in sideways.episodes} == {math.pi}
+    same = [dataclasses.replace(e, garment_yaw_deg=90.0) for e in sideways.episodes]
+    assert same == list(upright.episodes)
 
 
 def test_the_loop_acceptance_suite_parks_out_of_view_over_20_seeds():

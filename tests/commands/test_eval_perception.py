@@ -119,6 +119,7 @@ def test_tshirt_scenes_write_per_keypoint_figures(
         (["--garment", "pants", "--folded-fraction", "0.5"], "--folded-fraction must be 0"),
         (["--garment", "tshirt", "--edge-length", "0.5"], "edge_length"),
         (["--garment", "pants", "--arm-fraction", "2"], "--arm-fraction"),
+        (["--garment", "pants", "--garment-yaw-range", "200"], "--garment-yaw-range"),
     ],
 )
 def test_bad_garment_arguments_write_nothing(
@@ -140,3 +141,12 @@ def test_garment_scene_sampling_is_reproducible_and_in_range(garment: str) -> No
         assert abs(s.x - 0.45) <= 0.03 and abs(s.y) <= 0.03
         assert s.arm_target is None and s.state == "flat"
     assert len({s.spec for s in a}) == 20
+
+
+def test_garment_yaw_range_spreads_the_garments() -> None:
+    wide = [
+        sample_garment_scene(np.random.default_rng([5, i]), i, "tshirt", yaw_range=math.pi)
+        for i in range(20)
+    ]
+    offsets = [abs(s.yaw - math.pi / 2) for s in wide]
+    assert max(offsets) <= math.pi and max(offsets) > math.radians(90)

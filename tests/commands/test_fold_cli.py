@@ -1,6 +1,7 @@
 """`foldbot fold` from the command line: help, and clear errors for bad input."""
 
 import argparse
+import math
 import os
 import subprocess
 import sys
@@ -9,6 +10,8 @@ import pytest
 
 from foldbot.cli import main
 from foldbot.commands.fold import add_arguments, config_from_args
+from foldbot.errors import ConfigError
+from foldbot.pipeline import seeded_pose
 
 
 def test_help_lists_subcommands(capsys):
@@ -115,6 +118,18 @@ def test_the_arm_parks_at_home_unless_told(tmp_path, args, park):
     add_arguments(parser)
     cfg = config_from_args(parser.parse_args(["--out", str(tmp_path / "ep"), *args]))
     assert cfg.park == park
+
+
+def test_garment_yaw_option_turns_the_garment(tmp_path):
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    out = ["--out", str(tmp_path / "ep"), "--garment", "tshirt"]
+    assert config_from_args(parser.parse_args(out)).garment_yaw == pytest.approx(math.pi / 2)
+    cfg = config_from_args(parser.parse_args([*out, "--garment-yaw", "0"]))
+    (_, _), yaw = seeded_pose(cfg, (0.45, 0.0))
+    assert cfg.garment_yaw == 0.0 and abs(yaw) <= cfg.yaw_range
+    with pytest.raises(ConfigError, match="garment_yaw"):
+        config_from_args(parser.parse_args([*out, "--garment-yaw", "1000"]))
 
 
 def test_arms_option_reaches_the_cell(tmp_path):

@@ -117,6 +117,48 @@ def test_synthetic_garments(kind: str, yaw_deg: float) -> None:
     assert state.coverage_m2 == pytest.approx(outline.area, rel=0.01)
 
 
+@pytest.mark.parametrize(
+    ("kind", "yaw_deg"),
+    [("tshirt", 0), ("tshirt", 180), ("tshirt", 250), ("pants", 10), ("pants", 300)],
+)
+def test_garments_lying_in_any_direction(kind: str, yaw_deg: float) -> None:
+    """The top is read from the shape, not from the prior: a garment lying sideways or with its
+    top away from the robot gets its keypoints under their own names (a left/right swap would be
+    decimetres off)."""
+    outline = (
+        tshirt_outline(TShirtSpec(sleeve_angle=0.5))
+        if kind == "tshirt"
+        else pants_outline(PantsSpec(hem_gap=0.07))
+    )
+    world = _place(outline.points, math.radians(yaw_deg))
+    state = GarmentEstimator(kind).estimate(_top_down_obs(world))
+    assert state.detected, state.reason
+    truth = {n: np.r_[world[i], TABLE_Z + 0.003] for n, i in outline.keypoints.items()}
+    err = _errors_mm(state, truth)
+    assert max(err.values()) < 2.0, err
+
+
+def test_a_narrow_axis_window_keeps_the_garment_near_its_prior() -> None:
+    """With the search held to ± 45° of the prior, a sideways T-shirt's axis is not found."""
+    outline = tshirt_outline(TShirtSpec(sleeve_angle=0.5))
+    obs = _top_down_obs(_place(outline.points, 0.0))
+    narrow = GarmentKeypointConfig(axis_window=math.radians(45.0))
+    state = GarmentEstimator("tshirt", narrow).estimate(obs)
+    assert not state.detected and "not a flat tshirt" in state.reason
+
+
+def test_flipped_frame_swaps_top_and_right() -> None:
+    outline = tshirt_outline(TShirtSpec())
+    world = _place(outline.points, math.radians(90))
+    frame = symmetry_axis(world, GarmentKeypointConfig())
+    back = frame.flipped()
+    np.testing.assert_allclose(back.top, -frame.top)
+    np.testing.assert_allclose(back.right, -frame.right)
+    uv = frame.to_frame(world)
+    np.testing.assert_allclose(back.to_frame(world), -uv, atol=1e-12)
+    np.testing.assert_allclose(back.to_world(back.to_frame(world)), world, atol=1e-12)
+
+
 def test_symmetry_axis_points_to_the_top() -> None:
     outline = tshirt_outline(TShirtSpec())
     for yaw_deg in (70, 90, 110):

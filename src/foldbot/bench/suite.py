@@ -27,6 +27,8 @@ height = 0.30
 towel_side = [0.25, 0.45]               # m, each side independently (optional)
 position_jitter = 0.03                  # m, centre offset in ±this along x and along y
 yaw_deg = 15                            # degrees, yaw in ±this
+garment_yaw_deg = 90                    # degrees, a T-shirt's / pants' base yaw (90: top toward
+                                        # the robot; 0: sideways), the draw above added
 
 [episode]
 retries = 1                             # closed loop: redo a failed grasp / off placement
@@ -79,7 +81,7 @@ _SCHEMA: dict[str, set[str]] = {
     "": {"name", "description", "axes", "towel", "randomise", "episode", "reference"},
     "axes": {"garment", "recipe", "perception", "loop", "seeds"},
     "towel": {"resolution", "odd_grid", "width", "height"},
-    "randomise": {"towel_side", "position_jitter", "yaw_deg"},
+    "randomise": {"towel_side", "position_jitter", "yaw_deg", "garment_yaw_deg"},
     "episode": {"retries", "video_fps", "start", "park", "time_step", "arms"},
     "reference": {"ravens_speed"},
 }
@@ -130,6 +132,8 @@ class EpisodeSpec:
     """m; the cloth centre is offset by a uniform draw in ±this along x and y."""
     yaw_deg: float = 15.0
     """degrees; the cloth yaw is a uniform draw in ±this."""
+    garment_yaw_deg: float = 90.0
+    """degrees; a T-shirt's or pants' base yaw (EpisodeConfig.garment_yaw), the draw added."""
     retries: int = 1
     video_fps: float = 0.0
     start: str = "flat"
@@ -170,6 +174,7 @@ class EpisodeSpec:
             towel_size_range=self.towel_side_range,
             position_jitter=self.position_jitter,
             yaw_range=math.radians(self.yaw_deg),
+            garment_yaw=math.radians(self.garment_yaw_deg),
             retries=self.retries,
             video_fps=self.video_fps,
             start=self.start,
@@ -187,6 +192,8 @@ class EpisodeSpec:
             del d["towel_odd_grid"]  # likewise
         if d["arms"] == 1:
             del d["arms"]  # likewise
+        if d["garment_yaw_deg"] == 90.0:
+            del d["garment_yaw_deg"]  # likewise
         if d["towel_side_range"] is not None:
             d["towel_side_range"] = list(d["towel_side_range"])
         return d
@@ -367,6 +374,9 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
         side_range = (lo, hi)
     jitter = _range(rand.get("position_jitter", 0.03), "randomise.position_jitter", 0, 0.15, where)
     yaw = _range(rand.get("yaw_deg", 15.0), "randomise.yaw_deg", 0, 180, where)
+    garment_yaw = _range(
+        rand.get("garment_yaw_deg", 90.0), "randomise.garment_yaw_deg", -180, 360, where
+    )
 
     ep = data.get("episode", {})
     retries = _get(data, "episode", "retries", int, 1, where)
@@ -414,6 +424,7 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
                                 towel_side_range=side_range,
                                 position_jitter=jitter,
                                 yaw_deg=yaw,
+                                garment_yaw_deg=garment_yaw,
                                 retries=retries,
                                 video_fps=video_fps,
                                 start=start,
@@ -431,6 +442,7 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
         "towel_odd_grid": odd_grid,
         "position_jitter_m": jitter,
         "yaw_deg": yaw,
+        "garment_yaw_deg": garment_yaw if set(garments) - {"towel"} else None,
         "text": "; ".join(
             [
                 *(
@@ -452,7 +464,11 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
                     if g != "towel"
                 ),
                 f"centre ±{jitter * 100:g} cm in x and y; yaw ±{yaw:g}°"
-                + (" (garments about a 90° base yaw)" if set(garments) - {"towel"} else ""),
+                + (
+                    f" (garments about a {garment_yaw:g}° base yaw)"
+                    if set(garments) - {"towel"}
+                    else ""
+                ),
                 *(
                     ["crumpled by the seed, flattened by the robot, then folded"]
                     if start != "flat"

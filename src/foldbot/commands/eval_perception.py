@@ -88,7 +88,8 @@ FOLDED_FRACTION = 0.3
 ARM_FRACTION = {"towel": 0.4, "tshirt": 0.0, "pants": 0.0}
 """Default share of scenes with the arm over the workspace, by garment."""
 GARMENT_YAW = (math.pi / 2, math.radians(15.0))
-"""T-shirts and pants lie at yaw 90° ± 15° (top towards the robot), as the fold pipeline places them."""
+"""T-shirts and pants lie at yaw 90° ± 15° (top towards the robot), as the fold pipeline places them
+by default (`--garment-yaw-range` widens the spread, up to 180°: any direction)."""
 GARMENT_JITTER = 0.03
 """Largest shift (m) of a garment's centre from the workspace centre, as the pipeline's."""
 TIMING_REPEATS = 3
@@ -132,6 +133,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=float,
         default=None,
         help="T-shirt / pants mesh edge length in m (default: the spec's, 0.025)",
+    )
+    parser.add_argument(
+        "--garment-yaw-range",
+        type=float,
+        default=math.degrees(GARMENT_YAW[1]),
+        metavar="DEG",
+        help="T-shirts and pants lie at yaw 90° ± DEG (default 15; 180: any direction)",
     )
 
 
@@ -194,15 +202,16 @@ def sample_garment_scene(
     garment: str,
     arm_fraction: float = 0.0,
     edge_length: float | None = None,
+    yaw_range: float = GARMENT_YAW[1],
 ) -> GarmentScene:
-    """Draw one T-shirt or pants scene: a garment from its realistic ranges, yaw 90° ± 15°, its
-    centre within 3 cm of the workspace centre (less if it would leave the workspace), and the
-    towel scenes' colours, arm, camera jitter, noise and lighting."""
+    """Draw one T-shirt or pants scene: a garment from its realistic ranges, yaw 90° ± `yaw_range`
+    (rad; default 15°), its centre within 3 cm of the workspace centre (less if it would leave
+    the workspace), and the towel scenes' colours, arm, camera jitter, noise and lighting."""
     if garment not in ("tshirt", "pants"):
         raise ConfigError(f"garment scenes are 'tshirt' or 'pants', got {garment!r}")
     lay = DEFAULT_LAYOUT
     spec, mesh = sample_garment(garment, rng, edge_length)
-    yaw = float(GARMENT_YAW[0] + rng.uniform(-GARMENT_YAW[1], GARMENT_YAW[1]))
+    yaw = float(GARMENT_YAW[0] + rng.uniform(-yaw_range, yaw_range))
     c, s = math.cos(yaw), math.sin(yaw)
     xy = mesh.vertices[:, :2] @ np.array([[c, s], [-s, c]])
     ex, ey = np.abs(xy).max(axis=0)
@@ -605,6 +614,8 @@ def _with_defaults(args: argparse.Namespace) -> argparse.Namespace:
         out.arm_fraction = ARM_FRACTION.get(garment, 0.0)
     if not hasattr(out, "edge_length"):
         out.edge_length = None
+    if not hasattr(out, "garment_yaw_range"):
+        out.garment_yaw_range = math.degrees(GARMENT_YAW[1])
     return out
 
 
@@ -631,6 +642,10 @@ def _validate(args: argparse.Namespace) -> None:
         (
             0.0 <= args.arm_fraction <= 1.0,
             f"--arm-fraction must be in [0, 1], got {args.arm_fraction}",
+        ),
+        (
+            0.0 <= args.garment_yaw_range <= 180.0,
+            f"--garment-yaw-range must be in [0, 180] degrees, got {args.garment_yaw_range}",
         ),
     ]
     for ok, message in checks:
@@ -810,7 +825,14 @@ def _evaluate_garment(args: argparse.Namespace, stage: Path) -> dict[str, Any]:
     worst_heap: list[tuple[float, int, Observation, ClothState, dict[str, np.ndarray]]] = []
     for i in tqdm(range(args.scenes), desc="eval-perception", unit="scene", file=sys.stderr):
         rng = np.random.default_rng([args.seed, i])
-        scene = sample_garment_scene(rng, i, args.garment, args.arm_fraction, args.edge_length)
+        scene = sample_garment_scene(
+            rng,
+            i,
+            args.garment,
+            args.arm_fraction,
+            args.edge_length,
+            math.radians(args.garment_yaw_range),
+        )
         try:
             rendered = render_garment_scene(
                 scene, args.width, args.height, seed=args.seed * 100003 + i
@@ -865,6 +887,7 @@ def _evaluate_garment(args: argparse.Namespace, stage: Path) -> dict[str, Any]:
         "width": args.width,
         "height": args.height,
         "arm_fraction": args.arm_fraction,
+        "garment_yaw_range_deg": args.garment_yaw_range,
         **{k: v for k, v in overall.items() if k != "scenes"},
         "by_keypoint": by_keypoint,
         "sim_failures": failures,

@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import math
 from pathlib import Path
 
 from foldbot.garments.towel import TowelSpec
 from foldbot.pipeline import (
     ARM_COUNTS,
+    GARMENT_YAW,
     GARMENTS,
     PARK_POSES,
     PERCEPTION_MODES,
@@ -101,6 +103,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="a tshirt's or pants' mesh edge length in m (0.005–0.1; default 0.025): coarser "
         "meshes simulate faster",
     )
+    parser.add_argument(
+        "--garment-yaw",
+        type=float,
+        default=math.degrees(GARMENT_YAW),
+        metavar="DEG",
+        help="a tshirt's or pants' base yaw in degrees, the seed's ±15° added (default 90: its "
+        "top toward the robot; 180 or 0: sideways, its top toward -y or +y)",
+    )
     parser.add_argument("--mass", type=float, default=None, help="cloth mass in kg (default 0.1)")
     parser.add_argument(
         "--video-fps", type=float, default=10.0, help="video frames per simulated second (0 = off)"
@@ -132,6 +142,7 @@ def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
             odd_grid=args.odd_grid,
         ),
         garment_edge_length=args.garment_edge_length,
+        garment_yaw=math.radians(args.garment_yaw),
         cloth=cloth,
         sim=SimConfig(gui=args.gui),
         video_fps=args.video_fps,

@@ -83,6 +83,7 @@ def fold_args_text(args: argparse.Namespace) -> str:
         words += ["--mass", repr(args.mass)]
     if args.garment_edge_length is not None:
         words += ["--garment-edge-length", repr(args.garment_edge_length)]
+    words += ["--garment-yaw", repr(args.garment_yaw)]
     words.append("--odd-grid" if args.odd_grid else "--no-odd-grid")
     if args.overwrite:
         words.append("--overwrite")

@@ -7,9 +7,13 @@ Everything comes from the Observation (never from the simulator):
    the true edge); a depth mask's measured unbiased.
 2. Garment axis: the line through the outline's area centroid about which the outline is most
    mirror-symmetric (mean distance from the mirrored outline to the outline, searched over yaw
-   within `axis_window` of the prior `top_yaw` and refined), pointing to the side of the prior.
-   Garment frame: v along the axis towards the top (neck, waist), u to the garment's right (the
-   mesh's +x side; "left" keypoints lie at u < 0, as in `foldbot.garments`).
+   within `axis_window` of the prior `top_yaw`, by default every axis, and refined). Which end is
+   the top is read from the shape: the keypoints are looked for with the top on the prior's side
+   first and, where that finds no complete garment, the other way round (a T-shirt's neckline
+   dent and a pair of pants' notch between the legs each exist at one end only), so a garment
+   lying in any direction is recognised. Garment frame: v along the axis towards the top (neck,
+   waist), u to the garment's right (the mesh's +x side; "left" keypoints lie at u < 0, as in
+   `foldbot.garments`).
 3. Keypoints in the garment frame, on the outline ordered counter-clockwise:
    - on the axis: the neck (the upper crossing of the outline with the axis) and the crotch (the
      lower crossing, refined as the corner between the inseams, which a camera can miss where
@@ -85,10 +89,11 @@ class GarmentKeypointConfig:
     segmentation: SegmentationConfig = field(default_factory=SegmentationConfig)
     """Cloth segmentation thresholds."""
     top_yaw: float = math.pi
-    """Prior world direction (rad) of the garment's top (neck, waist): π = towards the robot (−x),
-    where the fold pipeline places garments."""
-    axis_window: float = math.radians(45.0)
-    """The symmetry axis is searched within ± this of `top_yaw` (rad)."""
+    """Prior world direction (rad) of the garment's top (neck, waist), tried first: π = towards
+    the robot (−x), where the fold pipeline places garments by default."""
+    axis_window: float = math.pi / 2
+    """The symmetry axis is searched within ± this of `top_yaw` (rad); π/2 (the default) searches
+    every axis, so the garment may lie in any direction."""
     axis_step: float = math.radians(2.0)
     """Step (rad) of the coarse axis search before the refinement."""
     corner_skip: float = 0.004
@@ -144,6 +149,10 @@ class GarmentFrame:
     residual: float
     """Mean distance (m) between the mirrored outline and the outline."""
 
+    def flipped(self) -> GarmentFrame:
+        """The same axis with its top at the other end (u turns with it)."""
+        return GarmentFrame(self.origin, -self.top, -self.right, self.residual)
+
     def to_frame(self, xy: np.ndarray) -> np.ndarray:
         """World x, y (N×2) → garment (u, v)."""
         d = np.asarray(xy, dtype=float).reshape(-1, 2) - self.origin
@@ -168,7 +177,8 @@ def polygon_centroid(xy: np.ndarray) -> np.ndarray:
 
 def symmetry_axis(xy: np.ndarray, config: GarmentKeypointConfig) -> GarmentFrame:
     """The garment frame of an outline (N×2 world x, y): its most mirror-symmetric axis through
-    the centroid within the configured window around the prior top direction."""
+    the centroid within the configured window around the prior top direction, its top on the
+    prior's side."""
     c = polygon_centroid(xy)
     tree = cKDTree(xy)
     fine = xy[:: max(1, len(xy) // 400)] - c
@@ -573,6 +583,17 @@ class GarmentEstimator:
         self.names = GARMENT_KEYPOINT_NAMES[kind]
         self.config = config or GarmentKeypointConfig()
 
+    def _keypoints(self, frame: GarmentFrame, outline_xy: np.ndarray) -> dict[str, _Found]:
+        """The keypoints found on the outline (N×2 world x, y) in `frame` (garment u, v)."""
+        uv = frame.to_frame(outline_xy)
+        area = 0.5 * float(
+            np.sum(uv[:, 0] * np.roll(uv[:, 1], -1) - np.roll(uv[:, 0], -1) * uv[:, 1])
+        )
+        if area < 0:
+            uv = uv[::-1].copy()
+        finder = _Finder(_Outline(uv), self.config)
+        return finder.tshirt() if self.kind == "tshirt" else finder.pants()
+
     def estimate(self, obs: Observation) -> ClothState:
         """ClothState of `obs` with all of this garment's keypoints; detected=False (`reason` says
         why) when there is no cloth, it reaches the image border or is not recognised as a flat
@@ -619,15 +640,17 @@ class GarmentEstimator:
                 f"not a flat {self.kind}: the outline is {1000 * frame.residual:.1f} mm from "
                 f"mirror-symmetric (at most {1000 * cfg.max_residual:.1f} mm)"
             )
-        uv = frame.to_frame(outline[:, :2])
-        area = 0.5 * float(
-            np.sum(uv[:, 0] * np.roll(uv[:, 1], -1) - np.roll(uv[:, 0], -1) * uv[:, 1])
-        )
-        if area < 0:
-            uv = uv[::-1].copy()
-        finder = _Finder(_Outline(uv), cfg)
-        found = finder.tshirt() if self.kind == "tshirt" else finder.pants()
-        lost = [n for n in self.names if n not in found]
+        # The top on the prior's side first; the other way round where that finds no garment.
+        found: dict[str, _Found] = {}
+        lost: list[str] | None = None
+        for way in (frame, frame.flipped()):
+            found_way = self._keypoints(way, outline[:, :2])
+            lost_way = [n for n in self.names if n not in found_way]
+            if lost is None or len(lost_way) < len(lost):
+                best, found, lost = way, found_way, lost_way
+            if not lost_way:
+                break
+        frame = best
         if lost:
             return missing(f"not a flat {self.kind}: not found: {', '.join(lost)}")
 
