@@ -14,7 +14,8 @@ from foldbot.garment_loop import (
     outline_distance,
     snap_to_cloth,
 )
-from foldbot.loop import GRASP_INSET, LoopConfig
+from foldbot.grasp_points import GRASP_INSET
+from foldbot.loop import LoopConfig
 from foldbot.perception.state import ClothState
 from foldbot.planning.actions import FoldAction
 from foldbot.types import CameraIntrinsics, Observation

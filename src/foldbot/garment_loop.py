@@ -20,8 +20,8 @@ import cv2
 import numpy as np
 
 from foldbot.errors import ArmsWouldCollideError, FoldbotError, PerceptionError
+from foldbot.grasp_points import GRASP_INSET, stack_grasp_point, surface_height, tip_action
 from foldbot.loop import (
-    GRASP_INSET,
     FoldCell,
     FoldRecord,
     LoopConfig,
@@ -38,9 +38,6 @@ from foldbot.loop import (
     require_in_view,
     show_action,
     show_and_carry_pair,
-    stack_grasp_point,
-    surface_height,
-    tip_action,
 )
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState, fold_check_iou, polygon_mask

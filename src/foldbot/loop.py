@@ -23,8 +23,15 @@ import numpy as np
 from scipy.spatial import ConvexHull
 
 from foldbot.errors import ArmsWouldCollideError, FoldbotError, UnreachableTargetError
-from foldbot.metrics import FoldLine
-from foldbot.perception.geometry import backproject_pixel, project_points
+from foldbot.grasp_points import (
+    finish_action,
+    inset_grasp,
+    nearest_keypoint,
+    outline_corners,
+    place_is_corner,
+    regrasp_point,
+    stack_grasp_point,
+)
 from foldbot.perception.keypoints import label_corners, max_area_quad
 from foldbot.perception.layers import deepest_gap, layer_cover
 from foldbot.perception.overlay import draw_overlay
@@ -44,16 +51,9 @@ MIN_ARM_SEPARATION = 0.12
 """A two-arm cell carries a stage's two corners together only when both their grasp points and
 both their place points lie at least this far apart (m); closer, the grippers would meet, and the
 corners are carried one after the other."""
-GRASP_INSET = 0.01
-"""A grasp moved onto the cloth lands this far (m) inside the perceived outline."""
-TIP_BAND = 0.01
-"""Outline points within this (m) of the farthest one from the line tie for the tip."""
 MAX_CLOTH_CREASE_ROOM = 0.02
 """Cap (m) on a crease room taken from the cloth: a laid layer seen rising more than this is
 bunched cloth, not one layer (and a coarse mesh's layer thickness can exceed it)."""
-MIN_LEFT = 0.03
-"""Cloth reaching less than this (m) past a stage's fold line is the crease's bulge, not cloth
-left to fold: a from-tip or finishing action runs only when more is left."""
 
 
 @dataclass(frozen=True)
@@ -454,76 +454,6 @@ def open_loop_entry(action: FoldAction, outcome: dict, sim_s: float, wall_s: flo
     }
 
 
-def nearest_keypoint(state: ClothState, point: np.ndarray, radius: float) -> np.ndarray | None:
-    """The perceived keypoint nearest `point` in the table plane, if within `radius`."""
-    if not state.detected or not state.keypoints:
-        return None
-    pts = np.array([xyz for xyz, _conf in state.keypoints.values()])
-    d = np.linalg.norm(pts[:, :2] - point[:2], axis=1)
-    k = int(np.argmin(d))
-    return pts[k] if d[k] <= radius else None
-
-
-def moving_side_tip(
-    state: ClothState, line: tuple[float, float, float, float], near: np.ndarray, band: float
-) -> np.ndarray | None:
-    """The perceived outline's point on the moving side of `line` that lies farthest from it (within
-    `band`, the one nearest `near`), or None when no cloth is left there.
-
-    Once the stage's first corner is folded, the cloth still on the moving side is the part that
-    hangs on the corner not yet carried, so its farthest point from the line is that corner, even
-    where the first carry dragged it into a shape the four-corner detector fits poorly."""
-    outline = np.asarray(state.outline_world, dtype=float).reshape(-1, 3)
-    if not state.detected or len(outline) < 3:
-        return None
-    x, y, dx, dy = line
-    normal = np.array([-dy, dx]) / max(float(np.hypot(dx, dy)), 1e-12)
-    s = (outline[:, :2] - [x, y]) @ normal
-    if s.max() <= band:
-        return None
-    cand = outline[s >= s.max() - band]
-    k = int(np.argmin(np.linalg.norm(cand[:, :2] - near[:2], axis=1)))
-    return cand[k]
-
-
-def regrasp_point(
-    state: ClothState,
-    label: str,
-    planned: np.ndarray,
-    radius: float,
-    label_radius: float,
-    line: tuple[float, float, float, float] | None = None,
-    tip_gap: float = 0.015,
-) -> np.ndarray | None:
-    """Where to grasp a corner now: the keypoint with the planned label if it lies within
-    `label_radius` of the plan (a fold drags the other corners by up to ~15 cm), else the
-    keypoint nearest the plan within `radius`.
-
-    With the stage's fold `line` given, a corner still on the moving side is checked against the
-    outline: where the moving side's tip nearest that keypoint lies more than `tip_gap` from it, the
-    keypoint is a poor fit of a dragged corner and the tip is taken instead, at the planned height
-    (the corner not yet carried lies in one layer on the table)."""
-    seen = None
-    if state.detected and label in state.keypoints:
-        xyz = np.asarray(state.keypoints[label][0])
-        if np.linalg.norm(xyz[:2] - planned[:2]) <= label_radius:
-            seen = xyz
-    if seen is None:
-        seen = nearest_keypoint(state, planned, radius)
-    if line is None:
-        return seen
-    x, y, dx, dy = line
-    if (planned[1] - y) * dx - (planned[0] - x) * dy <= 0.01 * float(np.hypot(dx, dy)):
-        return seen  # not a corner still to be carried (e.g. one placed off, to be re-placed)
-    near = planned if seen is None else seen
-    tip = moving_side_tip(state, line, near, band=0.01)
-    if tip is None or np.linalg.norm(tip[:2] - planned[:2]) > label_radius:
-        return seen
-    if seen is None or np.linalg.norm(tip[:2] - seen[:2]) > tip_gap:
-        return np.array([tip[0], tip[1], planned[2]])
-    return seen
-
-
 def corner_to_grasp(
     cfg: LoopConfig, state: ClothState, label: str, action: FoldAction, replacing: bool
 ) -> np.ndarray | None:
@@ -541,139 +471,6 @@ def corner_to_grasp(
         cfg.regrasp_label_radius,
         line=action.fold_line,
     )
-
-
-def stack_grasp_point(state: ClothState, point: np.ndarray, height: float) -> np.ndarray:
-    """`point` lowered to `height` above the perceived table plane under it, so the jaws close
-    under every layer of a stack (unchanged without a usable table plane)."""
-    a, b, c, d = (float(v) for v in np.asarray(state.table_plane, dtype=float).reshape(4))
-    if c < 0.5:
-        return np.asarray(point, dtype=float)
-    z_table = -(a * point[0] + b * point[1] + d) / c
-    return np.array([point[0], point[1], min(float(point[2]), z_table + height)])
-
-
-def surface_height(obs: Observation, point: np.ndarray, radius: int = 2) -> float | None:
-    """Height (world z, m) of the surface the camera sees at `point`'s x, y (robust depth around
-    its pixel); None when that pixel is outside the image or has no depth."""
-    uv, z = project_points(
-        np.asarray(point, dtype=float)[None, :], obs.intrinsics, obs.T_world_camera
-    )
-    (u, v), h, w = uv[0], obs.intrinsics.height, obs.intrinsics.width
-    if not (z[0] > 0 and 0 <= u < w and 0 <= v < h):
-        return None
-    seen = backproject_pixel(obs, float(u), float(v), radius)
-    return float(seen[2]) if np.all(np.isfinite(seen)) else None
-
-
-def tip_action(
-    state: ClothState, planned: FoldAction, inset: float = GRASP_INSET
-) -> FoldAction | None:
-    """The action that carries the cloth left on `planned`'s moving side from its tip: the outline
-    point farthest from the line (ties: nearest the planned grasp), `inset` back toward the line,
-    placed at its mirror; None when the cloth reaches less than MIN_LEFT past the line."""
-    line = FoldLine(*planned.fold_line)
-    outline = np.asarray(state.outline_world, dtype=float).reshape(-1, 3)
-    if (
-        not state.detected
-        or len(outline) < 3
-        or line.side(outline).max() < MIN_LEFT * np.hypot(line.dx, line.dy)
-    ):
-        return None
-    tip = moving_side_tip(state, planned.fold_line, planned.grasp, band=TIP_BAND)
-    if tip is None:
-        return None
-    normal = np.array([-line.dy, line.dx]) / np.hypot(line.dx, line.dy)  # toward the moving side
-    grasp = np.array([*(tip[:2] - normal * inset), planned.grasp[2]])
-    place = line.reflect_xy(grasp)
-    place[2] = planned.place[2]
-    return dataclasses.replace(planned, grasp=grasp, place=place)
-
-
-def finish_action(state: ClothState, obs: Observation, last: FoldAction) -> FoldAction | None:
-    """After a stage's planned actions: the action that carries cloth still left past the stage's
-    fold line over it, from its tip, grasped at the surface the camera sees there (one layer), or
-    None when no more than the crease's bulge is left."""
-    extra = tip_action(state, last)
-    if extra is None:
-        return None
-    top = surface_height(obs, extra.grasp)
-    grasp = extra.grasp if top is None else np.r_[extra.grasp[:2], top]
-    return dataclasses.replace(extra, grasp=grasp, label=f"finish_{last.label}", layers=1)
-
-
-CORNER_TURN = np.radians(30.0)
-"""An outline vertex whose boundary turns by at least this much is a corner the keypoint detector
-finds; a shallower one is a bump on a side."""
-
-
-def outline_corners(outline: np.ndarray, min_turn: float = CORNER_TURN) -> np.ndarray:
-    """The corners a perceived keypoint can stand for on a counter-clockwise outline (N×2 or N×3):
-    as the towel detector does, the largest-area quad on its convex hull, of which the vertices
-    where the boundary turns left by at least `min_turn` (rad). A small bump on a side (a folded
-    corner just past it) is no corner."""
-    pts = np.asarray(outline, dtype=float).reshape(len(outline), -1)
-    if len(pts) < 3:
-        return pts
-    if len(pts) > 4:
-        hull = pts[ConvexHull(pts[:, :2]).vertices]
-        pts = hull[max_area_quad(hull[:, :2])]
-    xy = pts[:, :2]
-    into = xy - np.roll(xy, 1, axis=0)
-    out = np.roll(xy, -1, axis=0) - xy
-    turn = np.arctan2(into[:, 0] * out[:, 1] - into[:, 1] * out[:, 0], np.sum(into * out, axis=1))
-    return pts[turn >= min_turn]
-
-
-ON_CORNER = 0.005
-"""A planned place within this (m) of a corner of the outline its stage should leave makes that
-corner: both come from the same perceived corners (in the benchmark's half folds they lie under
-1 mm apart). Thirds' second stage lays its far corners twice its crease room (about 2.5 cm)
-short of the stack's crease corners, on its sides: no corner there, nor is checked a one-arm
-quarter fold's second-stage place 5-30 mm from its predicted corner (docs/experiments.md)."""
-
-
-def place_is_corner(place: np.ndarray, corners: np.ndarray | None, tol: float = ON_CORNER) -> bool:
-    """Whether a place point is one of `corners`, the corners of the outline the stage should leave
-    (within `tol`, m): only there can the placed corner be checked against a perceived corner
-    keypoint. A corner laid inside the outline or on its side (thirds' first and second stages)
-    is no keypoint; the stage check covers it. Without predicted corners every place is checked."""
-    if corners is None:
-        return True
-    if len(corners) == 0:
-        return False
-    d = np.linalg.norm(np.asarray(corners)[:, :2] - np.asarray(place)[:2], axis=1)
-    return bool(d.min() <= tol)
-
-
-def shifted_grasp(action: FoldAction, shift: np.ndarray) -> FoldAction:
-    """`action` with its grasp moved by `shift` (x, y; m) and its place by the mirror image of that
-    shift across the fold line, so the point the grasp was aimed at still lands on its place."""
-    shift = np.asarray(shift, dtype=float)[:2]
-    line = FoldLine(*action.fold_line)
-    d = np.array([line.dx, line.dy]) / np.hypot(line.dx, line.dy)
-    mirrored = 2 * (shift @ d) * d - shift
-    grasp = np.r_[action.grasp[:2] + shift, action.grasp[2]]
-    place = np.r_[action.place[:2] + mirrored, action.place[2]]
-    return dataclasses.replace(action, grasp=grasp, place=place)
-
-
-def inset_grasp(
-    state: ClothState, action: FoldAction, corner: np.ndarray, inset: float
-) -> FoldAction:
-    """`action` with its grasp moved `inset` (m) from `corner` toward the perceived cloth's centre
-    (see shifted_grasp)."""
-    if inset <= 0 or not state.detected:
-        return action
-    outline = np.asarray(state.outline_world, dtype=float).reshape(-1, 3)
-    centre = (
-        outline[:, :2].mean(axis=0) if len(outline) >= 3 else state.keypoint_array()[:, :2].mean(0)
-    )
-    inward = centre - corner[:2]
-    norm = float(np.linalg.norm(inward))
-    if norm < 2 * inset:
-        return action
-    return shifted_grasp(action, inward / norm * inset)
 
 
 def closed_loop_action(
