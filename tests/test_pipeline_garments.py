@@ -23,6 +23,7 @@ from foldbot.pipeline import GARMENT_YAW, EpisodeConfig, run_episode, seeded_gar
         ({"garment": "towel", "recipe": "retail"}, "unknown towel recipe 'retail'"),
         ({"garment": "pants", "recipe": "leg_over_leg", "garment_edge_length": 0.5}, "0.5"),
         ({"start": "wrinkled"}, "unknown start 'wrinkled'; allowed: flat, crumpled"),
+        ({"garment": "towel", "garment_yaw": 0.0}, "garment_yaw \\(0°\\) turns a T-shirt"),
     ],
 )
 def test_bad_garment_config_is_named(kwargs, needle):

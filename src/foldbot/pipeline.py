@@ -167,6 +167,11 @@ class EpisodeConfig:
             math.isfinite(self.garment_yaw) and abs(self.garment_yaw) <= 2 * math.pi,
             f"garment_yaw must be in [-2π, 2π] rad, got {self.garment_yaw!r}",
         )
+        require(
+            self.garment != "towel" or math.isclose(self.garment_yaw, GARMENT_YAW, abs_tol=1e-9),
+            f"garment_yaw ({math.degrees(self.garment_yaw):g}°) turns a T-shirt or pants; a "
+            "towel's yaw is the seed's draw within yaw_range alone",
+        )
         require(self.retries >= 0, f"retries must be ≥ 0, got {self.retries!r}")
         require(
             0.0 <= self.fault_grasp_offset <= 0.2,

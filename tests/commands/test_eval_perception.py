@@ -120,6 +120,7 @@ def test_tshirt_scenes_write_per_keypoint_figures(
         (["--garment", "tshirt", "--edge-length", "0.5"], "edge_length"),
         (["--garment", "pants", "--arm-fraction", "2"], "--arm-fraction"),
         (["--garment", "pants", "--garment-yaw-range", "200"], "--garment-yaw-range"),
+        (["--garment", "towel", "--garment-yaw-range", "90"], "is for --garment tshirt or pants"),
     ],
 )
 def test_bad_garment_arguments_write_nothing(

@@ -42,6 +42,7 @@ def test_subcommand_help(cmd, capsys):
         (["--mass", "-1"], "mass"),
         (["--resolution", "2"], "resolution"),
         (["--resolution", "99"], "resolution"),
+        (["--garment-yaw", "0"], "turns a T-shirt or pants"),
     ],
 )
 def test_bad_arguments_get_a_clear_error(tmp_path, capsys, args, needle):

@@ -647,6 +647,11 @@ def _validate(args: argparse.Namespace) -> None:
             0.0 <= args.garment_yaw_range <= 180.0,
             f"--garment-yaw-range must be in [0, 180] degrees, got {args.garment_yaw_range}",
         ),
+        (
+            args.garment != "towel" or args.garment_yaw_range == math.degrees(GARMENT_YAW[1]),
+            "--garment-yaw-range is for --garment tshirt or pants; towel scenes draw their own "
+            f"yaw, got {args.garment_yaw_range}",
+        ),
     ]
     for ok, message in checks:
         if not ok:
