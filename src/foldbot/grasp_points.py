@@ -1,5 +1,5 @@
 """Where to grasp and place on the cloth seen now: geometry on perceived states (ClothState and
-the RGB-D frame), shared by the towel loop (foldbot.loop), the garment loop and flattening.
+the RGB-D frame), shared by the towel loop (foldbot.loop) and the garment loop.
 
 A corner that earlier actions dragged is found by its label, its position or the moving side's
 tip; a stack is grasped at the table under every layer; what is left past a fold line is carried

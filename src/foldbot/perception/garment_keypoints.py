@@ -641,16 +641,14 @@ class GarmentEstimator:
                 f"mirror-symmetric (at most {1000 * cfg.max_residual:.1f} mm)"
             )
         # The top on the prior's side first; the other way round where that finds no garment.
-        found: dict[str, _Found] = {}
-        lost: list[str] | None = None
+        tries = []
         for way in (frame, frame.flipped()):
-            found_way = self._keypoints(way, outline[:, :2])
-            lost_way = [n for n in self.names if n not in found_way]
-            if lost is None or len(lost_way) < len(lost):
-                best, found, lost = way, found_way, lost_way
-            if not lost_way:
+            found = self._keypoints(way, outline[:, :2])
+            lost = [n for n in self.names if n not in found]
+            tries.append((len(lost), way, found, lost))
+            if not lost:
                 break
-        frame = best
+        _, frame, found, lost = min(tries, key=lambda t: t[0])  # ties: the prior's way
         if lost:
             return missing(f"not a flat {self.kind}: not found: {', '.join(lost)}")
 
