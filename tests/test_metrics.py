@@ -17,6 +17,8 @@ from foldbot.metrics import (
     fold_error_mm,
     fold_goal,
     fold_pairs,
+    perfect_fold_error_mm,
+    physical_layers,
     score_episode,
     softgym_performance,
     success,
@@ -257,7 +259,9 @@ def test_score_episode_perfect_and_unmoved() -> None:
         "coverage",
         "success",
         "flat_area_m2",
+        "perfect_fold_error_mm",
     }
+    assert good.perfect_fold_error_mm == 0.0  # a half then a quarter fold lands on every layer
 
 
 def test_score_episode_requires_a_fold_line() -> None:
@@ -266,3 +270,50 @@ def test_score_episode_requires_a_fold_line() -> None:
         score_episode(verts, verts, faces, [], 0.002)
     with pytest.raises(ConfigError, match="thickness"):
         score_episode(verts, verts, faces, [HALF], -1.0)
+
+
+# --- a perfect fold under the layer rule ---------------------------------------------------------
+
+# Two side folds that do not overlap (a T-shirt's sides): the left two columns of the 11 × 11 grid
+# onto columns 3-4, then the right two onto columns 6-7. The rule puts the second on layer 3.
+LEFT_IN = [-0.09, 0.0, 0.0, 1.0]  # moving side x < -0.09
+RIGHT_IN = [0.09, 0.0, 0.0, -1.0]  # moving side x > 0.09
+
+
+def test_physical_layers_count_the_sheets_beneath() -> None:
+    verts, faces = grid()
+    goal, layers = fold_goal(verts, [LEFT_IN, RIGHT_IN], 0.002)
+    resting = physical_layers(goal, layers, faces)
+    column = np.round((verts[:, 0] + 0.15) / 0.03).astype(int)
+    assert set(layers[column >= 9]) == {3} and set(layers[column <= 1]) == {1}
+    assert set(resting[(column <= 1) | (column >= 9)]) == {1}  # each strip lies on the body only
+    assert set(resting[(column >= 2) & (column <= 8)]) == {0}
+
+
+def test_perfect_fold_error_of_disjoint_folds_and_of_stacked_ones() -> None:
+    verts, faces = grid()
+    t = 0.002
+    # 22 of 121 vertices sit two layers lower than the rule asks.
+    assert perfect_fold_error_mm(verts, faces, [LEFT_IN, RIGHT_IN], t) == pytest.approx(
+        1000 * t * 2 * 22 / 121
+    )
+    assert perfect_fold_error_mm(verts, faces, [HALF], t) == 0.0
+    assert perfect_fold_error_mm(verts, faces, [HALF, SECOND], t) == 0.0
+
+
+def test_a_physically_perfect_fold_scores_perfect_fold_error() -> None:
+    verts, faces = grid()
+    t = 0.002
+    goal, layers = fold_goal(verts, [LEFT_IN, RIGHT_IN], t)
+    resting = goal.copy()
+    resting[:, 2] = verts[:, 2] + physical_layers(goal, layers, faces) * t
+    score = score_episode(verts, resting, faces, [LEFT_IN, RIGHT_IN], t)
+    assert score.fold_error_mm == pytest.approx(score.perfect_fold_error_mm)
+    assert score.perfect_fold_error_mm > 0.5
+    assert score_episode(verts, goal, faces, [LEFT_IN, RIGHT_IN], t).fold_error_mm == 0.0
+
+
+def test_physical_layers_rejects_mismatched_layers() -> None:
+    verts, faces = grid()
+    with pytest.raises(ConfigError, match="layers has 3 entries, goal has 121 vertices"):
+        physical_layers(verts, np.zeros(3, dtype=int), faces)

@@ -18,6 +18,10 @@ Choices where metrics.md leaves room (kept here so the numbers stay comparable):
   against B's goal under the whole recipe. For a one-fold recipe that goal is B's start, i.e.
   SoftGym exactly; `performance_start` is still computed with final := initial.
 - Coverage is not clipped to 1 (a stretched cloth can exceed it).
+- `perfect_fold_error_mm` is foldbot's own diagnostic, not a metrics.md figure: what a physically
+  perfect fold, lying flat, would score. The layer rule stacks a fold above every earlier layer
+  even where none lies beneath (a T-shirt's second side fold goes on layer 3 over one layer), so
+  for some recipes even that fold scores far from 0. It changes no other number.
 """
 
 from __future__ import annotations
@@ -188,6 +192,80 @@ def fold_error_mm(final: np.ndarray, goal: np.ndarray) -> float:
     g = _points("goal", goal)
     _same_shape("final", f, "goal", g)
     return float(1000.0 * np.mean(np.linalg.norm(f - g, axis=1)))
+
+
+_INSIDE_CHUNK_ELEMENTS = 2_000_000
+
+
+def _inside_any(points: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    """For each 2-D point, whether it lies in at least one of the triangles (T×3×2, edges
+    inclusive)."""
+    out = np.zeros(points.shape[0], dtype=bool)
+    if tris.shape[0] == 0:
+        return out
+    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
+    det = (b[:, 1] - c[:, 1]) * (a[:, 0] - c[:, 0]) + (c[:, 0] - b[:, 0]) * (a[:, 1] - c[:, 1])
+    keep = np.abs(det) > 1e-18
+    a, b, c, det = a[keep], b[keep], c[keep], det[keep]
+    step = max(1, _INSIDE_CHUNK_ELEMENTS // max(det.size, 1))
+    for s in range(0, points.shape[0], step):
+        px = points[s : s + step, 0, None] - c[None, :, 0]
+        py = points[s : s + step, 1, None] - c[None, :, 1]
+        l1 = ((b[:, 1] - c[:, 1]) * px + (c[:, 0] - b[:, 0]) * py) / det
+        l2 = ((c[:, 1] - a[:, 1]) * px + (a[:, 0] - c[:, 0]) * py) / det
+        tol = 1e-9
+        out[s : s + step] = ((l1 >= -tol) & (l2 >= -tol) & (1.0 - l1 - l2 >= -tol)).any(axis=1)
+    return out
+
+
+def physical_layers(goal: np.ndarray, layers: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """How many sheets of cloth physically lie under each vertex in the goal (V,): the number of
+    distinct lower layer indices whose goal triangles cover the vertex in the table plane. A
+    triangle across a crease (its vertices on two layers) is the hinge joining two sheets and
+    counts for each of them, not for layers the rule skipped between them.
+
+    metrics.md's layer rule lifts a fold's moving side above every layer folded so far
+    (2·n_max + 1 − n), also where nothing lies beneath it: two side folds that do not overlap
+    put the second on layer 3 over bare table. A cloth resting on what is under it cannot reach
+    that height; this count is the height it can reach.
+    """
+    g = _points("goal", goal)
+    n = np.asarray(layers, dtype=np.int64).reshape(-1)
+    if n.shape[0] != g.shape[0]:
+        raise ConfigError(f"layers has {n.shape[0]} entries, goal has {g.shape[0]} vertices")
+    tris = _faces(faces, g.shape[0])
+    face_layers = n[tris]
+    counts = np.zeros(g.shape[0], dtype=np.int64)
+    for value in np.unique(face_layers):
+        above = n > value
+        sheet = tris[(face_layers == value).any(axis=1)]
+        if above.any() and sheet.size:
+            counts[above] += _inside_any(g[above, :2], g[sheet][:, :, :2])
+    return counts
+
+
+def perfect_fold_error_mm(
+    initial: np.ndarray,
+    faces: np.ndarray,
+    fold_lines: Iterable[FoldLine | Sequence[float]],
+    thickness: float,
+) -> float:
+    """The fold error (mm) of a physically perfect fold: every vertex at its goal in the table
+    plane, lying flat on the sheets beneath it (`physical_layers`), scored against the layer
+    rule's goal heights. 0 where every fold lands on all earlier layers (half, quarter,
+    diagonal). Not a lower bound: a real stack stands higher than flat sheets, nearer the rule."""
+    start = _points("initial", initial)
+    t = _thickness(thickness)
+    goal, layers = fold_goal(start, fold_lines, t)
+    return _perfect_fold_mm(goal, layers, faces, t)
+
+
+def _perfect_fold_mm(
+    goal: np.ndarray, layers: np.ndarray, faces: np.ndarray, thickness: float
+) -> float:
+    """Mean height (mm) the layer rule asks above the sheets physically under each vertex."""
+    resting = physical_layers(goal, layers, faces)
+    return float(1000.0 * thickness * np.mean(np.abs(layers - resting)))
 
 
 @dataclass(frozen=True)
@@ -385,6 +463,8 @@ class FoldScore:
     coverage: float
     success: bool
     flat_area_m2: float
+    perfect_fold_error_mm: float
+    """What a physically perfect fold, lying flat, would score (see perfect_fold_error_mm)."""
 
     def as_dict(self) -> dict[str, float | bool]:
         """Return the metrics as a plain dict (keys as in result.json)."""
@@ -406,8 +486,9 @@ def score_episode(
     lines = as_fold_lines(fold_lines)
     if not lines:
         raise ConfigError("fold_lines is empty; a fold episode needs at least one fold line")
-    goal, _ = fold_goal(start, lines, thickness)
+    goal, layers = fold_goal(start, lines, thickness)
     error = fold_error_mm(end, goal)
+    perfect = _perfect_fold_mm(goal, layers, tris, _thickness(thickness))
     normalized = softgym_performance(start, end, lines[0], staying_reference=goal).normalized
     area = flat_area(start, tris)
     cov = coverage(end, tris, area)
@@ -417,4 +498,5 @@ def score_episode(
         coverage=cov,
         success=success(normalized, error, area),
         flat_area_m2=area,
+        perfect_fold_error_mm=perfect,
     )

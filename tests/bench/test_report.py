@@ -18,6 +18,7 @@ def test_report_files(tmp_path, tiny_suite_data):
                 "result": {
                     "success": err < 13,
                     "fold_error_mm": err,
+                    "perfect_fold_error_mm": 2.5,
                     "normalized_performance": 0.85,
                     "coverage": 0.5,
                     "sim_seconds": 10.0,
@@ -44,6 +45,7 @@ def test_report_files(tmp_path, tiny_suite_data):
     }
     md = paths["md"].read_text()
     assert "| **all** | 6 | 50 % |" in md
+    assert "| perfect fold mm: mean |" in md and "| 2.5 |" in md and "physically perfect fold" in md
     assert "towel half, oracle, closed loop" in md and "vision / oracle" in md
     assert "foldbot bench --suite tiny --out X" in md
     assert "FabricFlowNet" in md and "timeout" in md

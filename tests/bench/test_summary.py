@@ -48,6 +48,18 @@ def test_group_stats_by_hand():
     assert s["failed_episodes"]["grasp failed"] == ["c"]
 
 
+def test_group_stats_perfect_fold_error_over_records_that_have_it():
+    old = result(False, 30.0, 0.5)  # written before result.json had perfect_fold_error_mm
+    records = [
+        {"id": "a", "result": {**result(False, 40.0, 0.5), "perfect_fold_error_mm": 20.0}},
+        {"id": "b", "result": {**result(False, 50.0, 0.5), "perfect_fold_error_mm": 22.0}},
+        {"id": "c", "result": old},
+    ]
+    perfect = group_stats(records)["perfect_fold_error_mm"]
+    assert perfect["mean"] == pytest.approx(21.0) and perfect["max"] == 22.0
+    assert group_stats([{"id": "c", "result": old}])["perfect_fold_error_mm"] is None
+
+
 def test_empty_and_all_failed_groups():
     assert group_stats([])["success_rate"] is None
     s = group_stats([{"id": "x", "error_type": "Crashed", "error": "died"}])

@@ -54,20 +54,28 @@ def markdown(summary: dict) -> str:
         lines += ["```bash", summary["command"], "```", ""]
     header = (
         "| group | episodes | success | fold error mm: mean / median / p95 "
-        "| normalized perf.: mean / median / p95 | coverage: mean | actions / retries per episode "
+        "| perfect fold mm: mean | normalized perf.: mean / median / p95 | coverage: mean | actions / retries per episode "
         "| sim s per fold | wall s per episode | sim speed | failures by cause |"
     )
-    lines += [header, "|" + "---|" * 11]
+    lines += [header, "|" + "---|" * 12]
     rows = [("**all**", summary["overall"])] + [(_group_name(g), g) for g in summary["groups"]]
     for name, g in rows:
         lines.append(
             f"| {name} | {g['episodes']} | {_pct(g['success_rate'])} "
-            f"| {_stat(g['fold_error_mm'])} | {_stat(g['normalized_performance'], '.3f')} "
+            f"| {_stat(g['fold_error_mm'])} | {_f((g.get('perfect_fold_error_mm') or {}).get('mean'))} "
+            f"| {_stat(g['normalized_performance'], '.3f')} "
             f"| {_f((g['coverage'] or {}).get('mean'), '.2f')} "
             f"| {_f(g['actions_per_episode'])} / {_f(g['retries_per_episode'], '.2f')} "
             f"| {_f(g['sim_seconds_per_fold'])} | {_f(g['wall_seconds_per_episode'])} "
             f"| {_f(g['sim_speed'], '.2f')}× | {_failures(g['failures'])} |"
         )
+    lines += [
+        "",
+        "*perfect fold*: the fold error a physically perfect fold scores (every vertex on its goal "
+        "in the table plane, lying flat on the cloth beneath it) under metrics.md's layer rule, "
+        "which lifts a fold above every earlier layer even where none lies beneath "
+        "(`foldbot.metrics.perfect_fold_error_mm`).",
+    ]
     if summary["comparisons"]:
         lines += [
             "",

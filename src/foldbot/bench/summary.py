@@ -4,6 +4,7 @@ overall, and side by side for the comparison axes (vision vs oracle, closed vs o
 Every figure comes from the episodes' records (result.json, or the error that ended an episode):
 - success rate: successes / all episodes; an episode that ended in an error counts as a failure.
 - fold error (mm), SoftGym normalized performance (first fold) and coverage: over scored episodes.
+- the fold error a physically perfect fold, lying flat, scores under metrics.md's layer rule.
 - actions and retries per episode; simulated robot seconds per fold (one fold = one episode's
   whole recipe); wall seconds per episode; simulation speed = Σ simulated s / Σ wall s.
 - failures grouped by cause (`failure_cause`).
@@ -122,6 +123,7 @@ def group_stats(records: list[dict]) -> dict[str, Any]:
         "successes": successes,
         "success_rate": successes / n if n else None,
         "fold_error_mm": stats([r.get("fold_error_mm") for r in scored]),
+        "perfect_fold_error_mm": stats([r.get("perfect_fold_error_mm") for r in scored]),
         "normalized_performance": stats([r.get("normalized_performance") for r in scored]),
         "coverage": stats([r.get("coverage") for r in scored]),
         "actions_per_episode": _mean([len(r.get("actions", [])) for r in scored]),

@@ -206,6 +206,12 @@ def _print_overview(s: dict) -> None:
             f"  fold error (mm)         mean {e['mean']:.1f}  median {e['median']:.1f}  "
             f"p95 {e['p95']:.1f}"
         )
+        perfect = o.get("perfect_fold_error_mm")
+        if perfect and perfect["max"] > 0:
+            print(
+                f"  perfect fold (mm)       mean {perfect['mean']:.1f}  (what a physically "
+                "perfect fold, lying flat, scores under the layer rule)"
+            )
         print(f"  normalized performance  mean {p['mean']:.3f}  median {p['median']:.3f}")
         print(
             f"  per episode             {o['actions_per_episode']:.1f} actions, "

@@ -159,9 +159,12 @@ def run(args: argparse.Namespace) -> int:
             f"flattening {'succeeded' if flat['success'] else 'FAILED'}: coverage "
             f"{flat['coverage_start']:.2f} → {flat['coverage_end']:.2f} in {flat['actions']} actions"
         )
+    perfect = result.get("perfect_fold_error_mm") or 0.0
     print(
         f"fold {'succeeded' if result['success'] else 'FAILED'}: "
-        f"fold error {result['fold_error_mm']:.1f} mm, "
+        f"fold error {result['fold_error_mm']:.1f} mm"
+        + (f" (a physically perfect fold scores {perfect:.1f})" if perfect >= 0.05 else "")
+        + ", "
         f"normalized performance {result['normalized_performance']:.3f}, "
         f"coverage {result['coverage']:.2f}, "
         f"{result['sim_seconds']:.1f} s simulated in {result['wall_seconds']:.1f} s"
