@@ -151,7 +151,9 @@ def test_the_sideways_suites_turn_the_two_arm_suites_garments(garment):
     )
     assert {e.to_config().garment_yaw for e in sideways.episodes} == {math.pi}
     same = [dataclasses.replace(e, garment_yaw_deg=90.0) for e in sideways.episodes]
-    assert same == list(upright.episodes)
+    seeds = {e.seed for e in sideways.episodes}
+    assert seeds == set(range(10))  # measured on the first 10 of the upright suites' garments
+    assert same == [e for e in upright.episodes if e.seed in seeds]
 
 
 def test_the_loop_acceptance_suite_parks_out_of_view_over_20_seeds():
@@ -169,6 +171,8 @@ def test_the_loop_acceptance_suite_parks_out_of_view_over_20_seeds():
 def test_the_garment_and_crumpled_suites_park_at_home(name):
     # Measured: parked out of view, garments folded worse and crumpled towels diverged more.
     assert {e.park for e in load_suite(name).episodes} == {"home"}
+    # 20 seeds, as the towel targets: a 10-seed mean moved 2-7 mm between runs of the same code.
+    assert {e.seed for e in load_suite(name).episodes} == set(range(20))
 
 
 def load_one(data):
