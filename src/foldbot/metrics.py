@@ -208,12 +208,12 @@ def _inside_any(points: np.ndarray, tris: np.ndarray) -> np.ndarray:
     keep = np.abs(det) > 1e-18
     a, b, c, det = a[keep], b[keep], c[keep], det[keep]
     step = max(1, _INSIDE_CHUNK_ELEMENTS // max(det.size, 1))
+    tol = 1e-9
     for s in range(0, points.shape[0], step):
         px = points[s : s + step, 0, None] - c[None, :, 0]
         py = points[s : s + step, 1, None] - c[None, :, 1]
         l1 = ((b[:, 1] - c[:, 1]) * px + (c[:, 0] - b[:, 0]) * py) / det
         l2 = ((c[:, 1] - a[:, 1]) * px + (a[:, 0] - c[:, 0]) * py) / det
-        tol = 1e-9
         out[s : s + step] = ((l1 >= -tol) & (l2 >= -tol) & (1.0 - l1 - l2 >= -tol)).any(axis=1)
     return out
 
@@ -225,9 +225,9 @@ def physical_layers(goal: np.ndarray, layers: np.ndarray, faces: np.ndarray) -> 
     counts for each of them, not for layers the rule skipped between them.
 
     metrics.md's layer rule lifts a fold's moving side above every layer folded so far
-    (2·n_max + 1 − n), also where nothing lies beneath it: two side folds that do not overlap
-    put the second on layer 3 over bare table. A cloth resting on what is under it cannot reach
-    that height; this count is the height it can reach.
+    (2·n_max + 1 − n), also where nothing of those layers lies beneath it: two side folds that do
+    not overlap put the second on layer 3 over a single sheet. A cloth resting on what is under
+    it cannot reach that height; this count is the height it can reach.
     """
     g = _points("goal", goal)
     n = np.asarray(layers, dtype=np.int64).reshape(-1)
