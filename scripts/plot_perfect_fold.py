@@ -14,18 +14,17 @@ import foldbot  # noqa: F401  first: caps numpy's SIMD level before numpy loads 
 
 # isort: on
 import argparse
-import json
 from pathlib import Path
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
-import numpy as np
 from matplotlib.tri import Triangulation
 
-from foldbot.io.episode import CLOTH_FILE, RESULT_FILE, is_episode_dir
-from foldbot.metrics import fold_goal, perfect_fold_error_mm, physical_layers
+from foldbot.errors import ConfigError
+from foldbot.io.episode import load_episode
+from foldbot.metrics import fold_goal, physical_layers
 
 
 def main() -> int:
@@ -33,23 +32,23 @@ def main() -> int:
     ap.add_argument("episode", type=Path, help="an episode folder (result.json, cloth.npz)")
     ap.add_argument("--out", type=Path, required=True, help="PNG to write")
     args = ap.parse_args()
-    if not is_episode_dir(args.episode):
-        ap.error(f"{args.episode} is not an episode folder (needs {RESULT_FILE} and {CLOTH_FILE})")
     if args.out.suffix.lower() != ".png":
         ap.error(f"--out must name a .png file, got {args.out}")
-    cloth = np.load(args.episode / CLOTH_FILE)
-    result = json.loads((args.episode / RESULT_FILE).read_text())
-    t = float(cloth["thickness"])
-    goal, layers = fold_goal(cloth["initial"], result["fold_lines"], t)
-    resting = physical_layers(goal, layers, cloth["faces"])
-    perfect = perfect_fold_error_mm(cloth["initial"], cloth["faces"], result["fold_lines"], t)
+    try:
+        ep = load_episode(args.episode)
+    except ConfigError as exc:
+        ap.error(str(exc))
+    result, t = ep.result, ep.thickness
+    goal, layers = fold_goal(ep.initial, ep.fold_lines, t)
+    resting = physical_layers(goal, layers, ep.faces)
+    lacking_mm = (layers - resting) * t * 1000
+    perfect = float(lacking_mm.mean())  # metrics.perfect_fold_error_mm, from the layers above
 
-    start = cloth["initial"]
-    tri = Triangulation(start[:, 0] * 100, start[:, 1] * 100, cloth["faces"])
+    tri = Triangulation(ep.initial[:, 0] * 100, ep.initial[:, 1] * 100, ep.faces)
     panels = (
         ("goal layer by the rule (metrics.md)", layers, "viridis", int(layers.max())),
         ("sheets beneath it in the goal, lying flat", resting, "viridis", int(layers.max())),
-        ("height the rule asks above them (mm)", (layers - resting) * t * 1000, "magma_r", None),
+        ("height the rule asks above them (mm)", lacking_mm, "magma_r", None),
     )
     fig, axes = plt.subplots(1, 3, figsize=(13, 4.8), constrained_layout=True)
     for ax, (title, values, cmap, top) in zip(axes, panels, strict=True):
