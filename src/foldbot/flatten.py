@@ -11,9 +11,11 @@ import dataclasses
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
+from foldbot import metrics
 from foldbot.errors import FoldbotError, UnreachableTargetError
 from foldbot.loop import FoldCell, execute_action, line_points
 from foldbot.perception.state import ClothState
@@ -44,6 +46,24 @@ class FlattenRecord:
     """True when the perceived coverage reached the target."""
     final_state: ClothState | None = None
     final_obs: Observation | None = None
+
+    def result_entry(
+        self, coverage_start: float, coverage_end: float, max_actions: int
+    ) -> dict[str, Any]:
+        """result.json's "flatten" entry; the two coverages are GROUND TRUTH (metrics only),
+        measured by the caller before and after flattening."""
+        n = sum(not a.get("skipped_unreachable", False) for a in self.actions)
+        return {
+            "success": bool(metrics.flatten_success(coverage_end) and n <= max_actions),
+            "actions": n,
+            "max_actions": max_actions,
+            "coverage_start": coverage_start,
+            "coverage_end": coverage_end,
+            "perceived_coverage_start": self.initial_coverage,
+            "perceived_coverage_end": self.final_coverage,
+            "reached_target": self.reached,
+            "pulls": self.actions,
+        }
 
 
 def run_flatten(

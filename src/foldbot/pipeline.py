@@ -559,19 +559,9 @@ def crumple_and_flatten(
         writer.write_image(
             "overlay_flattened.png", draw_overlay(record.final_obs, record.final_state)
         )
-    n = sum(not a.get("skipped_unreachable", False) for a in record.actions)
-    log(f"flattened: coverage {start:.2f} → {end:.2f} in {n} actions")
-    return {
-        "success": bool(metrics.flatten_success(end) and n <= flatten_cfg.max_actions),
-        "actions": n,
-        "max_actions": flatten_cfg.max_actions,
-        "coverage_start": start,
-        "coverage_end": end,
-        "perceived_coverage_start": record.initial_coverage,
-        "perceived_coverage_end": record.final_coverage,
-        "reached_target": record.reached,
-        "pulls": record.actions,
-    }
+    entry = record.result_entry(start, end, flatten_cfg.max_actions)
+    log(f"flattened: coverage {start:.2f} → {end:.2f} in {entry['actions']} actions")
+    return entry
 
 
 def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=print) -> dict:

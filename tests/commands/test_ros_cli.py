@@ -18,7 +18,10 @@ from foldbot.commands.ros_fold import add_arguments, fold_args_text
         (["ros-fold", "--out", "{tmp}/e", "--resolution", "2"], "resolution"),
         (["ros-fold", "--out", "{tmp}/e", "--port", "0"], "--port"),
         (["ros-fold", "--out", "{tmp}/e", "--arms", "2"], "ros-fold drives one arm"),
-        (["ros-fold", "--out", "{tmp}/e", "--start", "crumpled"], "starts from a flat cloth"),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--start", "crumpled", "--garment", "pants"],
+            "start 'crumpled' is for towels",
+        ),
         (
             ["ros-fold", "--out", "{tmp}/e", "--garment", "pants", "--garment-edge-length", "1"],
             "garment_edge_length must be in [0.005, 0.1] m, got 1.0",
@@ -48,6 +51,13 @@ def test_fold_options_reach_the_nodes():
     assert "--odd-grid" in fold_args_text(parser.parse_args(["--out", "e"])).split()
     words = fold_args_text(parser.parse_args(["--out", "e", "--no-odd-grid"])).split()
     assert "--no-odd-grid" in words
+
+
+def test_a_crumpled_start_reaches_the_nodes():
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    words = fold_args_text(parser.parse_args(["--out", "e", "--start", "crumpled"])).split()
+    assert words[words.index("--start") + 1] == "crumpled"
 
 
 def test_garment_options_reach_the_nodes():

@@ -192,3 +192,58 @@ def test_a_failed_ros_fold_names_the_task_nodes_error(tmp_path):
         "error: over ROS: the garment was not recognised for recipe 'leg_over_leg'" in proc.stderr
     )
     assert not out.exists()
+
+
+# The crumple as `foldbot fold` makes it, in a fresh process (Bullet's soft body is reproducible
+# only as the first simulation in its process): settle, then the seed's crumple.
+CRUMPLE_SCRIPT = """
+import json, sys
+import numpy as np
+from foldbot import metrics
+from foldbot.commands import fold
+from foldbot.pipeline import build_sim_cell
+from foldbot.ros.node_args import parse_fold_args
+from foldbot.sim.cloth import settle
+from foldbot.sim.crumple import crumple
+from foldbot.sim.world import SimWorld
+
+_args, cfg = parse_fold_args(sys.argv[1])
+with SimWorld(cfg.sim) as world:
+    parts = build_sim_cell(cfg, world)
+    parts.model_world.close()
+    settle(world, parts.cloth)
+    crumple(world, parts.cloth, np.random.default_rng([cfg.seed, 2]))
+    v = parts.oracle.cloth_vertices()
+    print(json.dumps(metrics.coverage(v, parts.mesh.faces, parts.mesh.area)))
+"""
+CRUMPLED = ["--start", "crumpled", "--seed", "2", "--width", "0.26", "--height", "0.26"]
+CRUMPLED += ["--resolution", "8", "--video-fps", "0"]
+
+
+def test_crumpled_towel_is_flattened_over_topics(tmp_path):
+    # The coarse towel of the in-process test (tests/test_pipeline_garments.py): other seeds of
+    # it diverge while crumpled, over topics as in process.
+    out = tmp_path / "episode"
+    proc = foldbot(
+        "ros-fold", *CRUMPLED, "--camera-rate", "2", "--out", str(out),
+        "--port", str(free_port()),
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    result = json.loads((out / "result.json").read_text())
+    assert result["transport"] == "ros"
+    f = result["flatten"]
+    # The sim node crumpled the towel exactly as an in-process fold of that seed does.
+    ref = subprocess.run(
+        [sys.executable, "-c", CRUMPLE_SCRIPT, " ".join([*CRUMPLED, "--out", str(tmp_path / "x")])],
+        capture_output=True, text=True, timeout=600, check=True,
+    )  # fmt: skip
+    assert f["coverage_start"] == json.loads(ref.stdout.strip().splitlines()[-1])
+    assert f["coverage_start"] < 0.85
+    # The task node flattened it with pulls planned from the perception node's outputs, then
+    # folded; the fold is scored from the flattened cloth.
+    assert 1 <= f["actions"] <= f["max_actions"] == 6 and len(f["pulls"]) >= f["actions"]
+    assert all(p["kind"] == "flatten_pull" for p in f["pulls"])
+    assert f["success"] == (f["coverage_end"] >= 0.9)
+    assert (out / "overlay_flattened.png").is_file()
+    assert len(result["fold_lines"]) == 1
+    assert rescore(out).fold_error_mm == pytest.approx(result["fold_error_mm"])

@@ -75,6 +75,7 @@ def fold_args_text(args: argparse.Namespace) -> str:
         *("--garment", args.garment, "--recipe", args.recipe or fold.DEFAULT_RECIPES[args.garment]),
         *("--robot", args.robot),
         *("--perception", args.perception, "--seed", str(args.seed), "--park", args.park),
+        *("--start", args.start),
         *("--width", repr(args.width), "--height", repr(args.height)),
         *("--resolution", str(args.resolution), "--video-fps", repr(args.video_fps)),
         *("--out", str(Path(args.out).resolve())),
@@ -94,11 +95,6 @@ def run(args: argparse.Namespace) -> int:
     """Validate, roslaunch the fold, then report from the episode folder the task node wrote."""
     if args.gui:
         raise ConfigError("--gui is not available over ROS; use `foldbot fold --gui`")
-    if args.start != "flat":
-        raise ConfigError(
-            f"ros-fold starts from a flat cloth, got --start {args.start}; "
-            "crumpled starts run in process with `foldbot fold --start crumpled`"
-        )
     if args.arms != 1:
         raise ConfigError(
             f"ros-fold drives one arm, got --arms {args.arms}; "

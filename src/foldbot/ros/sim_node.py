@@ -30,6 +30,7 @@ from foldbot.pipeline import build_sim_cell
 from foldbot.ros import BASE_FRAME, CAMERA_FRAME, TOPICS, WORLD_FRAME, convert
 from foldbot.ros.node_args import CAMERA_RATE_PARAM, FOLD_ARGS_PARAM, parse_fold_args
 from foldbot.sim.cloth import settle
+from foldbot.sim.crumple import crumple
 from foldbot.sim.world import SimWorld
 
 SUBSCRIBER_WAIT_S = 60.0
@@ -200,16 +201,35 @@ class SimNode:
             return {}
         raise FoldbotError(f"unknown command {kind!r}")
 
+    def prepare_cloth(self) -> None:
+        """Settle the cloth; for a crumpled start, crumple it as `foldbot fold` does (the same
+        seeded draw after the same settling: the same crumpled cloth as in process)."""
+        rospy.loginfo("settling the cloth (%d vertices)", self.parts.mesh.vertices.shape[0])
+        settle(self.world, self.parts.cloth)
+        if self.cfg.start == "crumpled":
+            rospy.loginfo("crumpling the towel")
+            crumple(self.world, self.parts.cloth, np.random.default_rng([self.cfg.seed, 2]))
+
     def spin(self) -> None:
         mesh = self.parts.mesh
         self.publish_static()
         self.pub["mesh"].publish(
             convert.string_msg(
-                {"faces": np.asarray(mesh.faces).tolist(), "thickness": self.parts.cloth.thickness}
+                {
+                    "faces": np.asarray(mesh.faces).tolist(),
+                    "thickness": self.parts.cloth.thickness,
+                    "flat_area": mesh.area,
+                }
             )
         )
-        rospy.loginfo("settling the cloth (%d vertices)", mesh.vertices.shape[0])
-        settle(self.world, self.parts.cloth)
+        try:
+            self.prepare_cloth()
+        except FoldbotError as exc:
+            # A crumple that diverged or left the workspace: the task node raises it.
+            self.report({"command": "ready", "ok": False, "error": str(exc),
+                         "error_type": type(exc).__name__})  # fmt: skip
+            rospy.signal_shutdown("the cloth could not be prepared")
+            return
         self.publish_ground_truth()
         self.wait_for_camera_subscribers()
         self.report({"command": "ready", "ok": True, "frame_stamp": self.publish_frame()})

@@ -2,9 +2,10 @@
 
 It runs the same closed loop as `foldbot fold` (foldbot.loop.run_fold) on `RosCell`, a FoldCell
 whose eyes are the perception node's outputs, whose planner is the planner node and whose arm
-is the sim node. At the end it scores the fold from the sim node's ground-truth topic (metrics
-only) and writes the episode output contract: result.json, cloth.npz, video.mp4 (the camera
-stream with the debug overlays) and the overlay pictures.
+is the sim node; a crumpled start (crumpled by the sim node) is first flattened on that cell by
+foldbot.flatten.run_flatten. At the end it scores the fold from the sim node's ground-truth
+topic (metrics only) and writes the episode output contract: result.json, cloth.npz, video.mp4
+(the camera stream with the debug overlays) and the overlay pictures.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import sys
 import threading
 import time
 from collections import OrderedDict
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -27,14 +29,16 @@ from tf2_msgs.msg import TFMessage
 from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
 
 from foldbot import errors
+from foldbot.flatten import run_flatten
 from foldbot.garment_loop import run_garment_fold
 from foldbot.io.episode import EpisodeWriter
 from foldbot.loop import FoldCell, StepLog, corners_of, run_fold
-from foldbot.metrics import score_episode
+from foldbot.metrics import coverage, score_episode
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState
-from foldbot.pipeline import episode_result, loop_config, seeded_garment, seeded_pose
+from foldbot.pipeline import EpisodeConfig, episode_result, loop_config, seeded_garment, seeded_pose
 from foldbot.planning.actions import FoldAction, FoldPlan
+from foldbot.planning.flatten import FlattenConfig
 from foldbot.planning.garment_recipes import GarmentPlan
 from foldbot.ros import CAMERA_FRAME, TOPICS, WORLD_FRAME, convert
 from foldbot.ros.node_args import ERROR_FILE_PARAM, FOLD_ARGS_PARAM, parse_fold_args
@@ -212,6 +216,8 @@ class RosCell(FoldCell):
         reply = self.results.take(
             lambda r: r.get("command") == "ready", "ready report from the sim node"
         )
+        if not reply.get("ok"):
+            raise errors.reported_error(reply, "preparing the cloth")
         self.rest_stamp = float(reply["frame_stamp"])
         self.rest_q = np.array(reply["q"], dtype=float)
         self._clock = float(reply["sim_time"])
@@ -366,6 +372,35 @@ class RosCell(FoldCell):
         )
 
 
+def _flatten(
+    cfg: EpisodeConfig,
+    cell: RosCell,
+    writer: EpisodeWriter,
+    crumpled: np.ndarray,
+    faces: np.ndarray,
+    flat_area: float,
+    log: Callable[[str], None],
+) -> tuple[dict, np.ndarray]:
+    """Flatten the crumpled towel over topics (foldbot.flatten.run_flatten, as in process);
+    returns result.json's "flatten" entry, its coverages from GROUND TRUTH (metrics only), and
+    the flattened cloth's vertices, from which the fold is scored."""
+    start = coverage(crumpled, faces, flat_area)
+    log(f"crumpled: coverage {start:.2f}; flattening…")
+    flatten_cfg = FlattenConfig()
+    spec = seeded_garment(cfg)[0]
+    record = run_flatten(flatten_cfg, cell, (spec.width, spec.height), log)
+    flattened = cell.ground_truth()
+    end = coverage(flattened, faces, flat_area)
+    if record.final_obs is not None and record.final_state is not None:
+        with cell._lock:
+            writer.write_image(
+                "overlay_flattened.png", draw_overlay(record.final_obs, record.final_state)
+            )
+    entry = record.result_entry(start, end, flatten_cfg.max_actions)
+    log(f"flattened: coverage {start:.2f} → {end:.2f} in {entry['actions']} actions")
+    return entry, flattened
+
+
 def run_task(fold_args: str, log=rospy.loginfo) -> dict:
     """Fold over topics and write the episode folder; returns result.json's content."""
     args, cfg = parse_fold_args(fold_args)
@@ -378,10 +413,15 @@ def run_task(fold_args: str, log=rospy.loginfo) -> dict:
         initial = convert.cloud_array(cell.truth.take(lambda m: True, "initial ground truth"))
         mesh = cell.mesh.take(lambda m: True, "cloth mesh from the sim node")
         thickness = float(mesh["thickness"])  # the loop's layer height where depth tells nothing
+        faces = np.array(mesh["faces"], dtype=np.int64)
+        flattened = None
+        if cfg.start == "crumpled":
+            flattened, initial = _flatten(
+                cfg, cell, writer, initial, faces, float(mesh["flat_area"]), log
+            )
         fold = run_fold if cfg.garment == "towel" else run_garment_fold
         record = fold(loop_config(cfg, thickness), cell, log)
         final = cell.ground_truth()
-        faces = np.array(mesh["faces"], dtype=np.int64)
         score = score_episode(initial, final, faces, record.fold_lines, thickness)
         with cell._lock:
             cell.video = None
@@ -403,6 +443,8 @@ def run_task(fold_args: str, log=rospy.loginfo) -> dict:
                 time.perf_counter() - wall0,
                 cfg.camera,
             )
+            if flattened is not None:
+                result["flatten"] = flattened
             result["transport"] = "ros"
             writer.write_result(result)
             path = writer.commit()
