@@ -18,6 +18,7 @@ import numpy as np
 from foldbot import metrics
 from foldbot.errors import FoldbotError, UnreachableTargetError
 from foldbot.loop import FoldCell, execute_action, line_points
+from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState
 from foldbot.planning.flatten import (
     FlattenConfig,
@@ -134,6 +135,33 @@ def run_flatten(
     rec.reached = coverage >= cfg.target_coverage
     rec.final_state, rec.final_obs = state, obs
     return rec
+
+
+def flatten_and_score(
+    cell: FoldCell,
+    expected_size: tuple[float, float],
+    crumpled: np.ndarray,
+    ground_truth: Callable[[], np.ndarray],
+    faces: np.ndarray,
+    flat_area: float,
+    write_image: Callable[[str, np.ndarray], object],
+    log: Callable[[str], None] = print,
+) -> tuple[dict[str, Any], np.ndarray]:
+    """Flatten a crumpled cloth on `cell` (run_flatten, FlattenConfig's defaults) and score it,
+    in process or over ROS alike. `crumpled` (the cloth's vertices now) and `ground_truth` (read
+    after flattening) are GROUND TRUTH, for the coverages only. Writes overlay_flattened.png;
+    returns result.json's "flatten" entry and the flattened cloth's vertices."""
+    start = metrics.coverage(crumpled, faces, flat_area)
+    log(f"crumpled: coverage {start:.2f}; flattening…")
+    cfg = FlattenConfig()
+    record = run_flatten(cfg, cell, expected_size, log)
+    flattened = ground_truth()
+    end = metrics.coverage(flattened, faces, flat_area)
+    if record.final_obs is not None and record.final_state is not None:
+        write_image("overlay_flattened.png", draw_overlay(record.final_obs, record.final_state))
+    entry = record.result_entry(start, end, cfg.max_actions)
+    log(f"flattened: coverage {start:.2f} → {end:.2f} in {entry['actions']} actions")
+    return entry, flattened
 
 
 def _execute_pull(

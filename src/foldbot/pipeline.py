@@ -18,7 +18,6 @@ from pathlib import Path
 
 import numpy as np
 
-from foldbot import metrics
 from foldbot.control.bimanual import check_arms_clear
 from foldbot.control.executor import (
     ArmExecutor,
@@ -27,7 +26,7 @@ from foldbot.control.executor import (
     run_together,
 )
 from foldbot.errors import ArmsWouldCollideError, UnreachableTargetError, require
-from foldbot.flatten import run_flatten
+from foldbot.flatten import flatten_and_score
 from foldbot.garment_loop import run_garment_fold
 from foldbot.garments import sample_garment
 from foldbot.garments.mesh import ClothMesh
@@ -39,7 +38,6 @@ from foldbot.perception.fallback import vision_estimator
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState
 from foldbot.planning.actions import FoldAction
-from foldbot.planning.flatten import FlattenConfig
 from foldbot.planning.garment_recipes import GARMENT_RECIPES
 from foldbot.planning.motion import MotionConfig, Segment, action_segments, line_path
 from foldbot.planning.recipes import RECIPES
@@ -538,29 +536,29 @@ def make_estimator(cfg: EpisodeConfig, oracle: GroundTruthOracle):
     return OracleEstimator(oracle) if cfg.garment == "towel" else GarmentOracleEstimator(oracle)
 
 
+def crumple_start(cfg: EpisodeConfig, world: SimWorld, cloth: SoftCloth) -> None:
+    """Crumple the settled towel with the episode seed's own draw (the same in every process
+    that runs the episode: `foldbot fold`, the ROS sim node)."""
+    crumple(world, cloth, np.random.default_rng([cfg.seed, 2]))
+
+
 def crumple_and_flatten(
     cfg: EpisodeConfig, parts: SimCellParts, cell: SimCell, writer: EpisodeWriter, log=print
 ) -> dict:
     """Crumple the settled towel (seeded), then flatten it from what the camera sees; returns
     result.json's "flatten" entry, its coverage figures measured on GROUND TRUTH (for scoring)."""
-    flat_area = parts.mesh.area
-
-    def true_coverage() -> float:
-        return metrics.coverage(parts.oracle.cloth_vertices(), parts.mesh.faces, flat_area)
-
     log("crumpling the towel…")
-    crumple(parts.world, parts.cloth, np.random.default_rng([cfg.seed, 2]))
-    start = true_coverage()
-    log(f"crumpled: coverage {start:.2f}; flattening…")
-    flatten_cfg = FlattenConfig()
-    record = run_flatten(flatten_cfg, cell, (parts.spec.width, parts.spec.height), log)
-    end = true_coverage()
-    if record.final_obs is not None and record.final_state is not None:
-        writer.write_image(
-            "overlay_flattened.png", draw_overlay(record.final_obs, record.final_state)
-        )
-    entry = record.result_entry(start, end, flatten_cfg.max_actions)
-    log(f"flattened: coverage {start:.2f} → {end:.2f} in {entry['actions']} actions")
+    crumple_start(cfg, parts.world, parts.cloth)
+    entry, _ = flatten_and_score(
+        cell,
+        (parts.spec.width, parts.spec.height),
+        parts.oracle.cloth_vertices(),
+        parts.oracle.cloth_vertices,
+        parts.mesh.faces,
+        parts.mesh.area,
+        writer.write_image,
+        log,
+    )
     return entry
 
 

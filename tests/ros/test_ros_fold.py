@@ -198,13 +198,10 @@ def test_a_failed_ros_fold_names_the_task_nodes_error(tmp_path):
 # only as the first simulation in its process): settle, then the seed's crumple.
 CRUMPLE_SCRIPT = """
 import json, sys
-import numpy as np
 from foldbot import metrics
-from foldbot.commands import fold
-from foldbot.pipeline import build_sim_cell
+from foldbot.pipeline import build_sim_cell, crumple_start
 from foldbot.ros.node_args import parse_fold_args
 from foldbot.sim.cloth import settle
-from foldbot.sim.crumple import crumple
 from foldbot.sim.world import SimWorld
 
 _args, cfg = parse_fold_args(sys.argv[1])
@@ -212,7 +209,7 @@ with SimWorld(cfg.sim) as world:
     parts = build_sim_cell(cfg, world)
     parts.model_world.close()
     settle(world, parts.cloth)
-    crumple(world, parts.cloth, np.random.default_rng([cfg.seed, 2]))
+    crumple_start(cfg, world, parts.cloth)
     v = parts.oracle.cloth_vertices()
     print(json.dumps(metrics.coverage(v, parts.mesh.faces, parts.mesh.area)))
 """

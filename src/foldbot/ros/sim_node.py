@@ -26,11 +26,10 @@ from tf2_msgs.msg import TFMessage
 from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
 
 from foldbot.errors import FoldbotError
-from foldbot.pipeline import build_sim_cell
+from foldbot.pipeline import build_sim_cell, crumple_start
 from foldbot.ros import BASE_FRAME, CAMERA_FRAME, TOPICS, WORLD_FRAME, convert
 from foldbot.ros.node_args import CAMERA_RATE_PARAM, FOLD_ARGS_PARAM, parse_fold_args
 from foldbot.sim.cloth import settle
-from foldbot.sim.crumple import crumple
 from foldbot.sim.world import SimWorld
 
 SUBSCRIBER_WAIT_S = 60.0
@@ -208,7 +207,7 @@ class SimNode:
         settle(self.world, self.parts.cloth)
         if self.cfg.start == "crumpled":
             rospy.loginfo("crumpling the towel")
-            crumple(self.world, self.parts.cloth, np.random.default_rng([self.cfg.seed, 2]))
+            crumple_start(self.cfg, self.world, self.parts.cloth)
 
     def spin(self) -> None:
         mesh = self.parts.mesh

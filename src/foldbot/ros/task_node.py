@@ -16,7 +16,6 @@ import sys
 import threading
 import time
 from collections import OrderedDict
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -29,16 +28,15 @@ from tf2_msgs.msg import TFMessage
 from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
 
 from foldbot import errors
-from foldbot.flatten import run_flatten
+from foldbot.flatten import flatten_and_score
 from foldbot.garment_loop import run_garment_fold
 from foldbot.io.episode import EpisodeWriter
 from foldbot.loop import FoldCell, StepLog, corners_of, run_fold
-from foldbot.metrics import coverage, score_episode
+from foldbot.metrics import score_episode
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState
-from foldbot.pipeline import EpisodeConfig, episode_result, loop_config, seeded_garment, seeded_pose
+from foldbot.pipeline import episode_result, loop_config, seeded_garment, seeded_pose
 from foldbot.planning.actions import FoldAction, FoldPlan
-from foldbot.planning.flatten import FlattenConfig
 from foldbot.planning.garment_recipes import GarmentPlan
 from foldbot.ros import CAMERA_FRAME, TOPICS, WORLD_FRAME, convert
 from foldbot.ros.node_args import ERROR_FILE_PARAM, FOLD_ARGS_PARAM, parse_fold_args
@@ -372,35 +370,6 @@ class RosCell(FoldCell):
         )
 
 
-def _flatten(
-    cfg: EpisodeConfig,
-    cell: RosCell,
-    writer: EpisodeWriter,
-    crumpled: np.ndarray,
-    faces: np.ndarray,
-    flat_area: float,
-    log: Callable[[str], None],
-) -> tuple[dict, np.ndarray]:
-    """Flatten the crumpled towel over topics (foldbot.flatten.run_flatten, as in process);
-    returns result.json's "flatten" entry, its coverages from GROUND TRUTH (metrics only), and
-    the flattened cloth's vertices, from which the fold is scored."""
-    start = coverage(crumpled, faces, flat_area)
-    log(f"crumpled: coverage {start:.2f}; flattening…")
-    flatten_cfg = FlattenConfig()
-    spec = seeded_garment(cfg)[0]
-    record = run_flatten(flatten_cfg, cell, (spec.width, spec.height), log)
-    flattened = cell.ground_truth()
-    end = coverage(flattened, faces, flat_area)
-    if record.final_obs is not None and record.final_state is not None:
-        with cell._lock:
-            writer.write_image(
-                "overlay_flattened.png", draw_overlay(record.final_obs, record.final_state)
-            )
-    entry = record.result_entry(start, end, flatten_cfg.max_actions)
-    log(f"flattened: coverage {start:.2f} → {end:.2f} in {entry['actions']} actions")
-    return entry, flattened
-
-
 def run_task(fold_args: str, log=rospy.loginfo) -> dict:
     """Fold over topics and write the episode folder; returns result.json's content."""
     args, cfg = parse_fold_args(fold_args)
@@ -416,8 +385,21 @@ def run_task(fold_args: str, log=rospy.loginfo) -> dict:
         faces = np.array(mesh["faces"], dtype=np.int64)
         flattened = None
         if cfg.start == "crumpled":
-            flattened, initial = _flatten(
-                cfg, cell, writer, initial, faces, float(mesh["flat_area"]), log
+            spec = seeded_garment(cfg)[0]
+
+            def write_image(name: str, image: np.ndarray) -> None:
+                with cell._lock:  # the video's frames are written from the camera's callbacks
+                    writer.write_image(name, image)
+
+            flattened, initial = flatten_and_score(
+                cell,
+                (spec.width, spec.height),
+                initial,
+                cell.ground_truth,
+                faces,
+                float(mesh["flat_area"]),
+                write_image,
+                log,
             )
         fold = run_fold if cfg.garment == "towel" else run_garment_fold
         record = fold(loop_config(cfg, thickness), cell, log)
