@@ -180,6 +180,24 @@ class FoldCell(abc.ABC):
         """The arm that should handle a grasp at `point`: the one on its side of the cell."""
         return 0
 
+    def plan_on_an_able_arm(self, plan_with: Callable[[int], list[Any]]) -> list[Any]:
+        """plan_with(arm) for the active arm first and, when it cannot do the action
+        (UnreachableTargetError: IK, or it would meet another arm where that one stands), for
+        the others in turn; the arm that can becomes the active one. The first arm's error when
+        none can."""
+        order = [self.active_arm] + [i for i in range(self.arms) if i != self.active_arm]
+        first_error: UnreachableTargetError | None = None
+        for arm in order:
+            try:
+                plan = plan_with(arm)
+            except UnreachableTargetError as exc:
+                first_error = first_error or exc
+                continue
+            self.use_arm(arm)
+            return plan
+        assert first_error is not None
+        raise first_error
+
     def plan_together(self, actions: list[tuple[int, FoldAction]]) -> list[list[Any]]:
         """Two-arm cells: each (arm, action)'s motion steps, every waypoint's IK solved before
         anything moves (UnreachableTargetError names the infeasible one), the arms checked to

@@ -356,21 +356,8 @@ class SimCell(FoldCell):
         return False
 
     def plan_action(self, action: FoldAction) -> list[PlannedSegment]:
-        # A two-arm cell: the active arm (the one on the grasp's side) first; when it cannot do
-        # the action (IK, or it would meet the other arm, parked), the other one, which then
-        # becomes the active arm for run_step.
-        order = [self.active] + [i for i in range(self.arms) if i != self.active]
-        first_error: UnreachableTargetError | None = None
-        for arm in order:
-            try:
-                plan = self._plan_with(arm, action)
-            except UnreachableTargetError as exc:
-                first_error = first_error or exc
-                continue
-            self.active = arm
-            return plan
-        assert first_error is not None
-        raise first_error
+        # A two-arm cell: the active arm (the one on the grasp's side) first, else the other.
+        return self.plan_on_an_able_arm(lambda arm: self._plan_with(arm, action))
 
     def _plan_with(self, arm: int, action: FoldAction) -> list[PlannedSegment]:
         ex = self.executors[arm]

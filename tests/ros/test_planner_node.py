@@ -77,3 +77,114 @@ def test_park_goes_where_the_episode_parks(planner):
 def test_unknown_request_kind_lists_the_allowed_ones(planner):
     with pytest.raises(FoldbotError, match="allowed: stage, garment, action"):
         planner.handle({"kind": "dance", "q": planner.robot.home_q.tolist()})
+
+
+# --- a two-arm cell -------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def two_arm_planner():
+    from foldbot.ros.planner_node import MotionPlanner
+
+    p = MotionPlanner("--arms 2 --out /tmp/unused")
+    yield p
+    p.world.close()
+
+
+def _action(grasp_xy, place_xy, z=0.752):
+    return {
+        "label": "corner",
+        "layers": 1,
+        "grasp": [*grasp_xy, z],
+        "place": [*place_xy, z],
+        "fold_line": [0.45, -0.2, 0.0, 0.4],
+    }
+
+
+def _homes(planner):
+    return [r.home_q.tolist() for r in planner.robots]
+
+
+def test_two_arms_are_named_left_and_right(two_arm_planner):
+    names = two_arm_planner.joint_names
+    assert [n[0] for n in names] == ["left_shoulder_pan_joint", "right_shoulder_pan_joint"]
+    assert len(names[0]) == len(names[1]) == 6
+
+
+def test_a_pair_is_planned_together_from_each_arms_joints(two_arm_planner):
+    p = two_arm_planner
+    qs = _homes(p)
+    pairs = [
+        {"arm": 0, "action": _action((0.33, 0.12), (0.57, 0.12))},
+        {"arm": 1, "action": _action((0.33, -0.12), (0.57, -0.12))},
+    ]
+    steps = p.handle({"kind": "together", "pairs": pairs, "qs": qs})["steps"]
+    assert len(steps) == 2 and len(steps[0]) == len(steps[1]) > 4
+    for arm, arm_steps in enumerate(steps):
+        np.testing.assert_allclose(arm_steps[0]["path"][0], qs[arm])
+        grasp_step = next(s for s in arm_steps if s["gripper"] == "close")
+        # The jaws close over the arm's own grasp point (FK on the planner's own model).
+        tcp = p.robots[arm].fk_tcp(np.array(grasp_step["path"][-1]))[0]
+        assert np.linalg.norm(tcp[:2] - pairs[arm]["action"]["grasp"][:2]) < 0.005
+
+
+def test_a_pair_that_would_meet_is_refused(two_arm_planner):
+    from foldbot.errors import ArmsWouldCollideError
+
+    p = two_arm_planner
+    # Both grippers to (nearly) the same point.
+    pairs = [
+        {"arm": 0, "action": _action((0.45, 0.01), (0.55, 0.01))},
+        {"arm": 1, "action": _action((0.45, -0.01), (0.55, -0.01))},
+    ]
+    with pytest.raises(ArmsWouldCollideError, match="would"):
+        p.handle({"kind": "together", "pairs": pairs, "qs": _homes(p)})
+
+
+def test_one_arms_action_keeps_clear_of_the_other_where_it_stands(two_arm_planner):
+    from foldbot.errors import UnreachableTargetError
+
+    p = two_arm_planner
+    qs = _homes(p)
+    # The right arm reaches across, right under the left arm's parked gripper.
+    under_left = p.robots[0].fk_tcp(np.array(qs[0]))[0][:2]
+    req = {"kind": "action", "arm": 1, "qs": qs}
+    with pytest.raises(UnreachableTargetError, match="arm 1: segment"):
+        p.handle({**req, "action": _action(under_left, (0.55, -0.1))})
+    # On its own side it plans.
+    assert p.handle({**req, "action": _action((0.4, -0.15), (0.55, -0.15))})["steps"]
+
+
+def test_arms_timed_together_share_one_clock(two_arm_planner):
+    p = two_arm_planner
+    qs = _homes(p)
+    steps = []
+    for arm, dz in ((0, -0.05), (1, -0.2)):  # the right arm goes four times as far
+        start = p.robots[arm].fk_tcp(np.array(qs[arm]))[0]
+        path = p.handle({"kind": "lift", "arm": arm, "qs": qs, "height": dz})["steps"][0]
+        assert np.allclose(path["points"][0], start)
+        steps.append({"arm": arm, **path})
+    short = p.handle({"kind": "time", **steps[0]})["trajectory"]
+    traj = p.handle({"kind": "time_together", "name": "down", "steps": steps})["trajectory"]
+    assert traj["joint_names"] == p.joint_names[0] + p.joint_names[1]
+    pos, vel = np.array(traj["positions"]), np.array(traj["velocities"])
+    n = len(short["times"])
+    assert len(traj["times"]) > n
+    # The left arm's samples are its own trajectory's, then held at rest at its end.
+    np.testing.assert_allclose(pos[:n, :6], short["positions"])
+    np.testing.assert_allclose(pos[n:, :6], np.repeat(pos[n - 1 : n, :6], len(pos) - n, axis=0))
+    assert not vel[n:, :6].any()
+    with pytest.raises(FoldbotError, match="distinct arms in order"):
+        p.handle({"kind": "time_together", "steps": steps[::-1]})
+
+
+def test_park_moves_only_the_arms_away_from_their_park(two_arm_planner):
+    p = two_arm_planner
+    qs = _homes(p)
+    assert p.handle({"kind": "park", "qs": qs}) == {"trajectory": None}  # parks at home
+    moved = [qs[0], (np.array(qs[1]) + 0.1).tolist()]
+    traj = p.handle({"kind": "park", "qs": moved})["trajectory"]
+    assert traj["joint_names"] == p.joint_names[1]
+    np.testing.assert_allclose(traj["positions"][-1], qs[1], atol=1e-6)
+    with pytest.raises(FoldbotError, match="qs must give 2 arms"):
+        p.handle({"kind": "park", "qs": qs[:1]})

@@ -244,3 +244,43 @@ def test_crumpled_towel_is_flattened_over_topics(tmp_path):
     assert (out / "overlay_flattened.png").is_file()
     assert len(result["fold_lines"]) == 1
     assert rescore(out).fold_error_mm == pytest.approx(result["fold_error_mm"])
+
+
+def test_two_arms_fold_over_topics(tmp_path):
+    """`--arms 2`: each arm's joints and base frame named left_/right_, a pair of corners moved
+    on one clock by one trajectory, each gripper commanded by its arm."""
+    import rosbag
+
+    out, bag_path = tmp_path / "episode", tmp_path / "run.bag"
+    proc = foldbot(
+        "ros-fold", "--arms", "2", "--resolution", "8", "--video-fps", "0", "--camera-rate", "2",
+        "--out", str(out), "--record", str(bag_path), "--port", str(free_port()),
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    result = json.loads((out / "result.json").read_text())
+    assert result["transport"] == "ros" and result["arms"] == 2
+    # One stage, its two far corners carried at once, each by the arm on its side (as in process:
+    # tests/test_pipeline.py), planned together by the planner node and checked for clearance.
+    actions = result["actions"]
+    assert [(a["label"], a["arm"]) for a in actions] == [("far_left", 0), ("far_right", 1)]
+    assert all(a["together"] and a["grasp_success"] for a in actions)
+    assert result["fold_error_mm"] <= 10.0
+    assert rescore(out).fold_error_mm == pytest.approx(result["fold_error_mm"])
+    with rosbag.Bag(str(bag_path)) as bag:
+        joints = next(m for _t, m, _ in bag.read_messages(topics=["/joint_states"]))
+        bases = {
+            t.child_frame_id: t.transform.translation.y
+            for _t, m, _ in bag.read_messages(topics=["/tf_static"])
+            for t in m.transforms
+        }
+        trajectories = [m for _t, m, _ in bag.read_messages(topics=["/arm/joint_trajectory"])]
+        grippers = [m.data for _t, m, _ in bag.read_messages(topics=["/gripper/command"])]
+        grasps = [json.loads(m.data) for _t, m, _ in bag.read_messages(topics=["/gripper/grasp"])]
+    assert len(joints.name) == 16 and len(joints.position) == 16
+    assert joints.name[0] == "left_shoulder_pan_joint" and joints.name[8].startswith("right_")
+    assert bases["left_base_link"] == pytest.approx(0.3) and bases["right_base_link"] < 0
+    both = [m for m in trajectories if len(m.joint_names) == 12]
+    assert both and all(len(p.positions) == 12 for m in both for p in m.points)
+    assert both[0].joint_names[:6] == list(joints.name[:6])
+    assert {"close 0", "close 1", "open 0", "open 1"} <= set(grippers)
+    assert {g["arm"] for g in grasps} == {0, 1}

@@ -1,6 +1,6 @@
-"""`foldbot ros-fold`: fold a towel, T-shirt or pants over ROS 1 topics — roslaunch brings up
-the sim, perception, planner and task nodes (and roscore when none runs) — and write the same
-episode folder as `foldbot fold`. `--record BAG` records the run with rosbag.
+"""`foldbot ros-fold`: fold a towel, T-shirt or pants over ROS 1 topics, with one arm or two —
+roslaunch brings up the sim, perception, planner and task nodes (and roscore when none runs) —
+and write the same episode folder as `foldbot fold`. `--record BAG` records the run with rosbag.
 
 Needs ROS 1 from Debian (scripts/install_ros.sh)."""
 
@@ -73,7 +73,7 @@ def fold_args_text(args: argparse.Namespace) -> str:
     """The episode's `foldbot fold` options as one shell-quoted string (the nodes parse it)."""
     words = [
         *("--garment", args.garment, "--recipe", args.recipe or fold.DEFAULT_RECIPES[args.garment]),
-        *("--robot", args.robot),
+        *("--robot", args.robot, "--arms", str(args.arms)),
         *("--perception", args.perception, "--seed", str(args.seed), "--park", args.park),
         *("--start", args.start),
         *("--width", repr(args.width), "--height", repr(args.height)),
@@ -95,11 +95,6 @@ def run(args: argparse.Namespace) -> int:
     """Validate, roslaunch the fold, then report from the episode folder the task node wrote."""
     if args.gui:
         raise ConfigError("--gui is not available over ROS; use `foldbot fold --gui`")
-    if args.arms != 1:
-        raise ConfigError(
-            f"ros-fold drives one arm, got --arms {args.arms}; "
-            "the two-arm cell runs in process with `foldbot fold --arms 2`"
-        )
     if args.perception != "vision":
         raise ConfigError(
             f"--perception {args.perception!r} is not available over ROS: the perception node "

@@ -9,6 +9,7 @@ the ROS message packages (Debian's python3-rospy & co., see scripts/install_ros.
 WORLD_FRAME = "world"
 """The fixed frame of the cell (REP 105 style world frame; z up, x away from the robot)."""
 BASE_FRAME = "base_link"
+"""The arm's base frame; in a two-arm cell each arm's carries its prefix (ARM_PREFIXES)."""
 CAMERA_FRAME = "camera_color_optical_frame"
 """The camera's optical frame (REP 103: x right, y down, z forward)."""
 
@@ -21,7 +22,7 @@ TOPICS = {
     "clock": "/clock",
     "tf_static": "/tf_static",
     "trajectory": "arm/joint_trajectory",
-    "gripper": "gripper/command",
+    "gripper": "gripper/command",  # "open" / "close", or "open 1" / "close 1" for arm 1
     "grasp": "gripper/grasp",
     "wait": "sim/wait",
     "cell_result": "sim/result",
@@ -36,3 +37,19 @@ TOPICS = {
     "episode": "task/result",
 }
 """Every topic the nodes use (relative names resolve in the launch namespace)."""
+
+ARM_PREFIXES = {1: ("",), 2: ("left_", "right_")}
+"""Name prefixes of each arm's joints and base frame, arm 0 first: one arm keeps the URDF's names;
+two arms side by side are left (arm 0, +y) and right, as ROS names a bimanual cell's arms."""
+
+
+def arm_prefixes(arms: int) -> tuple[str, ...]:
+    """The joint-name prefixes of a cell with `arms` arms (ARM_PREFIXES)."""
+    if arms not in ARM_PREFIXES:
+        raise ValueError(f"a cell has 1 or 2 arms, got {arms!r}")
+    return ARM_PREFIXES[arms]
+
+
+def arm_joint_names(joint_names: tuple[str, ...], arms: int) -> list[list[str]]:
+    """Each arm's joint names as they go over topics: the robot's names with the arm's prefix."""
+    return [[prefix + name for name in joint_names] for prefix in arm_prefixes(arms)]

@@ -4,8 +4,14 @@ garment's perceived keypoints → its whole plan (planning.garment_recipes) → 
 
 It keeps its own kinematic model of the cell (the same URDF in a private, never-stepped PyBullet
 world) for IK; it sees no cloth. Requests and responses are JSON on planner/request and
-planner/response (kinds: stage, garment, action, lift, time, park); a response echoes the
-request's id and, for motions, carries each step's sampled trajectory and gripper event."""
+planner/response (kinds: stage, garment, action, together, lift, time, time_together, park); a
+response echoes the request's id and, for motions, carries each step's sampled trajectory and
+gripper event.
+
+In a two-arm cell a motion request names its arm (`arm`, 0 = left) and carries every arm's
+joints (`qs`): an arm's motion is checked to keep clear of the others where they stand, and a
+pair planned `together` is checked at every instant both arms will pass through
+(control.bimanual), as the in-process cell does."""
 
 from __future__ import annotations
 
@@ -14,22 +20,52 @@ import sys
 import threading
 import time
 from collections import OrderedDict
+from dataclasses import replace
 
 import numpy as np
 import rospy
 from geometry_msgs.msg import PoseArray
 from std_msgs.msg import String
 
-from foldbot.control.executor import ArmExecutor
-from foldbot.errors import FoldbotError
+from foldbot.control.bimanual import check_arms_clear
+from foldbot.control.executor import ArmExecutor, PlannedSegment
+from foldbot.control.trajectory import JointTrajectory
+from foldbot.errors import ArmsWouldCollideError, FoldbotError, UnreachableTargetError
 from foldbot.planning.actions import FoldAction
 from foldbot.planning.garment_recipes import plan_garment
 from foldbot.planning.motion import Segment, action_segments, line_path
 from foldbot.planning.recipes import plan_stage, predicted_outline
-from foldbot.ros import TOPICS, convert
+from foldbot.ros import TOPICS, arm_joint_names, convert
 from foldbot.ros.node_args import FOLD_ARGS_PARAM, parse_fold_args
 from foldbot.sim.robots import make_robot
 from foldbot.sim.world import SimWorld
+
+REQUEST_KINDS = ("stage", "garment", "action", "together", "lift", "time", "time_together", "park")
+"""What the planner node answers (MotionPlanner.handle)."""
+
+
+def stack_held(trajs: list[JointTrajectory]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Several arms' trajectories (one physics-step sampling) as one: (times, positions,
+    velocities) with the arms' joints side by side; an arm whose trajectory ends first holds its
+    last sample at rest, as control.executor's run_together and move_joints_together move them."""
+    n = max(len(t.times) for t in trajs)
+    pos, vel = [], []
+    for t in trajs:
+        pad = n - len(t.times)
+        pos.append(np.vstack([t.positions, np.repeat(t.positions[-1:], pad, axis=0)]))
+        vel.append(np.vstack([t.velocities, np.zeros((pad, t.velocities.shape[1]))]))
+    longest = max(trajs, key=lambda t: len(t.times))
+    return longest.times.copy(), np.hstack(pos), np.hstack(vel)
+
+
+def _step_dict(ps: PlannedSegment) -> dict:
+    return {
+        "name": ps.segment.name,
+        "gripper": ps.segment.gripper,
+        "path": ps.joint_path.tolist(),
+        "points": ps.points.tolist(),
+        "speed": ps.segment.speed,
+    }
 
 
 class MotionPlanner:
@@ -37,42 +73,92 @@ class MotionPlanner:
 
     def __init__(self, fold_args: str) -> None:
         _args, self.cfg = parse_fold_args(fold_args)
-        self.world = SimWorld(self.cfg.sim)  # the model: table and arm only, never stepped
-        self.robot = make_robot(self.cfg.robot, self.world.client, self.world.layout)
-        self.executor = ArmExecutor(self.world, self.robot, grasp=None)
-
-    def _ik_steps(self, segments, q: np.ndarray) -> list[dict]:
-        """IK for every waypoint of every segment (nothing moves before all are feasible)."""
-        self.robot.reset_joints(q)  # the model starts where the arm is, as in-process planning
-        return [
-            {
-                "name": ps.segment.name,
-                "gripper": ps.segment.gripper,
-                "path": ps.joint_path.tolist(),
-                "points": ps.points.tolist(),
-                "speed": ps.segment.speed,
-            }
-            for ps in self.executor.plan(segments, q_start=q)
+        self.world = SimWorld(self.cfg.sim)  # the model: table and arms only, never stepped
+        self.robots = [
+            make_robot(self.cfg.robot, self.world.client, lay)
+            for lay in self.world.layout.arm_layouts(self.cfg.arms)
         ]
+        self.executors = [ArmExecutor(self.world, r, grasp=None) for r in self.robots]
+        self.robot, self.executor = self.robots[0], self.executors[0]
+        self.joint_names = arm_joint_names(self.robot.ARM_JOINT_NAMES, self.cfg.arms)
+        """Each arm's joint names over topics (prefixed in a two-arm cell)."""
 
-    def _trajectory(self, name: str, traj) -> dict:
+    def _arm(self, req: dict) -> int:
+        arm = req.get("arm", 0)
+        if not (isinstance(arm, int) and 0 <= arm < len(self.robots)):
+            raise FoldbotError(f"arm must be in 0–{len(self.robots) - 1}, got {arm!r}")
+        return arm
+
+    def _qs(self, req: dict) -> list[np.ndarray]:
+        """Every arm's joints (`qs`; a one-arm request may give only `q`)."""
+        qs = req.get("qs") or ([req["q"]] if "q" in req else None)
+        if qs is None:
+            raise FoldbotError(f"a {req.get('kind')} request needs the arms' joints (qs, or q)")
+        if len(qs) != len(self.robots):
+            raise FoldbotError(f"qs must give {len(self.robots)} arms' joints, got {len(qs)}")
+        return [np.array(q, dtype=float) for q in qs]
+
+    def _plan(self, arm: int, segments, q: np.ndarray) -> list[PlannedSegment]:
+        """IK for every waypoint of every segment (nothing moves before all are feasible)."""
+        self.robots[arm].reset_joints(q)  # the model starts where the arm is, as in process
+        return self.executors[arm].plan(segments, q_start=q)
+
+    def _check_clear_of_still_arms(self, arm: int, plan: list[PlannedSegment], qs) -> None:
+        """The moving arm must keep clear of the others standing where they are (as SimCell)."""
+        if len(self.robots) == 1:
+            return
+        plans = [(self.executors[arm], plan)]
+        for other, q in enumerate(qs):
+            if other != arm:
+                still = np.asarray(q, dtype=float)[None, :]
+                plans.append((self.executors[other], [replace(s, joint_path=still) for s in plan]))
+        try:
+            check_arms_clear(plans)
+        except ArmsWouldCollideError as exc:
+            raise UnreachableTargetError(f"arm {arm}: {exc}") from exc
+
+    def _trajectory(self, name: str, traj: JointTrajectory, arm: int = 0) -> dict:
         return {
             "name": name,
-            "joint_names": list(self.robot.ARM_JOINT_NAMES),
+            "joint_names": self.joint_names[arm],
             "times": traj.times.tolist(),
             "positions": traj.positions.tolist(),
             "velocities": traj.velocities.tolist(),
         }
 
+    def _stacked(self, name: str, arms: list[int], trajs: list[JointTrajectory]) -> dict:
+        times, pos, vel = stack_held(trajs)
+        return {
+            "name": name,
+            "joint_names": [n for arm in arms for n in self.joint_names[arm]],
+            "times": times.tolist(),
+            "positions": pos.tolist(),
+            "velocities": vel.tolist(),
+        }
+
+    def _timed(self, step: dict) -> JointTrajectory:
+        return self.executors[self._arm(step)].trajectory_for(
+            np.array(step["path"], dtype=float),
+            np.array(step["points"], dtype=float),
+            float(step["speed"]),
+        )
+
     def handle(self, req: dict) -> dict:
         """One request → its response payload (raises FoldbotError on bad or infeasible ones).
 
         stage: corners → fold plan; garment: a garment's keypoints → its plan, every stage;
-        action / lift: joint paths (IK) of the motion's steps;
+        action / lift: joint paths (IK) of the motion's steps, for the request's `arm`;
+        together: several (arm, action) pairs' steps, the arms checked to keep clear at every
+        instant (ArmsWouldCollideError);
         time: a step's joint path, starting where the arm now is → its trajectory (ruckig);
-        park: the joint-space trajectory to the park pose (home or out of view, as the episode
-        says)."""
+        time_together: several arms' steps → one trajectory moving them on one clock;
+        park: the joint-space trajectory of every arm to its park pose (home or out of view, as
+        the episode says)."""
         kind = req.get("kind")
+        if kind not in REQUEST_KINDS:
+            raise FoldbotError(
+                f"unknown planner request kind {kind!r}; allowed: {', '.join(REQUEST_KINDS)}"
+            )
         if kind == "stage":
             corners = {k: np.array(v, dtype=float) for k, v in req["corners"].items()}
             room = float(req.get("crease_room", 0.0))
@@ -92,34 +178,54 @@ class MotionPlanner:
             )
             return {"plan": plan.as_dict()}
         if kind == "time":
-            traj = self.executor.trajectory_for(
-                np.array(req["path"], dtype=float),
-                np.array(req["points"], dtype=float),
-                float(req["speed"]),
+            arm = self._arm(req)
+            return {"trajectory": self._trajectory(req.get("name", ""), self._timed(req), arm)}
+        if kind == "time_together":
+            arms = [self._arm(step) for step in req["steps"]]
+            if arms != sorted(set(arms)):
+                raise FoldbotError(f"time_together needs distinct arms in order, got {arms}")
+            trajs = [self._timed(step) for step in req["steps"]]
+            return {"trajectory": self._stacked(req.get("name", ""), arms, trajs)}
+        qs = self._qs(req)
+        if kind == "together":
+            pairs = [(self._arm(p), FoldAction.from_dict(p["action"])) for p in req["pairs"]]
+            plans = [
+                self._plan(
+                    arm,
+                    action_segments(action, self.robots[arm].fk_tcp(qs[arm])[0], self.cfg.motion),
+                    qs[arm],
+                )
+                for arm, action in pairs
+            ]
+            check_arms_clear(
+                [(self.executors[arm], plan) for (arm, _), plan in zip(pairs, plans, strict=True)]
             )
-            return {"trajectory": self._trajectory(req.get("name", ""), traj)}
-        q = np.array(req["q"], dtype=float)
-        start = self.robot.fk_tcp(q)[0]
+            return {"steps": [[_step_dict(ps) for ps in plan] for plan in plans]}
+        if kind == "park":
+            arms, trajs = [], []
+            for arm, (robot, q) in enumerate(zip(self.robots, qs, strict=True)):
+                park = robot.out_of_view_q if self.cfg.park == "out_of_view" else robot.home_q
+                if np.abs(park - q).max() >= 1e-4:
+                    arms.append(arm)
+                    trajs.append(self.executors[arm].joint_move_trajectory(q, park))
+            if not arms:
+                return {"trajectory": None}
+            return {"trajectory": self._stacked("park", arms, trajs)}
+        arm = self._arm(req)
+        q = np.array(req["q"], dtype=float) if "q" in req else qs[arm]
+        start = self.robots[arm].fk_tcp(q)[0]
         if kind == "action":
             action = FoldAction.from_dict(req["action"])
-            return {"steps": self._ik_steps(action_segments(action, start, self.cfg.motion), q)}
+            plan = self._plan(arm, action_segments(action, start, self.cfg.motion), q)
+            self._check_clear_of_still_arms(arm, plan, qs)
+            return {"steps": [_step_dict(ps) for ps in plan]}
         if kind == "lift":
             up = start + [0.0, 0.0, float(req.get("height", self.cfg.motion.retreat_height))]
-            return {
-                "steps": self._ik_steps(
-                    [Segment("lift", line_path(start, up), self.cfg.motion.free_speed)], q
-                )
-            }
-        if kind == "park":
-            park = self.robot.out_of_view_q if self.cfg.park == "out_of_view" else self.robot.home_q
-            if np.abs(park - q).max() < 1e-4:
-                return {"trajectory": None}
-            traj = self.executor.joint_move_trajectory(q, park)
-            return {"trajectory": self._trajectory("park", traj)}
-        raise FoldbotError(
-            f"unknown planner request kind {kind!r}; allowed: stage, garment, action, lift, time, "
-            "park"
-        )
+            plan = self._plan(
+                arm, [Segment("lift", line_path(start, up), self.cfg.motion.free_speed)], q
+            )
+            return {"steps": [_step_dict(ps) for ps in plan]}
+        raise AssertionError(kind)  # unreachable: REQUEST_KINDS is checked first
 
 
 class PlannerNode:

@@ -7,6 +7,10 @@ cloth's ground truth (ground_truth/cloth). Executes trajectory_msgs/JointTraject
 arm/joint_trajectory, "open"/"close" on gripper/command and sim/wait (s), one at a time; after
 each it publishes a camera frame of the resting cell and a JSON report on sim/result.
 
+A two-arm cell (`--arms 2`) names each arm's joints and base frame with its prefix (left_,
+right_: foldbot.ros.ARM_PREFIXES); one trajectory may move one arm or both on one clock, and a
+gripper command names its arm ("close 1").
+
 The simulation advances only while it executes a command (lockstep), so a run over topics is as
 reproducible as the in-process one and /clock never runs ahead of the cell.
 """
@@ -27,13 +31,52 @@ from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
 
 from foldbot.errors import FoldbotError
 from foldbot.pipeline import build_sim_cell, crumple_start
-from foldbot.ros import BASE_FRAME, CAMERA_FRAME, TOPICS, WORLD_FRAME, convert
+from foldbot.ros import (
+    BASE_FRAME,
+    CAMERA_FRAME,
+    TOPICS,
+    WORLD_FRAME,
+    arm_joint_names,
+    arm_prefixes,
+    convert,
+)
 from foldbot.ros.node_args import CAMERA_RATE_PARAM, FOLD_ARGS_PARAM, parse_fold_args
 from foldbot.sim.cloth import settle
 from foldbot.sim.world import SimWorld
 
 SUBSCRIBER_WAIT_S = 60.0
 """Longest wall time the first camera frame waits for a subscriber (the perception node)."""
+
+
+def trajectory_arms(joint_names: list[str], arm_joints: list[list[str]]) -> list[int]:
+    """The arms a trajectory moves, from its joint names: one arm's joints (`arm_joints[arm]`,
+    in order), or several arms' one after the other in arm order; anything else is refused."""
+    arms, k = [], 0
+    for arm, names in enumerate(arm_joints):
+        if joint_names[k : k + len(names)] == names:
+            arms.append(arm)
+            k += len(names)
+    if not arms or k != len(joint_names):
+        allowed = " or ".join(str(n) for n in arm_joints)
+        raise FoldbotError(
+            f"trajectory joint_names {joint_names} must be an arm's joints ({allowed}), "
+            "or several arms' one after the other"
+        )
+    return arms
+
+
+def gripper_command(text: str, arms: int) -> tuple[str, int]:
+    """("open" | "close", arm) from a gripper command: "close" (arm 0), or "close 1" for arm 1."""
+    words = text.split()
+    ok = 1 <= len(words) <= 2 and words[0] in ("open", "close")
+    if ok and len(words) == 2:
+        ok = words[1].isdigit() and int(words[1]) < arms
+    if not ok:
+        raise FoldbotError(
+            f"unknown gripper command {text!r}; allowed: open, close, or either followed by an "
+            f"arm in 0–{arms - 1}"
+        )
+    return words[0], int(words[1]) if len(words) == 2 else 0
 
 
 class SimNode:
@@ -43,10 +86,14 @@ class SimNode:
         _args, self.cfg = parse_fold_args(fold_args)
         self.world = SimWorld(self.cfg.sim)
         self.parts = build_sim_cell(self.cfg, self.world)
+        self.executors = (self.parts.executor, *self.parts.more_executors)
+        """One per arm, arm 0 first; each has its kinematic twin (`model`, in a world of its own:
+        FK there gives the commanded TCP without touching the simulated arm) and its grasp."""
         self.robot = self.parts.robot
-        # The arm's kinematic twin (its own world) gives the commanded TCP: FK there never
-        # touches the simulated arm.
-        self.model = self.parts.executor.model
+        arms = len(self.executors)
+        self.prefixes = arm_prefixes(arms)
+        self.arm_joints = arm_joint_names(self.robot.ARM_JOINT_NAMES, arms)
+        self.finger_joints = arm_joint_names(self.robot.FINGER_JOINT_NAMES, arms)
         self.camera_period = 1.0 / camera_rate if camera_rate > 0 else float("inf")
         self.commands: queue.Queue = queue.Queue()
         self._next_clock = 0.0
@@ -89,11 +136,21 @@ class SimNode:
             self.publish_frame()
 
     def _publish_joints(self) -> None:
-        r = self.robot
-        names = [*r.ARM_JOINT_NAMES, *r.FINGER_JOINT_NAMES]
-        q = np.r_[r.joint_positions(), r.finger_positions()]
-        v = np.r_[r.joint_velocities(), np.zeros(2)]
-        self.pub["joints"].publish(convert.joint_state_msg(names, q, v, self.world.sim_time))
+        names: list[str] = []
+        q: list[np.ndarray] = []
+        v: list[np.ndarray] = []
+        for ex, arm_names, finger_names in zip(
+            self.executors, self.arm_joints, self.finger_joints, strict=True
+        ):
+            r = ex.robot
+            names += [*arm_names, *finger_names]
+            q += [r.joint_positions(), r.finger_positions()]
+            v += [r.joint_velocities(), np.zeros(len(finger_names))]
+        self.pub["joints"].publish(
+            convert.joint_state_msg(
+                names, np.concatenate(q), np.concatenate(v), self.world.sim_time
+            )
+        )
 
     def publish_frame(self) -> float:
         """Render and publish one RGB-D frame; returns its stamp (simulated s)."""
@@ -107,12 +164,14 @@ class SimNode:
         return t
 
     def publish_static(self) -> None:
-        base = np.eye(4)
-        base[:3, 3] = self.world.layout.robot_base_xyz
-        tfs = [
-            convert.transform_msg(base, WORLD_FRAME, BASE_FRAME, 0.0),
-            convert.transform_msg(self.parts.camera.T_world_camera, WORLD_FRAME, CAMERA_FRAME, 0.0),
-        ]
+        tfs = []
+        for ex, prefix in zip(self.executors, self.prefixes, strict=True):
+            base = np.eye(4)  # arms are mounted unrotated (sim.robots.base)
+            base[:3, 3] = ex.robot.layout.robot_base_xyz
+            tfs.append(convert.transform_msg(base, WORLD_FRAME, prefix + BASE_FRAME, 0.0))
+        tfs.append(
+            convert.transform_msg(self.parts.camera.T_world_camera, WORLD_FRAME, CAMERA_FRAME, 0.0)
+        )
         self.pub["tf"].publish(TFMessage(transforms=tfs))
 
     def wait_for_camera_subscribers(self, timeout_s: float = SUBSCRIBER_WAIT_S) -> None:
@@ -140,17 +199,14 @@ class SimNode:
 
     def report(self, payload: dict) -> None:
         payload.setdefault("sim_time", self.world.sim_time)
-        payload.setdefault("q", self.robot.joint_positions().tolist())
+        qs = [ex.robot.joint_positions().tolist() for ex in self.executors]
+        payload.setdefault("q", qs[0])
+        payload.setdefault("qs", qs)
         self.pub["result"].publish(convert.string_msg(payload))
 
     # ------------------------------------------------------------------ commands
     def execute_trajectory(self, msg: JointTrajectoryMsg) -> dict:
-        r = self.robot
-        if list(msg.joint_names) != list(r.ARM_JOINT_NAMES):
-            raise FoldbotError(
-                f"trajectory joint_names {list(msg.joint_names)} must be the arm's "
-                f"{list(r.ARM_JOINT_NAMES)}"
-            )
+        arms = trajectory_arms(list(msg.joint_names), self.arm_joints)
         times, pos, vel = convert.trajectory_arrays(msg)
         dt = self.world.time_step
         n = round(times[-1] / dt)
@@ -159,37 +215,53 @@ class SimNode:
             q_cmd, v_cmd = pos[1:], vel[1:]
         else:  # any other sampling: interpolate onto the physics steps
             grid = np.arange(1, n + 1) * dt
-            q_cmd = np.column_stack([np.interp(grid, times, pos[:, j]) for j in range(r.dof)])
-            v_cmd = np.column_stack([np.interp(grid, times, vel[:, j]) for j in range(r.dof)])
-        # Commanded TCP for tracking, computed at rest before the arm moves.
-        check = list(range(7, n, 8)) + ([n - 1] if n else [])
-        tcp_ref = {k: self.model.fk_tcp(q_cmd[k])[0] for k in check}
-        max_err = 0.0
+            cols = range(pos.shape[1])
+            q_cmd = np.column_stack([np.interp(grid, times, pos[:, j]) for j in cols])
+            v_cmd = np.column_stack([np.interp(grid, times, vel[:, j]) for j in cols])
+        # Each moved arm's columns; arms not named hold their last command.
+        dof = self.robot.dof
+        moved = [(self.executors[arm], slice(i * dof, (i + 1) * dof)) for i, arm in enumerate(arms)]
+        # Commanded TCP for tracking, computed at rest before the arms move.
+        check = set(range(7, n, 8)) | ({n - 1} if n else set())
+        tcp_ref = {
+            (i, k): ex.model.fk_tcp(q_cmd[k, cols])[0]
+            for i, (ex, cols) in enumerate(moved)
+            for k in check
+        }
+        max_err = [0.0] * len(moved)
         for k in range(n):
-            r.command_joint_positions(q_cmd[k], v_cmd[k])
+            for ex, cols in moved:
+                ex.robot.command_joint_positions(q_cmd[k, cols], v_cmd[k, cols])
             self.world.step()
-            if k in tcp_ref:
-                max_err = max(max_err, float(np.linalg.norm(r.tcp_pose()[0] - tcp_ref[k])))
-        return {"duration": float(times[-1]), "max_tracking_error": max_err}
+            if k in check:
+                for i, (ex, _cols) in enumerate(moved):
+                    err = float(np.linalg.norm(ex.robot.tcp_pose()[0] - tcp_ref[i, k]))
+                    max_err[i] = max(max_err[i], err)
+        return {
+            "duration": float(times[-1]),
+            "max_tracking_error": max(max_err),
+            "arms": arms,
+            "tracking_errors": max_err,
+        }
 
     def execute(self, kind: str, msg) -> dict:
-        grasp = self.parts.executor.grasp
         if kind == "trajectory":
             return self.execute_trajectory(msg)
         if kind == "gripper":
-            if msg.data == "close":
+            command, arm = gripper_command(msg.data, len(self.executors))
+            grasp = self.executors[arm].grasp
+            if command == "close":
                 g = grasp.close()
                 outcome = {
                     "success": g.success,
                     "vertex_ids": list(g.vertex_ids),
                     "reason": g.reason,
+                    "arm": arm,
                 }
                 self.pub["grasp"].publish(convert.string_msg(outcome))
                 return {"grasp": outcome}
-            if msg.data == "open":
-                grasp.open()
-                return {}
-            raise FoldbotError(f"unknown gripper command {msg.data!r}; allowed: open, close")
+            grasp.open()
+            return {}
         if kind == "wait":
             if not (np.isfinite(msg.data) and 0.0 <= msg.data <= 60.0):
                 raise FoldbotError(f"sim/wait must be in [0, 60] s, got {msg.data!r}")

@@ -2,10 +2,10 @@
 
 It runs the same closed loop as `foldbot fold` (foldbot.loop.run_fold) on `RosCell`, a FoldCell
 whose eyes are the perception node's outputs, whose planner is the planner node and whose arm
-is the sim node; a crumpled start (crumpled by the sim node) is first flattened on that cell by
-foldbot.flatten.run_flatten. At the end it scores the fold from the sim node's ground-truth
-topic (metrics only) and writes the episode output contract: result.json, cloth.npz, video.mp4
-(the camera stream with the debug overlays) and the overlay pictures.
+(or two arms, `--arms 2`) is the sim node; a crumpled start (crumpled by the sim node) is first
+flattened on that cell by foldbot.flatten.run_flatten. At the end it scores the fold from the sim
+node's ground-truth topic (metrics only) and writes the episode output contract: result.json,
+cloth.npz, video.mp4 (the camera stream with the debug overlays) and the overlay pictures.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from foldbot import errors
 from foldbot.flatten import flatten_and_score
 from foldbot.garment_loop import run_garment_fold
 from foldbot.io.episode import EpisodeWriter
-from foldbot.loop import FoldCell, StepLog, corners_of, run_fold
+from foldbot.loop import FoldCell, StepLog, corners_of, nearest_arm, run_fold
 from foldbot.metrics import score_episode
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState
@@ -81,12 +81,16 @@ class _Inbox:
 class RosCell(FoldCell):
     """The cell as seen over topics: the perception, planner and sim nodes."""
 
-    def __init__(self, layout: CellLayout, video: EpisodeWriter | None) -> None:
+    def __init__(self, layout: CellLayout, video: EpisodeWriter | None, arms: int = 1) -> None:
         self.table_height = layout.table_height
         self.video = video
+        self.bases_y = tuple(lay.robot_base_xyz[1] for lay in layout.arm_layouts(arms))
+        """Each arm's base along y, arm 0 first (arm_for picks the arm on a point's side)."""
+        self.active = 0
         self._ids = itertools.count(1)
         self._clock = 0.0
-        self.rest_q = np.zeros(0)
+        self.rest_qs = [np.zeros(0)] * arms
+        """Every arm's joints where the last command left it (the sim node's report)."""
         self._lock = threading.Lock()
         self.results, self.plans = _Inbox(), _Inbox()
         self.states: OrderedDict[float, str] = OrderedDict()
@@ -187,10 +191,18 @@ class RosCell(FoldCell):
         reply = self.results.take(lambda r: True, f"reply from the sim node to {what}")
         if not reply.get("ok"):
             raise errors.reported_error(reply, what)
-        self.rest_stamp = float(reply["frame_stamp"])
-        self.rest_q = np.array(reply["q"], dtype=float)
-        self._clock = float(reply["sim_time"])
+        self._at_rest(reply)
         return reply
+
+    def _at_rest(self, reply: dict) -> None:
+        """Where a sim node's report left the cell: its frame, every arm's joints, its clock."""
+        self.rest_stamp = float(reply["frame_stamp"])
+        self.rest_qs = [np.array(q, dtype=float) for q in reply.get("qs", [reply["q"]])]
+        if len(self.rest_qs) != self.arms:
+            raise errors.FoldbotError(
+                f"the sim node reports {len(self.rest_qs)} arms, this fold has {self.arms}"
+            )
+        self._clock = float(reply["sim_time"])
 
     def _plan(self, kind: str, **payload: Any) -> dict:
         rid = next(self._ids)
@@ -200,15 +212,39 @@ class RosCell(FoldCell):
             raise errors.reported_error(reply, f"planning {kind}")
         return reply
 
-    def joint_positions(self) -> np.ndarray:
-        """The arm's joints where the last command left it (the sim node's report: exact, where
-        /joint_states may lag the last step)."""
-        return self.rest_q.copy()
+    def joint_positions(self, arm: int | None = None) -> np.ndarray:
+        """An arm's joints (the active arm's by default) where the last command left it (the
+        sim node's report: exact, where /joint_states may lag the last step)."""
+        return self.rest_qs[self.active if arm is None else arm].copy()
+
+    def _qs(self) -> list[list[float]]:
+        return [q.tolist() for q in self.rest_qs]
+
+    def _gripper(self, command: str, arm: int) -> dict:
+        """Open or close `arm`'s gripper (the sim node's gripper/command: "close", "close 1")."""
+        text = command if self.arms == 1 else f"{command} {arm}"
+        return self._command(lambda: self.pub_gripper.publish(String(data=text)), f"gripper {text}")
 
     # ------------------------------------------------------------------ FoldCell
     @property
     def sim_time(self) -> float:
         return self._clock
+
+    @property
+    def arms(self) -> int:
+        return len(self.rest_qs)
+
+    @property
+    def active_arm(self) -> int:
+        return self.active
+
+    def use_arm(self, arm: int) -> None:
+        if not (0 <= arm < self.arms):
+            raise ValueError(f"arm must be in [0, {self.arms - 1}], got {arm!r}")
+        self.active = arm
+
+    def arm_for(self, point: np.ndarray) -> int:
+        return nearest_arm(point, self.bases_y)
 
     def wait_ready(self) -> dict:
         reply = self.results.take(
@@ -216,9 +252,7 @@ class RosCell(FoldCell):
         )
         if not reply.get("ok"):
             raise errors.reported_error(reply, "preparing the cloth")
-        self.rest_stamp = float(reply["frame_stamp"])
-        self.rest_q = np.array(reply["q"], dtype=float)
-        self._clock = float(reply["sim_time"])
+        self._at_rest(reply)
         return reply
 
     def _have_frame(self, key: float) -> bool:
@@ -306,9 +340,48 @@ class RosCell(FoldCell):
         return GarmentPlan.from_dict(reply["plan"])
 
     def plan_action(self, action: FoldAction) -> list[dict]:
-        return self._plan("action", action=action.as_dict(), q=self.joint_positions().tolist())[
-            "steps"
-        ]
+        # A two-arm cell, as SimCell: the active arm first, else the other (the planner node
+        # checks each against the other arm where it stands).
+        return self.plan_on_an_able_arm(
+            lambda arm: self._plan("action", action=action.as_dict(), arm=arm, qs=self._qs())[
+                "steps"
+            ]
+        )
+
+    def plan_together(self, actions: list[tuple[int, FoldAction]]) -> list[list[dict]]:
+        pairs = [{"arm": arm, "action": action.as_dict()} for arm, action in actions]
+        return self._plan("together", pairs=pairs, qs=self._qs())["steps"]
+
+    def run_together(self, steps: list[tuple[int, dict]]) -> list[StepLog]:
+        # Every arm's step timed from where it really is, as one trajectory on one clock (an arm
+        # that finishes first holds still), then each arm's gripper event in turn.
+        order = sorted(range(len(steps)), key=lambda i: steps[i][0])
+        timed = []
+        for i in order:
+            arm, step = steps[i]
+            path = np.array(step["path"], dtype=float)
+            path[0] = self.joint_positions(arm)
+            timed.append(
+                {
+                    "arm": arm,
+                    "path": path.tolist(),
+                    "points": step["points"],
+                    "speed": step["speed"],
+                }
+            )
+        traj = self._plan("time_together", name=steps[0][1]["name"], steps=timed)["trajectory"]
+        reply = self._follow(traj)
+        errs = dict(zip(reply["arms"], reply["tracking_errors"], strict=True))
+        logs = []
+        for arm, step in steps:
+            grasp = None
+            if step["gripper"] == "close":
+                g = self._gripper("close", arm)["grasp"]
+                grasp = GraspResult(bool(g["success"]), tuple(g["vertex_ids"]), g["reason"])
+            elif step["gripper"] == "open":
+                self._gripper("open", arm)
+            logs.append(StepLog(step["name"], float(errs[arm]), grasp))
+        return logs
 
     def _follow(self, traj: dict) -> dict:
         msg = convert.trajectory_msg(
@@ -329,6 +402,7 @@ class RosCell(FoldCell):
         traj = self._plan(
             "time",
             name=step["name"],
+            arm=self.active,
             path=path.tolist(),
             points=step["points"],
             speed=step["speed"],
@@ -336,22 +410,20 @@ class RosCell(FoldCell):
         reply = self._follow(traj)
         grasp = None
         if step["gripper"] == "close":
-            g = self._command(
-                lambda: self.pub_gripper.publish(String(data="close")), "gripper close"
-            )["grasp"]
+            g = self._gripper("close", self.active)["grasp"]
             grasp = GraspResult(bool(g["success"]), tuple(g["vertex_ids"]), g["reason"])
         elif step["gripper"] == "open":
-            self._command(lambda: self.pub_gripper.publish(String(data="open")), "gripper open")
+            self._gripper("open", self.active)
         return StepLog(step["name"], float(reply["max_tracking_error"]), grasp)
 
     def release_and_lift(self) -> None:
-        self._command(lambda: self.pub_gripper.publish(String(data="open")), "gripper open")
+        self._gripper("open", self.active)
         # Straight up by the episode's retreat height (the planner node's MotionConfig).
-        for step in self._plan("lift", q=self.joint_positions().tolist())["steps"]:
+        for step in self._plan("lift", arm=self.active, qs=self._qs())["steps"]:
             self.run_step(step)
 
     def park(self) -> None:
-        traj = self._plan("park", q=self.joint_positions().tolist())["trajectory"]
+        traj = self._plan("park", qs=self._qs())["trajectory"]
         if traj is not None:
             self._follow(traj)
 
@@ -377,7 +449,7 @@ def run_task(fold_args: str, log=rospy.loginfo) -> dict:
     writer = EpisodeWriter(args.out, overwrite=args.overwrite, fps=max(cfg.video_fps, 1.0))
     wall0 = time.perf_counter()
     with writer:
-        cell = RosCell(layout, writer if cfg.video_fps > 0 else None)
+        cell = RosCell(layout, writer if cfg.video_fps > 0 else None, cfg.arms)
         cell.wait_ready()
         initial = convert.cloud_array(cell.truth.take(lambda m: True, "initial ground truth"))
         mesh = cell.mesh.take(lambda m: True, "cloth mesh from the sim node")
