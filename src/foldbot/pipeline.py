@@ -18,14 +18,14 @@ from pathlib import Path
 
 import numpy as np
 
-from foldbot.control.bimanual import check_arms_clear
+from foldbot.control.bimanual import check_arms_clear, check_clear_of_still_arms
 from foldbot.control.executor import (
     ArmExecutor,
     PlannedSegment,
     move_joints_together,
     run_together,
 )
-from foldbot.errors import ArmsWouldCollideError, UnreachableTargetError, require
+from foldbot.errors import UnreachableTargetError, require
 from foldbot.flatten import flatten_and_score
 from foldbot.garment_loop import run_garment_fold
 from foldbot.garments import sample_garment
@@ -363,15 +363,8 @@ class SimCell(FoldCell):
         ex = self.executors[arm]
         plan = ex.plan(action_segments(action, ex.robot.tcp_pose()[0], self.motion))
         if self.arms > 1:  # the other arms wait where they are: the moving one must clear them
-            plans = [(ex, plan)]
-            for other in self.executors:
-                if other is not ex:
-                    q = other.robot.joint_positions()[None, :]
-                    plans.append((other, [dataclasses.replace(s, joint_path=q) for s in plan]))
-            try:
-                check_arms_clear(plans)
-            except ArmsWouldCollideError as exc:
-                raise UnreachableTargetError(f"arm {arm}: {exc}") from exc
+            still = [(o, o.robot.joint_positions()) for o in self.executors if o is not ex]
+            check_clear_of_still_arms(arm, (ex, plan), still)
         return plan
 
     def run_step(self, step: PlannedSegment) -> StepLog:

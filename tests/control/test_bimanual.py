@@ -78,3 +78,21 @@ def test_an_arm_standing_still_is_one_configuration(two_arms):
     move = left.plan([Segment("down", line_path(left.robot.tcp_pose()[0], target), 0.2)])
     (still,) = step_timelines(left, _still(left, q, move))
     np.testing.assert_allclose(still, q[None, :])
+
+
+def test_one_arm_must_clear_the_other_where_it_stands(two_arms):
+    from foldbot.control.bimanual import check_clear_of_still_arms
+    from foldbot.errors import UnreachableTargetError
+
+    world, (left, right) = two_arms
+    z = world.layout.table_height + 0.05
+    target = right.robot.tcp_pose()[0].copy()
+    target[2] = z
+    a0 = left.robot.tcp_pose()[0]
+    reach = left.plan([Segment("reach", line_path(a0, target), 0.25)])
+    still = [(right, right.robot.joint_positions())]
+    # Named as an unreachable action of that arm, so a cell gives it to another arm.
+    with pytest.raises(UnreachableTargetError, match=r"arm 0: segment 'reach'"):
+        check_clear_of_still_arms(0, (left, reach), still)
+    own = left.plan([Segment("own", line_path(a0, np.array([0.45, 0.2, z])), 0.25)])
+    check_clear_of_still_arms(0, (left, own), still)

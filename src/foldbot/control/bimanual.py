@@ -4,10 +4,12 @@ control.executor's run_together and move_joints_together.)"""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from foldbot.control.executor import ArmExecutor, PlannedSegment
-from foldbot.errors import ArmsWouldCollideError
+from foldbot.errors import ArmsWouldCollideError, UnreachableTargetError
 
 ARM_CLEARANCE = 0.02
 """Two arms' links must stay this far apart (m) at every instant of a motion planned together: a
@@ -64,3 +66,23 @@ def check_arms_clear(
                         f"{mb.link_name(link_b)} would {how} "
                         f"(at least {clearance * 1000:.0f} mm apart needed)"
                     )
+
+
+def check_clear_of_still_arms(
+    arm: int,
+    moving: tuple[ArmExecutor, list[PlannedSegment]],
+    still: list[tuple[ArmExecutor, np.ndarray]],
+    clearance: float = ARM_CLEARANCE,
+) -> None:
+    """One arm's planned motion (`moving`, arm number `arm`) against the other arms standing at
+    their joints (`still`): UnreachableTargetError naming the arm when they would meet, so a
+    cell can give the action to another arm."""
+    executor, plan = moving
+    plans = [(executor, plan)]
+    for other, q in still:
+        at = np.asarray(q, dtype=float)[None, :]
+        plans.append((other, [replace(s, joint_path=at) for s in plan]))
+    try:
+        check_arms_clear(plans, clearance)
+    except ArmsWouldCollideError as exc:
+        raise UnreachableTargetError(f"arm {arm}: {exc}") from exc

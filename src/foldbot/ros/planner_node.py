@@ -20,17 +20,16 @@ import sys
 import threading
 import time
 from collections import OrderedDict
-from dataclasses import replace
 
 import numpy as np
 import rospy
 from geometry_msgs.msg import PoseArray
 from std_msgs.msg import String
 
-from foldbot.control.bimanual import check_arms_clear
+from foldbot.control.bimanual import check_arms_clear, check_clear_of_still_arms
 from foldbot.control.executor import ArmExecutor, PlannedSegment
 from foldbot.control.trajectory import JointTrajectory
-from foldbot.errors import ArmsWouldCollideError, FoldbotError, UnreachableTargetError
+from foldbot.errors import FoldbotError
 from foldbot.planning.actions import FoldAction
 from foldbot.planning.garment_recipes import plan_garment
 from foldbot.planning.motion import Segment, action_segments, line_path
@@ -102,20 +101,6 @@ class MotionPlanner:
         """IK for every waypoint of every segment (nothing moves before all are feasible)."""
         self.robots[arm].reset_joints(q)  # the model starts where the arm is, as in process
         return self.executors[arm].plan(segments, q_start=q)
-
-    def _check_clear_of_still_arms(self, arm: int, plan: list[PlannedSegment], qs) -> None:
-        """The moving arm must keep clear of the others standing where they are (as SimCell)."""
-        if len(self.robots) == 1:
-            return
-        plans = [(self.executors[arm], plan)]
-        for other, q in enumerate(qs):
-            if other != arm:
-                still = np.asarray(q, dtype=float)[None, :]
-                plans.append((self.executors[other], [replace(s, joint_path=still) for s in plan]))
-        try:
-            check_arms_clear(plans)
-        except ArmsWouldCollideError as exc:
-            raise UnreachableTargetError(f"arm {arm}: {exc}") from exc
 
     def _trajectory(self, name: str, traj: JointTrajectory, arm: int = 0) -> dict:
         return {
@@ -217,7 +202,9 @@ class MotionPlanner:
         if kind == "action":
             action = FoldAction.from_dict(req["action"])
             plan = self._plan(arm, action_segments(action, start, self.cfg.motion), q)
-            self._check_clear_of_still_arms(arm, plan, qs)
+            # The other arms wait where they are (as SimCell): the moving one must clear them.
+            still = [(self.executors[i], q) for i, q in enumerate(qs) if i != arm]
+            check_clear_of_still_arms(arm, (self.executors[arm], plan), still)
             return {"steps": [_step_dict(ps) for ps in plan]}
         if kind == "lift":
             up = start + [0.0, 0.0, float(req.get("height", self.cfg.motion.retreat_height))]
