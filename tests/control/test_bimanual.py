@@ -24,22 +24,28 @@ def _still(executor, q, like):
     return [replace(s, joint_path=np.asarray(q)[None, :]) for s in like]
 
 
+def _reach_across_and_own_side(world, left, right):
+    """The left arm's plans to reach across, under the right arm's parked gripper, and to a
+    point on its own side (both 5 cm above the table)."""
+    z = world.layout.table_height + 0.05
+    target = right.robot.tcp_pose()[0].copy()
+    target[2] = z
+    a0 = left.robot.tcp_pose()[0]
+    reach = left.plan([Segment("reach", line_path(a0, target), 0.25)])
+    own = left.plan([Segment("own", line_path(a0, np.array([0.45, 0.2, z])), 0.25)])
+    return reach, own
+
+
 def test_arms_that_would_meet_are_refused_before_moving(two_arms):
     from foldbot.control.bimanual import check_arms_clear
     from foldbot.errors import ArmsWouldCollideError
 
     world, (left, right) = two_arms
-    z = world.layout.table_height + 0.05
-    # The left arm reaches across to right under the right arm's parked gripper.
-    target = right.robot.tcp_pose()[0].copy()
-    target[2] = z
-    a0 = left.robot.tcp_pose()[0]
-    reach = left.plan([Segment("reach", line_path(a0, target), 0.25)])
+    reach, own = _reach_across_and_own_side(world, left, right)
     q_right = right.robot.joint_positions()
     with pytest.raises(ArmsWouldCollideError, match="segment 'reach'"):
         check_arms_clear([(left, reach), (right, _still(right, q_right, reach))])
     # Reaching on its own side keeps clear.
-    own = left.plan([Segment("own", line_path(a0, np.array([0.45, 0.2, z])), 0.25)])
     check_arms_clear([(left, own), (right, _still(right, q_right, own))])
     assert world.steps == 0, "checking moves nothing"
 
@@ -85,14 +91,9 @@ def test_one_arm_must_clear_the_other_where_it_stands(two_arms):
     from foldbot.errors import UnreachableTargetError
 
     world, (left, right) = two_arms
-    z = world.layout.table_height + 0.05
-    target = right.robot.tcp_pose()[0].copy()
-    target[2] = z
-    a0 = left.robot.tcp_pose()[0]
-    reach = left.plan([Segment("reach", line_path(a0, target), 0.25)])
+    reach, own = _reach_across_and_own_side(world, left, right)
     still = [(right, right.robot.joint_positions())]
     # Named as an unreachable action of that arm, so a cell gives it to another arm.
     with pytest.raises(UnreachableTargetError, match=r"arm 0: segment 'reach'"):
         check_clear_of_still_arms(0, (left, reach), still)
-    own = left.plan([Segment("own", line_path(a0, np.array([0.45, 0.2, z])), 0.25)])
     check_clear_of_still_arms(0, (left, own), still)
