@@ -87,6 +87,24 @@ def test_episode_folder_follows_the_contract(half_fold_episode):
         } <= action.keys()
 
 
+def _marked_pixels(frame: np.ndarray, rgb: tuple[int, int, int], tol: int = 60) -> int:
+    """Pixels of `frame` within `tol` of `rgb` in every channel (the video is lossy)."""
+    return int((np.abs(frame.astype(int) - np.array(rgb)) <= tol).all(axis=-1).sum())
+
+
+@pytest.mark.slow
+def test_video_shows_planned_marks_during_actions_and_none_after_parking(half_fold_episode):
+    import imageio.v3 as iio
+
+    from foldbot.perception.overlay import GRASP_RGB, PLACE_RGB
+
+    out, _result = half_fold_episode
+    frames = iio.imread(out / "video.mp4")
+    marked = [_marked_pixels(f, GRASP_RGB) + _marked_pixels(f, PLACE_RGB) for f in frames]
+    assert max(marked) > 30, "the planned grasp and place points are drawn while folding"
+    assert marked[-1] < 5, f"the parked arm's last frame still shows {marked[-1]} marked pixels"
+
+
 @pytest.mark.parametrize(
     ("kwargs", "needle"),
     [

@@ -398,7 +398,9 @@ def run_fold(
 
 
 def finish_fold(cell: FoldCell, rec: FoldRecord) -> FoldRecord:
-    """Park, let the cloth rest and take the closing observation."""
+    """Clear the planned marks from the overlay, park, let the cloth rest and take the closing
+    observation."""
+    cell.show()
     cell.park()
     cell.wait(0.5)
     rec.final_state, rec.final_obs = cell.observe()
