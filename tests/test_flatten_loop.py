@@ -43,6 +43,9 @@ print(json.dumps({
     "final": rec.final_coverage,
     "reached": rec.reached,
     "actions": rec.actions,
+    "captions": rec.captions,
+    "overlay_shapes": [list(o.shape) for o in rec.overlays],
+    "sheet_shape": list(rec.sheet().shape),
 }))
 """
 
@@ -79,3 +82,16 @@ def test_every_pull_is_recorded(flattened):
             assert a["coverage_before"] == actions[k - 1]["coverage_after"]
     assert actions[0]["coverage_before"] == flattened["initial"]
     assert actions[-1]["coverage_after"] == flattened["final"]
+
+
+@pytest.mark.slow
+def test_each_pull_is_pictured_then_the_end(flattened):
+    n = len(flattened["actions"])
+    captions = flattened["captions"]
+    assert len(captions) == len(flattened["overlay_shapes"]) == n + 1
+    for k, (caption, action) in enumerate(zip(captions, flattened["actions"], strict=False)):
+        assert caption.startswith(f"{k + 1}: {action['label']}")
+    assert captions[-1].startswith(f"end: {flattened['final']:.2f}")
+    h, w, _ = flattened["overlay_shapes"][0]
+    # Half-size tiles with a 20-pixel caption bar, up to 4 to a row.
+    assert flattened["sheet_shape"] == [-(-(n + 1) // 4) * (h // 2 + 20), min(n + 1, 4) * w // 2, 3]

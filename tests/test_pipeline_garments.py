@@ -110,4 +110,5 @@ def test_crumpled_towel_is_flattened_then_folded(tmp_path):
     assert f["success"] == (f["coverage_end"] >= 0.9)
     assert len(f["pulls"]) >= f["actions"]
     assert (out / "overlay_flattened.png").is_file()
+    assert (out / "flatten.png").is_file()  # every pull pictured
     assert len(result["fold_lines"]) == 1  # then the half fold ran

@@ -18,12 +18,13 @@ import numpy as np
 from foldbot import metrics
 from foldbot.errors import FoldbotError, UnreachableTargetError
 from foldbot.loop import FoldCell, execute_action, line_points
-from foldbot.perception.overlay import draw_overlay
+from foldbot.perception.overlay import contact_sheet, draw_overlay
 from foldbot.perception.state import ClothState
 from foldbot.planning.flatten import (
     FlattenConfig,
     Pull,
     cloth_surface,
+    expected_outline_world,
     perceived_coverage,
     plan_pulls,
 )
@@ -47,6 +48,15 @@ class FlattenRecord:
     """True when the perceived coverage reached the target."""
     final_state: ClothState | None = None
     final_obs: Observation | None = None
+    overlays: list[np.ndarray] = field(default_factory=list)
+    """Per pull, the view it was planned from with its grasp, place and expected rectangle
+    drawn; then the view it ended on."""
+    captions: list[str] = field(default_factory=list)
+    """One line per overlay: the pull and the perceived coverage it went from and to."""
+
+    def sheet(self) -> np.ndarray | None:
+        """The overlays tiled into one picture (flatten.png), or None before any observation."""
+        return contact_sheet(self.overlays, self.captions) if self.overlays else None
 
     def result_entry(
         self, coverage_start: float, coverage_end: float, max_actions: int
@@ -84,17 +94,19 @@ def run_flatten(
         raise FoldbotError(f"no cloth found to flatten: {state.reason}")
     coverage = rec.initial_coverage = perceived_coverage(state, area)
     log(f"flatten: perceived coverage {coverage:.2f} (target {cfg.target_coverage:.2f})")
-    yaw = None
+    yaw, expected = None, None
     while coverage < cfg.target_coverage and len(rec.actions) < cfg.max_actions:
         surface = cloth_surface(obs, state, cfg)
         fit, pulls = plan_pulls(state, width, height, cfg, surface, yaw)
+        expected = expected_outline_world(fit, state.table_plane)
         if cfg.keep_yaw:
             yaw = fit.yaw
         if not pulls:
             log("flatten: no point of the expected outline is short enough to pull")
             break
         t_sim, t_wall = cell.sim_time, time.perf_counter()
-        pull, outcome, attempts, skipped = _execute_pull(cfg, cell, state, pulls, log)
+        seen_state, seen_obs = state, obs
+        pull, outcome, attempts, skipped = _execute_pull(cfg, cell, state, pulls, expected, log)
         action = pull.action
         cell.park()
         cell.wait(cfg.settle_time)
@@ -125,6 +137,19 @@ def run_flatten(
                 "wall_seconds": time.perf_counter() - t_wall,
             }
         )
+        rec.overlays.append(
+            draw_overlay(
+                seen_obs,
+                seen_state,
+                grasp_points=[attempts[-1]["grasp"]],
+                place_points=[action.place],
+                expected_outline=expected,
+            )
+        )
+        rec.captions.append(
+            f"{len(rec.actions)}: {action.label} {coverage:.2f} -> {after:.2f}"
+            + ("" if outcome["grasp_success"] else " (missed)")
+        )
         coverage = after
         if not state.detected:
             raise FoldbotError(
@@ -133,6 +158,11 @@ def run_flatten(
             )
     rec.final_coverage = coverage
     rec.reached = coverage >= cfg.target_coverage
+    rec.overlays.append(draw_overlay(obs, state, expected_outline=expected))
+    rec.captions.append(
+        f"end: {coverage:.2f}"
+        + (" (target reached)" if rec.reached else f" (target {cfg.target_coverage:.2f})")
+    )
     rec.final_state, rec.final_obs = state, obs
     return rec
 
@@ -150,7 +180,8 @@ def flatten_and_score(
     """Flatten a crumpled cloth on `cell` (run_flatten, FlattenConfig's defaults) and score it,
     in process or over ROS alike. `crumpled` (the cloth's vertices now) and `ground_truth` (read
     after flattening) are GROUND TRUTH, for the coverages only. Writes overlay_flattened.png;
-    returns result.json's "flatten" entry and the flattened cloth's vertices."""
+    returns result.json's "flatten" entry and the flattened cloth's vertices. Also writes
+    flatten.png: each pull over the view it was planned from, then the view it ended on."""
     start = metrics.coverage(crumpled, faces, flat_area)
     log(f"crumpled: coverage {start:.2f}; flattening…")
     cfg = FlattenConfig()
@@ -159,6 +190,9 @@ def flatten_and_score(
     end = metrics.coverage(flattened, faces, flat_area)
     if record.final_obs is not None and record.final_state is not None:
         write_image("overlay_flattened.png", draw_overlay(record.final_obs, record.final_state))
+    sheet = record.sheet()
+    if sheet is not None:
+        write_image("flatten.png", sheet)
     entry = record.result_entry(start, end, cfg.max_actions)
     log(f"flattened: coverage {start:.2f} → {end:.2f} in {entry['actions']} actions")
     return entry, flattened
@@ -169,6 +203,7 @@ def _execute_pull(
     cell: FoldCell,
     state: ClothState,
     pulls: list[Pull],
+    expected: np.ndarray,
     log: Callable[[str], None],
 ) -> tuple[Pull, dict, list[dict], int]:
     """Run the first reachable pull; after a failed grasp (the jaws closed between the mesh's
@@ -187,6 +222,7 @@ def _execute_pull(
                     grasp_points=[action.grasp],
                     place_points=[action.place],
                     fold_line=line_points(action.fold_line, cell.table_height),
+                    expected_outline=expected,
                 )
                 outcome = execute_action(cell, action)
                 attempts.append(

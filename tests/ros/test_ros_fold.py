@@ -242,6 +242,7 @@ def test_crumpled_towel_is_flattened_over_topics(tmp_path):
     assert all(p["kind"] == "flatten_pull" for p in f["pulls"])
     assert f["success"] == (f["coverage_end"] >= 0.9)
     assert (out / "overlay_flattened.png").is_file()
+    assert (out / "flatten.png").is_file()
     assert len(result["fold_lines"]) == 1
     assert rescore(out).fold_error_mm == pytest.approx(result["fold_error_mm"])
 

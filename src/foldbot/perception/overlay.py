@@ -1,4 +1,5 @@
-"""Overlays for people: estimated outline and corners, planned grasp/place points, fold line."""
+"""Overlays for people: estimated outline and corners, planned grasp/place points, fold line;
+and contact sheets that tile a run's overlays into one picture."""
 
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ PLACE_RGB = (40, 200, 255)
 FOLD_LINE_RGB = (255, 255, 255)
 REFERENCE_RGB = (255, 0, 255)
 UNCOVERED_RGB = (255, 120, 0)
+EXPECTED_RGB = (255, 150, 0)
 
 
 def _points(value: np.ndarray | Sequence[Sequence[float]] | None) -> np.ndarray:
@@ -54,6 +56,7 @@ def draw_overlay(
     fold_line: np.ndarray | Sequence[Sequence[float]] | None = None,
     reference: dict[str, np.ndarray] | None = None,
     uncovered: np.ndarray | None = None,
+    expected_outline: np.ndarray | Sequence[Sequence[float]] | None = None,
 ) -> np.ndarray:
     """RGB image (H×W×3 uint8) of `obs` with the state's outline and labelled corners drawn on.
 
@@ -61,6 +64,8 @@ def draw_overlay(
     points (red crosses), place points (blue circles, joined to their grasp point), a fold line
     given by two points (white), and `reference` corners (e.g. the oracle's, magenta) by label.
     `uncovered` (H×W bool) tints, in orange, what a fold's laid layer left uncovered.
+    `expected_outline` (N×3 world points, a closed polygon) is the outline the cloth should take,
+    e.g. flattening's expected rectangle (orange).
     """
     check_observation(obs)
     img = np.ascontiguousarray(obs.rgb.copy())
@@ -75,6 +80,10 @@ def draw_overlay(
         uv, _ = project_points(points, intr, T)
         return uv
 
+    expected = _points(expected_outline)
+    if len(expected) >= 3:
+        uv = np.round(proj(expected)).astype(np.int32)
+        cv2.polylines(img, [uv], True, EXPECTED_RGB, 1, cv2.LINE_AA)
     if state.detected and len(state.outline_world) >= 3:
         uv = proj(state.outline_world)
         cv2.polylines(img, [np.round(uv).astype(np.int32)], True, OUTLINE_RGB, 1, cv2.LINE_AA)
@@ -111,3 +120,40 @@ def draw_overlay(
     status = state.reason if state.reason else ("cloth" if state.detected else "no cloth")
     _text(img, status, (8, 16), (255, 255, 255))
     return img
+
+
+def contact_sheet(
+    images: Sequence[np.ndarray],
+    captions: Sequence[str],
+    columns: int = 4,
+    scale: float = 0.5,
+) -> np.ndarray:
+    """One RGB image (uint8) tiling `images` (equal-sized H×W×3 uint8), each scaled by `scale`
+    and captioned above, `columns` to a row: a run's steps side by side at a glance."""
+    if len(images) == 0:
+        raise ValueError("contact_sheet needs at least one image, got none")
+    if len(captions) != len(images):
+        raise ValueError(f"contact_sheet got {len(images)} images but {len(captions)} captions")
+    if not isinstance(columns, int) or columns < 1:
+        raise ValueError(f"contact_sheet columns must be an integer >= 1, got {columns!r}")
+    if not 0.0 < scale <= 1.0:
+        raise ValueError(f"contact_sheet scale must be in (0, 1], got {scale!r}")
+    shape = np.shape(images[0])
+    for k, image in enumerate(images):
+        if np.shape(image) != shape or len(shape) != 3 or shape[2] != 3:
+            raise ValueError(
+                f"contact_sheet images must all be H×W×3 like the first {shape}; "
+                f"image {k} is {np.shape(image)}"
+            )
+    h, w = max(1, round(shape[0] * scale)), max(1, round(shape[1] * scale))
+    bar = 20
+    tiles = []
+    for image, caption in zip(images, captions, strict=True):
+        tile = np.zeros((h + bar, w, 3), np.uint8)
+        tile[bar:] = cv2.resize(np.asarray(image, np.uint8), (w, h), interpolation=cv2.INTER_AREA)
+        _text(tile, caption, (4, 14), (255, 255, 255))
+        tiles.append(tile)
+    columns = min(columns, len(tiles))
+    tiles += [np.zeros_like(tiles[0])] * (-len(tiles) % columns)
+    rows = [np.hstack(tiles[k : k + columns]) for k in range(0, len(tiles), columns)]
+    return np.vstack(rows)

@@ -292,6 +292,11 @@ def _table_z(plane: np.ndarray, xy: np.ndarray) -> float:
     return -(a * xy[0] + b * xy[1] + d) / c
 
 
+def expected_outline_world(fit: ExpectedOutline, table_plane: np.ndarray) -> np.ndarray:
+    """The expected rectangle's 4 corners on the perceived table (4×3, world, m), to draw."""
+    return np.array([[x, y, _table_z(table_plane, np.array([x, y]))] for x, y in fit.corners])
+
+
 def _targets(rect: np.ndarray) -> np.ndarray:
     """The 8 pull targets: corners and edge midpoints, counter-clockwise (TARGET_NAMES)."""
     out = []
