@@ -108,6 +108,7 @@ def test_crumpled_towel_is_flattened_then_folded(tmp_path):
     assert f["coverage_end"] > f["coverage_start"] + 0.05  # the pulls spread it out
     assert 1 <= f["actions"] <= f["max_actions"] == 6
     assert f["success"] == (f["coverage_end"] >= 0.9)
+    assert f["policy"] == "vision"
     assert len(f["pulls"]) >= f["actions"]
     assert (out / "overlay_flattened.png").is_file()
     assert (out / "flatten.png").is_file()  # every pull pictured

@@ -77,14 +77,21 @@ class FlattenRecord:
         }
 
 
+PullOracle = Callable[[ClothState, FlattenConfig], tuple[np.ndarray, list[Pull]]]
+"""Plans pulls from ground truth instead of perception: (the outline it aims for as world points,
+the pulls, best first); see sim.flatten_oracle."""
+
+
 def run_flatten(
     cfg: FlattenConfig,
     cell: FoldCell,
     expected_size: tuple[float, float],
     log: Callable[[str], None] = print,
+    oracle: PullOracle | None = None,
 ) -> FlattenRecord:
     """Flatten the cloth on `cell` with pick-and-place pulls until its perceived coverage of
-    the item's expected `(width, height)` (m) reaches `cfg.target_coverage`, or `cfg.max_actions`."""
+    the item's expected `(width, height)` (m) reaches `cfg.target_coverage`, or `cfg.max_actions`.
+    The pulls are planned from perception, or by `oracle` (ground truth, for comparison)."""
     width, height = (float(v) for v in expected_size)
     area = width * height
     rec = FlattenRecord()
@@ -96,11 +103,14 @@ def run_flatten(
     log(f"flatten: perceived coverage {coverage:.2f} (target {cfg.target_coverage:.2f})")
     yaw, expected = None, None
     while coverage < cfg.target_coverage and len(rec.actions) < cfg.max_actions:
-        surface = cloth_surface(obs, state, cfg)
-        fit, pulls = plan_pulls(state, width, height, cfg, surface, yaw)
-        expected = expected_outline_world(fit, state.table_plane)
-        if cfg.keep_yaw:
-            yaw = fit.yaw
+        if oracle is not None:
+            expected, pulls = oracle(state, cfg)
+        else:
+            surface = cloth_surface(obs, state, cfg)
+            fit, pulls = plan_pulls(state, width, height, cfg, surface, yaw)
+            expected = expected_outline_world(fit, state.table_plane)
+            if cfg.keep_yaw:
+                yaw = fit.yaw
         if not pulls:
             log("flatten: no point of the expected outline is short enough to pull")
             break
@@ -176,16 +186,18 @@ def flatten_and_score(
     flat_area: float,
     write_image: Callable[[str, np.ndarray], object],
     log: Callable[[str], None] = print,
+    oracle: PullOracle | None = None,
 ) -> tuple[dict[str, Any], np.ndarray]:
     """Flatten a crumpled cloth on `cell` (run_flatten, FlattenConfig's defaults) and score it,
     in process or over ROS alike. `crumpled` (the cloth's vertices now) and `ground_truth` (read
-    after flattening) are GROUND TRUTH, for the coverages only. Writes overlay_flattened.png;
+    after flattening) are GROUND TRUTH, for the coverages only; `oracle` plans the pulls from
+    ground truth instead of perception (the entry's "policy"). Writes overlay_flattened.png;
     returns result.json's "flatten" entry and the flattened cloth's vertices. Also writes
     flatten.png: each pull over the view it was planned from, then the view it ended on."""
     start = metrics.coverage(crumpled, faces, flat_area)
     log(f"crumpled: coverage {start:.2f}; flattening…")
     cfg = FlattenConfig()
-    record = run_flatten(cfg, cell, expected_size, log)
+    record = run_flatten(cfg, cell, expected_size, log, oracle)
     flattened = ground_truth()
     end = metrics.coverage(flattened, faces, flat_area)
     if record.final_obs is not None and record.final_state is not None:
@@ -194,6 +206,7 @@ def flatten_and_score(
     if sheet is not None:
         write_image("flatten.png", sheet)
     entry = record.result_entry(start, end, cfg.max_actions)
+    entry["policy"] = "vision" if oracle is None else "oracle"
     log(f"flattened: coverage {start:.2f} → {end:.2f} in {entry['actions']} actions")
     return entry, flattened
 

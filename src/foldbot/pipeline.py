@@ -44,6 +44,7 @@ from foldbot.planning.recipes import RECIPES
 from foldbot.sim.camera import CameraConfig, RGBDCamera
 from foldbot.sim.cloth import ClothConfig, DivergenceMonitor, SoftCloth, settle
 from foldbot.sim.crumple import crumple
+from foldbot.sim.flatten_oracle import CornerPullOracle
 from foldbot.sim.garment_oracle import GarmentOracleEstimator
 from foldbot.sim.grasp import ClothGrasp
 from foldbot.sim.oracle import GroundTruthOracle, OracleEstimator
@@ -79,7 +80,8 @@ class EpisodeConfig:
     robot: str = "ur5"
     """Arm; allowed: ur5, panda."""
     perception: str = "vision"
-    """Where keypoints come from: vision (RGB-D) or oracle (simulator ground truth, comparison)."""
+    """Where keypoints come from: vision (RGB-D) or oracle (simulator ground truth, comparison;
+    from a crumpled start it also plans the flattening pulls: sim.flatten_oracle)."""
     seed: int = 0
     """Randomisation seed: the same seed gives the same episode."""
     towel: TowelSpec = field(default_factory=TowelSpec)
@@ -525,10 +527,12 @@ def crumple_start(cfg: EpisodeConfig, world: SimWorld, cloth: SoftCloth) -> None
 def crumple_and_flatten(
     cfg: EpisodeConfig, parts: SimCellParts, cell: SimCell, writer: EpisodeWriter, log=print
 ) -> dict:
-    """Crumple the settled towel (seeded), then flatten it from what the camera sees; returns
-    result.json's "flatten" entry, its coverage figures measured on GROUND TRUTH (for scoring)."""
+    """Crumple the settled towel (seeded), then flatten it from what the camera sees (with
+    `perception = "oracle"`, by the ground-truth corner-pulling oracle); returns result.json's
+    "flatten" entry, its coverage figures measured on GROUND TRUTH (for scoring)."""
     log("crumpling the towel…")
     crumple_start(cfg, parts.world, parts.cloth)
+    oracle = CornerPullOracle.of(parts.oracle, parts.mesh) if cfg.perception == "oracle" else None
     entry, _ = flatten_and_score(
         cell,
         (parts.spec.width, parts.spec.height),
@@ -538,6 +542,7 @@ def crumple_and_flatten(
         parts.mesh.area,
         writer.write_image,
         log,
+        oracle,
     )
     return entry
 

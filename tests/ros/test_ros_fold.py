@@ -240,6 +240,7 @@ def test_crumpled_towel_is_flattened_over_topics(tmp_path):
     # folded; the fold is scored from the flattened cloth.
     assert 1 <= f["actions"] <= f["max_actions"] == 6 and len(f["pulls"]) >= f["actions"]
     assert all(p["kind"] == "flatten_pull" for p in f["pulls"])
+    assert f["policy"] == "vision"
     assert f["success"] == (f["coverage_end"] >= 0.9)
     assert (out / "overlay_flattened.png").is_file()
     assert (out / "flatten.png").is_file()

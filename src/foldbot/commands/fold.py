@@ -42,7 +42,9 @@ def add_recipe_and_perception(parser: argparse.ArgumentParser) -> None:
         "--perception",
         default="vision",
         choices=PERCEPTION_MODES,
-        help="keypoints from the RGB-D image (vision) or from simulator ground truth (oracle)",
+        help="keypoints from the RGB-D image (vision) or from simulator ground truth (oracle, "
+        "for comparison; from a crumpled start the oracle also plans the flattening pulls, "
+        "pulling the true corners onto the laid-flat towel)",
     )
 
 

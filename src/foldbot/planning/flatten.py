@@ -283,7 +283,8 @@ def _surface_at(surface: np.ndarray, xy: np.ndarray, cfg: FlattenConfig, radius:
     return float(win.max()) if win.size else float("nan")
 
 
-def _table_z(plane: np.ndarray, xy: np.ndarray) -> float:
+def table_z(plane: np.ndarray, xy: np.ndarray) -> float:
+    """Height (m) of the table plane (a, b, c, d) under the point `xy`."""
     a, b, c, d = (float(v) for v in np.asarray(plane, dtype=float).reshape(4))
     if c < 0.5:
         raise FoldbotError(
@@ -294,7 +295,7 @@ def _table_z(plane: np.ndarray, xy: np.ndarray) -> float:
 
 def expected_outline_world(fit: ExpectedOutline, table_plane: np.ndarray) -> np.ndarray:
     """The expected rectangle's 4 corners on the perceived table (4×3, world, m), to draw."""
-    return np.array([[x, y, _table_z(table_plane, np.array([x, y]))] for x, y in fit.corners])
+    return np.array([[x, y, table_z(table_plane, np.array([x, y]))] for x, y in fit.corners])
 
 
 def _targets(rect: np.ndarray) -> np.ndarray:
@@ -370,6 +371,24 @@ def _edge_grasp(
     return first, level, False
 
 
+def pull_action(
+    grasp: np.ndarray, place_xy: np.ndarray, table_plane: np.ndarray, cfg: FlattenConfig, label: str
+) -> FoldAction:
+    """A flattening pull: grasp at `grasp` (x, y, z; world, m), carry and let go
+    `cfg.release_height` above the table at `place_xy`, kept `cfg.margin` inside the workspace."""
+    x0, x1, y0, y1 = cfg.workspace
+    m = cfg.margin
+    place_xy = np.clip(np.asarray(place_xy, float), [x0 + m, y0 + m], [x1 - m, y1 - m])
+    z_p = table_z(table_plane, place_xy) + cfg.release_height
+    grasp = np.asarray(grasp, dtype=float).reshape(3)
+    return FoldAction(
+        grasp=grasp,
+        place=np.array([place_xy[0], place_xy[1], z_p]),
+        fold_line=_pull_line(grasp[:2], place_xy),
+        label=label,
+    )
+
+
 def plan_pulls(
     state: ClothState,
     width: float,
@@ -394,8 +413,6 @@ def plan_pulls(
     fit = fit_expected_outline(poly, width, height, cfg, yaw)
     contour = poly.astype(np.float32).reshape(-1, 1, 2)
     centroid = poly.mean(axis=0)
-    x0, x1, y0, y1 = cfg.workspace
-    m = cfg.margin
     pulls = []
     for name, target in zip(TARGET_NAMES, _targets(fit.corners), strict=True):
         inside = cv2.pointPolygonTest(contour, (float(target[0]), float(target[1])), True)
@@ -406,15 +423,13 @@ def plan_pulls(
         pull = target - nearest
         direction = pull / max(float(np.linalg.norm(pull)), 1e-9)
         grasp_xy, h_g, palm_ok = _edge_grasp(contour, centroid, nearest, direction, surface, cfg)
-        z_g = _table_z(state.table_plane, grasp_xy) + h_g
-        place_xy = target + direction * cfg.overshoot
-        place_xy = np.clip(place_xy, [x0 + m, y0 + m], [x1 - m, y1 - m])
-        z_p = _table_z(state.table_plane, place_xy) + cfg.release_height
-        action = FoldAction(
-            grasp=np.array([grasp_xy[0], grasp_xy[1], z_g]),
-            place=np.array([place_xy[0], place_xy[1], z_p]),
-            fold_line=_pull_line(grasp_xy, place_xy),
-            label=f"pull {name}",
+        z_g = table_z(state.table_plane, grasp_xy) + h_g
+        action = pull_action(
+            np.array([grasp_xy[0], grasp_xy[1], z_g]),
+            target + direction * cfg.overshoot,
+            state.table_plane,
+            cfg,
+            f"pull {name}",
         )
         pulls.append(Pull(action, name, shortfall, palm_ok))
     pulls.sort(key=lambda pl: (not pl.palm_ok, -pl.shortfall))
