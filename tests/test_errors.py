@@ -18,3 +18,10 @@ from foldbot import errors
 def test_reported_error_keeps_its_type_and_says_where(name, cls):
     exc = errors.reported_error({"error": "no cloth", "error_type": name}, "over ROS")
     assert type(exc) is cls and str(exc) == "over ROS: no cloth"
+    assert not hasattr(exc, "__notes__")  # a report without notes adds none
+
+
+def test_reported_error_keeps_the_reports_notes():
+    report = {"error": "diverged", "error_type": "SimulationDivergedError", "notes": ["see x"]}
+    exc = errors.reported_error(report, "over ROS")
+    assert exc.__notes__ == ["see x"]

@@ -95,3 +95,78 @@ def test_each_pull_is_pictured_then_the_end(flattened):
     h, w, _ = flattened["overlay_shapes"][0]
     # Half-size tiles with a 20-pixel caption bar, up to 4 to a row.
     assert flattened["sheet_shape"] == [-(-(n + 1) // 4) * (h // 2 + 20), min(n + 1, 4) * w // 2, 3]
+
+
+# The same crumpled towel, flattened into an episode folder, with a divergence injected one
+# simulated second into the first pull (the real error, raised from a world step hook as the
+# divergence monitor raises it).
+FAILING_SCRIPT = """
+import contextlib, json, sys
+import imageio.v3 as iio
+import numpy as np
+from foldbot.errors import SimulationDivergedError
+from foldbot.flatten import flatten_and_score
+from foldbot.garments.towel import TowelSpec
+from foldbot.io.episode import EpisodeWriter
+from foldbot.perception.estimator import VisionEstimator
+from foldbot.perception.overlay import contact_sheet
+from foldbot.pipeline import EpisodeConfig, SimCell, build_sim_cell
+from foldbot.sim.cloth import settle
+from foldbot.sim.crumple import crumple
+from foldbot.sim.world import SimWorld
+
+seed, out = int(sys.argv[1]), sys.argv[2]
+cfg = EpisodeConfig(seed=seed, towel=TowelSpec(0.3, 0.3, 8), video_fps=0.0)
+error = None
+try:
+    with EpisodeWriter(out) as writer, SimWorld(cfg.sim) as world, contextlib.ExitStack() as st:
+        parts = build_sim_cell(cfg, world)
+        st.callback(parts.model_world.close)
+        settle(world, parts.cloth)
+        frame = parts.camera.observe().rgb
+        crumple(world, parts.cloth, np.random.default_rng([seed, 2]))
+        cell = SimCell(
+            world, parts.robot, parts.executor, parts.camera, VisionEstimator(), cfg.motion
+        )
+        diverge_at = world.steps + round(1.0 / world.time_step)
+
+        def diverge(world):
+            if world.steps >= diverge_at:
+                raise SimulationDivergedError("cloth simulation diverged (injected)")
+
+        world.add_step_hook(diverge)
+        oracle = parts.oracle
+        flatten_and_score(
+            cell, (0.3, 0.3), oracle.cloth_vertices(), oracle.cloth_vertices,
+            parts.mesh.faces, parts.mesh.area, writer.write_image, log=lambda s: None,
+        )
+except SimulationDivergedError as exc:
+    error = {"message": str(exc), "notes": getattr(exc, "__notes__", [])}
+print(json.dumps({
+    "error": error,
+    "sheet_shape": list(iio.imread(writer.failed / "flatten.png").shape),
+    "one_tile_shape": list(contact_sheet([frame], ["x"]).shape),
+}))
+"""
+
+
+@pytest.mark.slow
+def test_an_error_while_flattening_keeps_the_picture_of_the_pulls(tmp_path):
+    out = tmp_path / "ep"
+    proc = subprocess.run(
+        [sys.executable, "-c", FAILING_SCRIPT, "1", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    report = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert report["error"]["message"] == "cloth simulation diverged (injected)"
+    failed = tmp_path / "ep.failed"
+    assert not out.exists() and "flatten.png" in report["error"]["notes"][0]
+    assert sorted(p.name for p in failed.iterdir()) == ["error.json", "flatten.png"]
+    assert json.loads((failed / "error.json").read_text())["error_type"] == (
+        "SimulationDivergedError"
+    )
+    # One tile: the first pull, drawn over the view it was planned from, stopped by the error.
+    assert report["sheet_shape"] == report["one_tile_shape"]

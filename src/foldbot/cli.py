@@ -57,6 +57,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(args.run(args) or 0)
     except FoldbotError as exc:
         print(f"foldbot {args.command}: error: {exc}", file=sys.stderr)
+        for note in getattr(exc, "__notes__", ()):  # e.g. where a failed episode's video went
+            print(f"foldbot {args.command}: {note}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"foldbot {args.command}: interrupted", file=sys.stderr)

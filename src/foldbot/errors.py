@@ -40,8 +40,12 @@ def require(condition: bool, message: str) -> None:
 
 def reported_error(report: dict, what: str) -> FoldbotError:
     """The error another process reported (JSON: `error`, `error_type`) as the same foldbot error
-    type (FoldbotError for any other name), its message prefixed with `what`."""
+    type (FoldbotError for any other name), its message prefixed with `what`, with the report's
+    `notes` as the exception's notes."""
     cls = globals().get(str(report.get("error_type", "")), FoldbotError)
     if not (isinstance(cls, type) and issubclass(cls, FoldbotError)):
         cls = FoldbotError
-    return cls(f"{what}: {report.get('error', 'failed')}")
+    error = cls(f"{what}: {report.get('error', 'failed')}")
+    for note in report.get("notes") or ():  # e.g. where the episode's video up to it went
+        error.add_note(str(note))
+    return error

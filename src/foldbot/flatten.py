@@ -7,6 +7,7 @@ perceived coverage is the perceived top-view area over that expected area.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import time
 from collections.abc import Callable
@@ -88,13 +89,16 @@ def run_flatten(
     expected_size: tuple[float, float],
     log: Callable[[str], None] = print,
     oracle: PullOracle | None = None,
+    record: FlattenRecord | None = None,
 ) -> FlattenRecord:
     """Flatten the cloth on `cell` with pick-and-place pulls until its perceived coverage of
     the item's expected `(width, height)` (m) reaches `cfg.target_coverage`, or `cfg.max_actions`.
-    The pulls are planned from perception, or by `oracle` (ground truth, for comparison)."""
+    The pulls are planned from perception, or by `oracle` (ground truth, for comparison).
+    Fills and returns `record` (a new one if None), so a caller holding it keeps the pulls made
+    before an error; the pull an error stopped gets its overlay, captioned with the error."""
     width, height = (float(v) for v in expected_size)
     area = width * height
-    rec = FlattenRecord()
+    rec = FlattenRecord() if record is None else record
     cell.park()
     state, obs = cell.observe()
     if not state.detected:
@@ -116,11 +120,28 @@ def run_flatten(
             break
         t_sim, t_wall = cell.sim_time, time.perf_counter()
         seen_state, seen_obs = state, obs
-        pull, outcome, attempts, skipped = _execute_pull(cfg, cell, state, pulls, expected, log)
-        action = pull.action
-        cell.park()
-        cell.wait(cfg.settle_time)
-        state, obs = cell.observe()
+        try:
+            pull, outcome, attempts, skipped = _execute_pull(cfg, cell, state, pulls, expected, log)
+            action = pull.action
+            cell.park()
+            cell.wait(cfg.settle_time)
+            state, obs = cell.observe()
+        except Exception as exc:  # diverged, unreachable …: the picture shows what was tried
+            planned = pulls[0].action
+            rec.overlays.append(
+                draw_overlay(
+                    seen_obs,
+                    seen_state,
+                    grasp_points=[planned.grasp],
+                    place_points=[planned.place],
+                    expected_outline=expected,
+                )
+            )
+            rec.captions.append(
+                f"{len(rec.actions) + 1}: {planned.label} {coverage:.2f} -> "
+                f"stopped ({type(exc).__name__})"
+            )
+            raise
         after = perceived_coverage(state, area)
         log(
             f"flatten {len(rec.actions) + 1}: {action.label} "
@@ -193,11 +214,20 @@ def flatten_and_score(
     after flattening) are GROUND TRUTH, for the coverages only; `oracle` plans the pulls from
     ground truth instead of perception (the entry's "policy"). Writes overlay_flattened.png;
     returns result.json's "flatten" entry and the flattened cloth's vertices. Also writes
-    flatten.png: each pull over the view it was planned from, then the view it ended on."""
+    flatten.png: each pull over the view it was planned from, then the view it ended on; after
+    an error, the pulls up to it (the episode's `DIR.failed/` keeps it)."""
     start = metrics.coverage(crumpled, faces, flat_area)
     log(f"crumpled: coverage {start:.2f}; flattening…")
     cfg = FlattenConfig()
-    record = run_flatten(cfg, cell, expected_size, log, oracle)
+    record = FlattenRecord()
+    try:
+        run_flatten(cfg, cell, expected_size, log, oracle, record)
+    except Exception:  # flatten.png still shows the pulls up to the error
+        sheet = record.sheet()
+        if sheet is not None:
+            with contextlib.suppress(Exception):  # the error itself is what must surface
+                write_image("flatten.png", sheet)
+        raise
     flattened = ground_truth()
     end = metrics.coverage(flattened, faces, flat_area)
     if record.final_obs is not None and record.final_state is not None:

@@ -44,3 +44,19 @@ def test_ray_run_equals_local_run(tmp_path, tiny_suite_data):
         assert (folder / "cloth.npz").read_bytes() == (
             episode_dir(tmp_path / "local", spec) / "cloth.npz"
         ).read_bytes()
+
+
+def test_ray_brings_back_what_a_failed_episode_recorded(tmp_path, tiny_suite_data):
+    data = tiny_suite_data(perception=["vision"])
+    data["towel"].update(width=1.0, height=1.0, resolution=8)  # beyond the camera's view
+    data["episode"]["video_fps"] = 5
+    suite = suite_from_dict(data)
+    try:
+        (rec,) = run_suite(suite, tmp_path, ray_address="local", progress=False)
+    finally:
+        ray.shutdown()
+    ep = episode_dir(tmp_path, suite.episodes[0])
+    assert "result" not in rec and not ep.exists()
+    failed = ep.parent / rec["failed_dir"]
+    assert sorted(p.name for p in failed.iterdir()) == ["error.json", "video.mp4"]
+    assert json.loads((failed / "error.json").read_text())["error"] == rec["error"]

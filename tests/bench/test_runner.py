@@ -33,6 +33,7 @@ def test_resume_skips_finished_episodes(tmp_path, tiny_suite_data):
 def test_an_episode_ending_in_an_error_is_recorded_and_not_rerun(tmp_path, tiny_suite_data):
     data = tiny_suite_data(perception=["vision"])
     data["towel"].update(width=1.0, height=1.0, resolution=8)  # beyond the camera's view
+    data["episode"]["video_fps"] = 5
     suite = suite_from_dict(data)
     (rec,) = run_suite(suite, tmp_path, progress=False)
     assert "result" not in rec
@@ -40,7 +41,14 @@ def test_an_episode_ending_in_an_error_is_recorded_and_not_rerun(tmp_path, tiny_
     assert rec["log_tail"] and rec["log_tail"][0].startswith("settling the cloth")  # the phase
     err = error_file(tmp_path, suite.episodes[0])
     assert json.loads(err.read_text()) == rec
-    assert not episode_dir(tmp_path, suite.episodes[0]).exists()
+    ep = episode_dir(tmp_path, suite.episodes[0])
+    assert not ep.exists()
+    # What the camera filmed up to the error lies beside it, named by the record.
+    assert rec["failed_dir"] == f"{ep.name}.failed"
+    assert sorted(p.name for p in (ep.parent / rec["failed_dir"]).iterdir()) == [
+        "error.json",
+        "video.mp4",
+    ]
     ran: list[str] = []
     run_suite(suite, tmp_path, progress=False, on_record=lambda r: ran.append(r["id"]))
     assert ran == []

@@ -1,6 +1,7 @@
 """`foldbot fold` from the command line: help, and clear errors for bad input."""
 
 import argparse
+import json
 import math
 import os
 import subprocess
@@ -101,6 +102,29 @@ def test_oversized_towel_is_refused_before_anything_is_written(tmp_path, percept
     assert "Traceback" not in proc.stderr
     assert needle in proc.stderr
     assert not out.exists()
+
+
+def test_a_failed_fold_leaves_its_video_beside_the_episode_it_did_not_write(tmp_path):
+    """The 1 m towel again, filmed: the camera saw it settle beyond its view. No episode folder;
+    DIR.failed holds the video up to the error and error.json, and the error names it."""
+    out = tmp_path / "ep"
+    args = ["fold", "--width", "1.0", "--height", "1.0", "--resolution", "8"]
+    args += ["--video-fps", "5", "--out", str(out)]
+    proc = subprocess.run(
+        [sys.executable, "-m", "foldbot.cli", *args],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "PYTHONWARNINGS": "ignore"},
+        timeout=300,
+    )
+    assert proc.returncode == 2, proc.stderr
+    assert "beyond the camera's view" in proc.stderr and "Traceback" not in proc.stderr
+    failed = tmp_path / "ep.failed"
+    assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["ep.failed"]
+    assert sorted(p.name for p in failed.iterdir()) == ["error.json", "video.mp4"]
+    report = json.loads((failed / "error.json").read_text())
+    assert report["error_type"] == "FoldbotError" and "camera's view" in report["error"]
+    assert f"what the episode recorded up to the error: {failed}" in proc.stderr
 
 
 @pytest.mark.parametrize(

@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+import imageio.v3 as iio
 import numpy as np
 import pytest
 
@@ -14,6 +15,7 @@ from foldbot.io.episode import (
     REQUIRED_RESULT_KEYS,
     EpisodeWriter,
     is_episode_dir,
+    is_failed_dir,
     load_episode,
     rescore,
 )
@@ -102,15 +104,68 @@ def test_roundtrip_and_rescore_equals_written(tmp_path: Path) -> None:
     assert ep.thickness == THICKNESS and ep.initial.shape == ep.final.shape == (121, 3)
 
 
-def test_exception_inside_with_leaves_nothing(tmp_path: Path) -> None:
+def test_an_error_leaves_no_episode_and_keeps_what_was_recorded_beside_it(
+    tmp_path: Path,
+) -> None:
     faces, initial, final = cloth()
     target = tmp_path / "ep"
-    with pytest.raises(RuntimeError, match="boom"), EpisodeWriter(target) as w:
-        w.add_frame(np.zeros((32, 32, 3), np.uint8))
+    with pytest.raises(RuntimeError, match="boom") as raised, EpisodeWriter(target, fps=5) as w:
+        for k in range(4):
+            w.add_frame(np.full((32, 48, 3), 60 * k, np.uint8))
+        w.write_image("flatten", np.zeros((8, 8, 3), np.uint8))
         w.write_cloth(faces, initial, final, THICKNESS)
         w.write_result(result_for(faces, initial, final))
         raise RuntimeError("boom")
+    failed = tmp_path / "ep.failed"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ep.failed"]  # no episode, no staging
+    assert w.failed == failed.absolute() and is_failed_dir(failed) and not is_episode_dir(failed)
+    assert sorted(p.name for p in failed.iterdir()) == [
+        "cloth.npz",
+        "error.json",
+        "flatten.png",
+        "video.mp4",
+    ]
+    assert json.loads((failed / "error.json").read_text()) == {
+        "error_type": "RuntimeError",
+        "error": "boom",
+    }
+    assert len(iio.imread(failed / "video.mp4")) == 4  # closed, every frame
+    (note,) = raised.value.__notes__
+    assert str(failed.absolute()) in note and "video.mp4" in note
+
+
+def test_an_error_with_nothing_recorded_leaves_nothing(tmp_path: Path) -> None:
+    with pytest.raises(RuntimeError, match="boom"), EpisodeWriter(tmp_path / "ep") as w:
+        raise RuntimeError("boom")
+    assert w.failed is None and list(tmp_path.iterdir()) == []
+
+
+def test_an_interrupt_keeps_nothing(tmp_path: Path) -> None:
+    with pytest.raises(KeyboardInterrupt), EpisodeWriter(tmp_path / "ep") as w:
+        w.add_frame(np.zeros((32, 32, 3), np.uint8))
+        raise KeyboardInterrupt
     assert list(tmp_path.iterdir()) == []
+
+
+def test_failed_folders_are_replaced_by_the_next_try_and_others_left_alone(
+    tmp_path: Path,
+) -> None:
+    def fail(out: Path, message: str) -> None:
+        with pytest.raises(RuntimeError), EpisodeWriter(out, overwrite=True) as w:
+            w.write_image("flatten", np.zeros((8, 8, 3), np.uint8))
+            raise RuntimeError(message)
+
+    fail(tmp_path / "ep", "first")
+    fail(tmp_path / "ep", "second")
+    assert json.loads((tmp_path / "ep.failed" / "error.json").read_text())["error"] == "second"
+    write_episode(tmp_path / "ep")  # the episode that succeeds removes the earlier evidence
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ep"]
+    foreign = tmp_path / "other.failed"
+    foreign.mkdir()
+    (foreign / "notes.txt").write_text("keep me")
+    fail(tmp_path / "other", "third")  # not ours to replace: the staged files are dropped
+    assert sorted(p.name for p in foreign.iterdir()) == ["notes.txt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ep", "other.failed"]
 
 
 def test_clean_exit_commits(tmp_path: Path) -> None:

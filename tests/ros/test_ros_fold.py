@@ -181,17 +181,22 @@ def test_pants_replay_gives_the_live_keypoints(ros_pants):
 
 def test_a_failed_ros_fold_names_the_task_nodes_error(tmp_path):
     # Seed 2's pants, meshed this coarsely, are not recognised (in process too): the same
-    # perception error ends `ros-fold`, and no episode folder is left.
+    # perception error ends `ros-fold`, and no episode folder is left; the video the task node
+    # recorded up to the error lies beside it, and the error names where.
     out = tmp_path / "episode"
     proc = foldbot(
         "ros-fold", "--garment", "pants", "--garment-edge-length", "0.03", "--seed", "2",
-        "--video-fps", "0", "--camera-rate", "2", "--out", str(out), "--port", str(free_port()),
+        "--video-fps", "2", "--out", str(out), "--port", str(free_port()),
     )  # fmt: skip
     assert proc.returncode == 2, proc.stdout[-2000:] + proc.stderr[-2000:]
     assert (
         "error: over ROS: the garment was not recognised for recipe 'leg_over_leg'" in proc.stderr
     )
     assert not out.exists()
+    failed = tmp_path / "episode.failed"
+    assert sorted(p.name for p in failed.iterdir()) == ["error.json", "video.mp4"]
+    assert json.loads((failed / "error.json").read_text())["error_type"] == "PerceptionError"
+    assert f"what the episode recorded up to the error: {failed}" in proc.stderr
 
 
 # The crumple as `foldbot fold` makes it, in a fresh process (Bullet's soft body is reproducible

@@ -5,6 +5,8 @@ Output folder layout (DIR = --out):
     DIR/suite.json                  the resolved suite; a resumed run must not change an episode
     DIR/episodes/<id>/              one episode folder per run (the output contract)
     DIR/episodes/<id>.error.json    the error that ended an episode that could not be scored
+    DIR/episodes/<id>.failed/       what such an episode recorded up to the error (video,
+                                    pictures, error.json), named by the record's "failed_dir"
 
 An episode with either file is finished and is not run again (`retry_errors` re-runs the second
 kind). Every episode runs in a fresh Python process (`foldbot.bench.worker`): Bullet's soft-body
@@ -33,7 +35,7 @@ from tqdm import tqdm
 from foldbot.bench.suite import EpisodeSpec, Suite
 from foldbot.bench.worker import write_json_atomic
 from foldbot.errors import ConfigError, OutputError
-from foldbot.io.episode import RESULT_FILE, is_episode_dir
+from foldbot.io.episode import RESULT_FILE, failed_dir, is_episode_dir, is_failed_dir
 
 EPISODES = "episodes"
 SUITE_FILE = "suite.json"
@@ -117,13 +119,19 @@ def _ray_episode(spec_dict: dict, timeout: float | None) -> dict:
             if is_episode_dir(ep)
             else {}
         )
-    return {"record": record, "files": files}
+        failed = failed_dir(ep)
+        failed_files = (
+            {p.name: p.read_bytes() for p in failed.iterdir() if p.is_file()}
+            if is_failed_dir(failed)
+            else {}
+        )
+    return {"record": record, "files": files, "failed_files": failed_files}
 
 
-def _write_episode_files(out: Path, spec: EpisodeSpec, files: dict[str, bytes]) -> None:
-    """Write a Ray-returned episode folder into DIR atomically (staging folder, then rename)."""
-    target = episode_dir(out, spec)
-    staging = target.with_name(f".{spec.id}.ray-partial")
+def _write_folder(target: Path, files: dict[str, bytes]) -> None:
+    """Write files returned by a Ray task into the folder `target` atomically (a staging folder,
+    then a rename), replacing what was there."""
+    staging = target.with_name(f".{target.name}.ray-partial")
     shutil.rmtree(staging, ignore_errors=True)
     staging.mkdir(parents=True)
     for name, data in files.items():
@@ -285,5 +293,10 @@ def _run_ray(
                     "files": {},
                 }
             if reply["files"]:
-                _write_episode_files(out, spec, reply["files"])
+                _write_folder(episode_dir(out, spec), reply["files"])
+                stale = failed_dir(episode_dir(out, spec))
+                if is_failed_dir(stale):
+                    shutil.rmtree(stale, ignore_errors=True)
+            if reply.get("failed_files"):
+                _write_folder(failed_dir(episode_dir(out, spec)), reply["failed_files"])
             finish(spec, reply["record"])

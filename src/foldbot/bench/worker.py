@@ -17,6 +17,7 @@ from pathlib import Path
 
 from foldbot.bench.suite import EpisodeSpec
 from foldbot.errors import FoldbotError
+from foldbot.io.episode import failed_dir, is_failed_dir
 
 
 def write_json_atomic(path: Path, data: object) -> None:
@@ -44,12 +45,15 @@ def run_spec(spec: EpisodeSpec, out: Path) -> dict:
             log=lambda *a: lines.append(" ".join(map(str, a))),
         )
     except FoldbotError as exc:
-        return {
+        record = {
             "id": spec.id,
             "error_type": type(exc).__name__,
             "error": str(exc),
             "log_tail": lines[-LOG_TAIL:],
         }
+        if is_failed_dir(failed_dir(out)):  # the video and pictures up to the error
+            record["failed_dir"] = failed_dir(out).name
+        return record
     result.pop("out_dir", None)
     return {"id": spec.id, "result": result}
 

@@ -2,6 +2,8 @@
 
 `EpisodeWriter` stages everything in a hidden sibling folder and renames it into place on
 `commit()`, so a folder named DIR is either a complete episode or absent, never half-written.
+An episode that ends in an error leaves what it had recorded (video up to the error, pictures)
+in the sibling `DIR.failed/`, with error.json saying why: evidence, never an episode.
 `rescore(DIR)` recomputes every metric from cloth.npz and result.json["fold_lines"] alone.
 """
 
@@ -29,6 +31,8 @@ from foldbot.metrics import FoldLine, FoldScore, as_fold_lines, score_episode
 RESULT_FILE = "result.json"
 CLOTH_FILE = "cloth.npz"
 VIDEO_FILE = "video.mp4"
+ERROR_FILE = "error.json"
+FAILED_SUFFIX = ".failed"
 CLOTH_KEYS = ("faces", "initial", "final", "thickness")
 REQUIRED_RESULT_KEYS: tuple[str, ...] = (
     "success",
@@ -50,6 +54,19 @@ def is_episode_dir(path: str | Path) -> bool:
     """True when `path` is a folder holding a committed episode (result.json and cloth.npz)."""
     p = Path(path)
     return p.is_dir() and (p / RESULT_FILE).is_file() and (p / CLOTH_FILE).is_file()
+
+
+def failed_dir(out_dir: str | Path) -> Path:
+    """Where an episode that ended in an error leaves what it had recorded: `DIR.failed`."""
+    p = Path(out_dir).expanduser().absolute()
+    return p.with_name(p.name + FAILED_SUFFIX)
+
+
+def is_failed_dir(path: str | Path) -> bool:
+    """True when `path` is a folder an EpisodeWriter left after an error (error.json, no
+    result.json): safe to replace."""
+    p = Path(path)
+    return p.is_dir() and (p / ERROR_FILE).is_file() and not (p / RESULT_FILE).exists()
 
 
 def to_jsonable(value: Any) -> Any:
@@ -120,9 +137,11 @@ def _discard_staging(staging_dir: Path, videos: list[VideoWriter]) -> None:
 class EpisodeWriter:
     """Write one episode folder atomically: stage in `.DIR.partial-<pid>`, rename on commit.
 
-    Use as a context manager: an exception inside the `with` removes the staging folder (DIR is
-    untouched); a clean exit commits if `commit()` was not called. DIR may be a new path, an empty
-    folder, or (with overwrite=True) a previous episode folder.
+    Use as a context manager: a clean exit commits if `commit()` was not called. An exception
+    inside the `with` leaves DIR untouched; whatever was staged (the video up to the error,
+    pictures) moves to `DIR.failed/` with error.json (the error's type and message), and the
+    exception gets a note naming that folder; with nothing staged, nothing is left. DIR may be a
+    new path, an empty folder, or (with overwrite=True) a previous episode folder.
     """
 
     def __init__(self, out_dir: str | Path, *, overwrite: bool = False, fps: float = 30.0) -> None:
@@ -158,6 +177,8 @@ class EpisodeWriter:
         self._cleanup = weakref.finalize(self, _discard_staging, self.staging_dir, self._videos)
         self._committed: Path | None = None
         self._aborted = False
+        self.failed: Path | None = None
+        """`DIR.failed` once an error left the staged files there (see keep_failed)."""
 
     def _check_target(self) -> None:
         """Raise OutputError unless DIR may be written (new, empty, or episode + overwrite)."""
@@ -292,6 +313,9 @@ class EpisodeWriter:
             ) from exc
         if old is not None:
             shutil.rmtree(old, ignore_errors=True)
+        stale = failed_dir(self.out_dir)
+        if is_failed_dir(stale):  # an earlier try's evidence; this episode replaces it
+            shutil.rmtree(stale, ignore_errors=True)
         self._cleanup.detach()
         self._committed = self.out_dir
         return self.out_dir
@@ -303,6 +327,38 @@ class EpisodeWriter:
         self._aborted = True
         self._cleanup()
 
+    def keep_failed(self, error: BaseException) -> Path | None:
+        """Move what was staged to `DIR.failed/` with error.json naming `error`, instead of
+        dropping it; DIR is untouched. Returns the folder, or None when nothing was staged or
+        `DIR.failed` is something else (then it is left alone and the staged files dropped)."""
+        if self._committed is not None or self._aborted:
+            return self.failed
+        self._aborted = True
+        for video in self._videos:
+            with contextlib.suppress(Exception):  # a video cut short by the error is still kept
+                video.close()
+        target = failed_dir(self.out_dir)
+        try:
+            staged = any(self.staging_dir.iterdir())
+        except OSError:
+            staged = False
+        if not staged or (target.exists() and not is_failed_dir(target)):
+            self._cleanup()
+            return None
+        report = {"error_type": type(error).__name__, "error": str(error)}
+        try:
+            (self.staging_dir / RESULT_FILE).unlink(missing_ok=True)  # not an episode
+            (self.staging_dir / ERROR_FILE).write_text(json.dumps(report, indent=2) + "\n")
+            if target.exists():
+                shutil.rmtree(target)
+            os.replace(self.staging_dir, target)
+        except OSError:
+            self._cleanup()
+            return None
+        self._cleanup.detach()
+        self.failed = target
+        return target
+
     def __enter__(self) -> EpisodeWriter:
         return self
 
@@ -313,6 +369,11 @@ class EpisodeWriter:
         tb: TracebackType | None,
     ) -> None:
         if exc_type is not None:
+            if isinstance(exc, Exception):
+                kept = self.keep_failed(exc)
+                if kept is not None:
+                    files = ", ".join(sorted(p.name for p in kept.iterdir()))
+                    exc.add_note(f"what the episode recorded up to the error: {kept} ({files})")
             self.abort()
             return
         if self._committed is None and not self._aborted:

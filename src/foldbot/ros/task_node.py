@@ -10,6 +10,7 @@ cloth.npz, video.mp4 (the camera stream with the debug overlays) and the overlay
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import json
 import sys
@@ -80,6 +81,11 @@ class _Inbox:
 
 class RosCell(FoldCell):
     """The cell as seen over topics: the perception, planner and sim nodes."""
+
+    def stop_video(self) -> None:
+        """Let no more camera frames into the video (they arrive on rospy's threads)."""
+        with self._lock:
+            self.video = None
 
     def __init__(self, layout: CellLayout, video: EpisodeWriter | None, arms: int = 1) -> None:
         self.table_height = layout.table_height
@@ -183,7 +189,8 @@ class RosCell(FoldCell):
             )
             frame = draw_overlay(obs, state, **self.overlay)
         with self._lock:
-            self.video.add_frame(frame)
+            if self.video is not None:  # stop_video may have run since the check above
+                self.video.add_frame(frame)
 
     # ------------------------------------------------------------------ requests
     def _command(self, publish, what: str) -> dict:
@@ -448,8 +455,9 @@ def run_task(fold_args: str, log=rospy.loginfo) -> dict:
     layout = cfg.sim.layout
     writer = EpisodeWriter(args.out, overwrite=args.overwrite, fps=max(cfg.video_fps, 1.0))
     wall0 = time.perf_counter()
-    with writer:
+    with writer, contextlib.ExitStack() as stack:
         cell = RosCell(layout, writer if cfg.video_fps > 0 else None, cfg.arms)
+        stack.callback(cell.stop_video)  # before the writer closes the video, error or not
         cell.wait_ready()
         initial = convert.cloud_array(cell.truth.take(lambda m: True, "initial ground truth"))
         mesh = cell.mesh.take(lambda m: True, "cloth mesh from the sim node")
@@ -477,8 +485,8 @@ def run_task(fold_args: str, log=rospy.loginfo) -> dict:
         record = fold(loop_config(cfg, thickness), cell, log)
         final = cell.ground_truth()
         score = score_episode(initial, final, faces, record.fold_lines, thickness)
+        cell.stop_video()
         with cell._lock:
-            cell.video = None
             if record.initial_overlay is not None:
                 writer.write_image("overlay_initial.png", record.initial_overlay)
             for k, image in enumerate(record.stage_overlays, start=1):
@@ -513,6 +521,8 @@ def main(argv: list[str] | None = None) -> int:
         result = run_task(rospy.get_param(FOLD_ARGS_PARAM))
     except errors.FoldbotError as exc:
         failure = {"ok": False, "error": str(exc), "error_type": type(exc).__name__}
+        if getattr(exc, "__notes__", None):  # where the video up to the error was left
+            failure["notes"] = list(exc.__notes__)
         pub.publish(String(data=json.dumps(failure)))
         error_file = rospy.get_param(ERROR_FILE_PARAM, "")
         if error_file:
