@@ -2,6 +2,10 @@
 re-grasp after an off placement, the crease room a stage leaves, and which arm takes which corner
 in a two-arm cell."""
 
+import json
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from cloth_states import LINE, state
@@ -109,3 +113,68 @@ def test_corners_too_close_for_two_grippers_are_carried_one_after_the_other():
     )
     assert not arms_apart(close_grasps)
     assert not arms_apart(close_places)
+
+
+# A quarter fold of a small towel into an episode folder, the simulation made to diverge (the
+# real error, raised from a world step hook as the divergence monitor raises it) as soon as the
+# first stage is done. Run in a fresh interpreter (Bullet's soft body is reproducible only as the
+# first simulation in its process).
+DIVERGING_FOLD = """
+import contextlib, json, sys
+from foldbot.errors import SimulationDivergedError
+from foldbot.garments.towel import TowelSpec
+from foldbot.io.episode import EpisodeWriter
+from foldbot.loop import fold_and_picture, run_fold
+from foldbot.perception.estimator import VisionEstimator
+from foldbot.pipeline import EpisodeConfig, SimCell, build_sim_cell, loop_config
+from foldbot.sim.cloth import settle
+from foldbot.sim.world import SimWorld
+
+cfg = EpisodeConfig(seed=0, recipe="quarter", towel=TowelSpec(0.3, 0.3, 8), video_fps=0.0)
+lines = []
+try:
+    with EpisodeWriter(sys.argv[1]) as writer, SimWorld(cfg.sim) as world, \\
+            contextlib.ExitStack() as stack:
+        parts = build_sim_cell(cfg, world)
+        stack.callback(parts.model_world.close)
+        settle(world, parts.cloth)
+
+        def diverge(world):
+            if any(line.startswith("stage 1 done") for line in lines):
+                raise SimulationDivergedError("cloth simulation diverged (injected)")
+
+        world.add_step_hook(diverge)
+        cell = SimCell(
+            world, parts.robot, parts.executor, parts.camera, VisionEstimator(), cfg.motion
+        )
+        fold_and_picture(
+            run_fold, loop_config(cfg, parts.cloth.thickness), cell, writer.write_image,
+            lines.append,
+        )
+except SimulationDivergedError as exc:
+    print(json.dumps({"error": str(exc), "log": lines}))
+"""
+
+
+@pytest.mark.slow
+def test_a_fold_ending_in_an_error_keeps_the_pictures_of_its_stages(tmp_path):
+    out = tmp_path / "ep"
+    proc = subprocess.run(
+        [sys.executable, "-c", DIVERGING_FOLD, str(out)],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    report = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert report["error"] == "cloth simulation diverged (injected)"
+    done = [line for line in report["log"] if " done" in line]
+    assert len(done) == 1 and done[0].startswith("stage 1 done")  # ended in the second stage
+    failed = tmp_path / "ep.failed"
+    assert not out.exists()
+    # The first stage's pictures, taken before the error; none of a stage or an end not reached.
+    assert sorted(p.name for p in failed.iterdir()) == [
+        "error.json",
+        "overlay_initial.png",
+        "overlay_stage1.png",
+    ]

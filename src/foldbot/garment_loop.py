@@ -305,11 +305,16 @@ def plan_overlay_all(
 
 
 def run_garment_fold(
-    cfg: LoopConfig, cell: FoldCell, log: Callable[[str], None] = print, settle_s: float = 0.3
+    cfg: LoopConfig,
+    cell: FoldCell,
+    log: Callable[[str], None] = print,
+    settle_s: float = 0.3,
+    record: FoldRecord | None = None,
 ) -> FoldRecord:
     """Fold a garment on `cell` with the recipe `cfg.recipe` (closed loop, or with
-    `cfg.closed_loop` False the open-loop baseline: planned grasps, no re-observation)."""
-    rec = FoldRecord()
+    `cfg.closed_loop` False the open-loop baseline: planned grasps, no re-observation); fills
+    and returns `record` (a new one if None), as run_fold."""
+    rec = FoldRecord() if record is None else record
     cell.park()
     state, obs = cell.observe()
     if not state.detected:

@@ -13,6 +13,7 @@ A cell with two arms (`FoldCell.arms`) carries a stage's two corners at once, on
 from __future__ import annotations
 
 import abc
+import contextlib
 import dataclasses
 import time
 from collections.abc import Callable
@@ -240,6 +241,40 @@ class FoldRecord:
     final_obs: Observation | None = None
 
 
+def write_fold_overlays(
+    record: FoldRecord, write_image: Callable[[str, np.ndarray], object]
+) -> None:
+    """Write the record's pictures: overlay_initial.png, overlay_stageK.png per stage done, and
+    overlay_final.png once the fold has finished (after an error, those made up to it)."""
+    if record.initial_overlay is not None:
+        write_image("overlay_initial.png", record.initial_overlay)
+    for k, image in enumerate(record.stage_overlays, start=1):
+        write_image(f"overlay_stage{k}.png", image)
+    if record.final_obs is not None and record.final_state is not None:
+        write_image("overlay_final.png", draw_overlay(record.final_obs, record.final_state))
+
+
+def fold_and_picture(
+    fold: Callable[..., FoldRecord],
+    cfg: LoopConfig,
+    cell: FoldCell,
+    write_image: Callable[[str, np.ndarray], object],
+    log: Callable[[str], None] = print,
+) -> FoldRecord:
+    """Run `fold` (run_fold or run_garment_fold) on `cell` and write its pictures
+    (write_fold_overlays), also when it ends in an error: then those made up to it, and the
+    error is raised on."""
+    record = FoldRecord()
+    try:
+        fold(cfg, cell, log, record=record)
+    except Exception:
+        with contextlib.suppress(Exception):  # the error itself is what must surface
+            write_fold_overlays(record, write_image)
+        raise
+    write_fold_overlays(record, write_image)
+    return record
+
+
 def line_points(line: tuple[float, float, float, float], z: float) -> np.ndarray:
     """The fold line's segment across the cloth as two world points, for drawing."""
     x, y, dx, dy = line
@@ -285,11 +320,16 @@ def require_in_view(state: ClothState) -> None:
 
 
 def run_fold(
-    cfg: LoopConfig, cell: FoldCell, log: Callable[[str], None] = print, settle_s: float = 0.3
+    cfg: LoopConfig,
+    cell: FoldCell,
+    log: Callable[[str], None] = print,
+    settle_s: float = 0.3,
+    record: FoldRecord | None = None,
 ) -> FoldRecord:
     """Fold the cloth on `cell` stage by stage in a closed loop (or, with
-    `cfg.closed_loop` False, the open-loop baseline); returns the record."""
-    rec = FoldRecord()
+    `cfg.closed_loop` False, the open-loop baseline); fills and returns `record` (a new one if
+    None: a caller holding it keeps the stages done before an error)."""
+    rec = FoldRecord() if record is None else record
     cell.park()
     state, obs = cell.observe()
     if not cfg.closed_loop:

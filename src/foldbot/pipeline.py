@@ -32,7 +32,15 @@ from foldbot.garments import sample_garment
 from foldbot.garments.mesh import ClothMesh
 from foldbot.garments.towel import TowelSpec, make_towel
 from foldbot.io.episode import EpisodeWriter
-from foldbot.loop import FoldCell, FoldRecord, LoopConfig, StepLog, nearest_arm, run_fold
+from foldbot.loop import (
+    FoldCell,
+    FoldRecord,
+    LoopConfig,
+    StepLog,
+    fold_and_picture,
+    nearest_arm,
+    run_fold,
+)
 from foldbot.metrics import score_episode
 from foldbot.perception.fallback import vision_estimator
 from foldbot.perception.overlay import draw_overlay
@@ -581,14 +589,10 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
             flattened = crumple_and_flatten(cfg, parts, cell, writer, log)
         initial = oracle.cloth_vertices()
         fold = run_fold if cfg.garment == "towel" else run_garment_fold
-        record = fold(loop_config(cfg, cloth.thickness), cell, log)
+        loop_cfg = loop_config(cfg, cloth.thickness)
+        record = fold_and_picture(fold, loop_cfg, cell, writer.write_image, log)
         final = oracle.cloth_vertices()
         score = score_episode(initial, final, mesh.faces, record.fold_lines, cloth.thickness)
-        if record.initial_overlay is not None:
-            writer.write_image("overlay_initial.png", record.initial_overlay)
-        for k, image in enumerate(record.stage_overlays, start=1):
-            writer.write_image(f"overlay_stage{k}.png", image)
-        writer.write_image("overlay_final.png", draw_overlay(record.final_obs, record.final_state))
         if recorder is not None:
             recorder.capture()
         writer.write_cloth(mesh.faces, initial, final, cloth.thickness)

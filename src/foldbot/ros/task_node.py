@@ -32,7 +32,14 @@ from foldbot import errors
 from foldbot.flatten import flatten_and_score
 from foldbot.garment_loop import run_garment_fold
 from foldbot.io.episode import EpisodeWriter
-from foldbot.loop import FoldCell, StepLog, corners_of, nearest_arm, run_fold
+from foldbot.loop import (
+    FoldCell,
+    StepLog,
+    corners_of,
+    fold_and_picture,
+    nearest_arm,
+    run_fold,
+)
 from foldbot.metrics import score_episode
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState
@@ -463,14 +470,14 @@ def run_task(fold_args: str, log=rospy.loginfo) -> dict:
         mesh = cell.mesh.take(lambda m: True, "cloth mesh from the sim node")
         thickness = float(mesh["thickness"])  # the loop's layer height where depth tells nothing
         faces = np.array(mesh["faces"], dtype=np.int64)
+
+        def write_image(name: str, image: np.ndarray) -> None:
+            with cell._lock:  # the video's frames are written from the camera's callbacks
+                writer.write_image(name, image)
+
         flattened = None
         if cfg.start == "crumpled":
             spec = seeded_garment(cfg)[0]
-
-            def write_image(name: str, image: np.ndarray) -> None:
-                with cell._lock:  # the video's frames are written from the camera's callbacks
-                    writer.write_image(name, image)
-
             flattened, initial = flatten_and_score(
                 cell,
                 (spec.width, spec.height),
@@ -482,18 +489,11 @@ def run_task(fold_args: str, log=rospy.loginfo) -> dict:
                 log,
             )
         fold = run_fold if cfg.garment == "towel" else run_garment_fold
-        record = fold(loop_config(cfg, thickness), cell, log)
+        record = fold_and_picture(fold, loop_config(cfg, thickness), cell, write_image, log)
         final = cell.ground_truth()
         score = score_episode(initial, final, faces, record.fold_lines, thickness)
         cell.stop_video()
         with cell._lock:
-            if record.initial_overlay is not None:
-                writer.write_image("overlay_initial.png", record.initial_overlay)
-            for k, image in enumerate(record.stage_overlays, start=1):
-                writer.write_image(f"overlay_stage{k}.png", image)
-            writer.write_image(
-                "overlay_final.png", draw_overlay(record.final_obs, record.final_state)
-            )
             writer.write_cloth(faces, initial, final, thickness)
             result = episode_result(
                 cfg,
