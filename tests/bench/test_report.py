@@ -49,6 +49,10 @@ def test_report_files(tmp_path, tiny_suite_data):
     assert "towel half, oracle, closed loop" in md and "vision / oracle" in md
     assert "foldbot bench --suite tiny --out X" in md
     assert "FabricFlowNet" in md and "timeout" in md
+    timed_out = records[-1]["id"]
+    inaccurate = next(r["id"] for r in records if "result" in r and not r["result"]["success"])
+    assert f"| timeout | 1 | [{timed_out}](episodes/{timed_out}.error.json) |" in md
+    assert f"[{inaccurate}](episodes/{inaccurate})" in md
 
 
 def test_markdown_says_incomplete(tiny_suite_data):

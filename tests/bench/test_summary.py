@@ -28,8 +28,9 @@ def test_group_stats_by_hand():
         {"id": "c", "result": result(False, 30.0, 0.5, sim=14, wall=40, grasps=(True, False))},
         {"id": "d", "result": result(False, 20.0, 0.82, sim=8, wall=10)},
         {"id": "e", "error_type": "SimulationDivergedError", "error": "cloth simulation diverged"},
+        {"id": "f", "error_type": "Timeout", "error": "no result", "failed_dir": "f.failed"},
     ]
-    s = group_stats(records)
+    s = group_stats(records[:-1])
     assert s["episodes"] == 5 and s["scored"] == 4 and s["successes"] == 2
     assert s["success_rate"] == pytest.approx(2 / 5)  # the diverged episode counts as a failure
     errs = [5.0, 7.0, 30.0, 20.0]
@@ -46,6 +47,13 @@ def test_group_stats_by_hand():
     assert s["sim_speed"] == pytest.approx(44 / 90)
     assert s["failures"] == {"fold inaccurate": 1, "grasp failed": 1, "diverged": 1}
     assert s["failed_episodes"]["grasp failed"] == ["c"]
+    # Where to look at each failure: the scored folder, else what the error left, else its record.
+    assert s["failed_evidence"] == {
+        "c": "episodes/c",
+        "d": "episodes/d",
+        "e": "episodes/e.error.json",
+    }
+    assert group_stats(records)["failed_evidence"]["f"] == "episodes/f.failed"
 
 
 def test_group_stats_perfect_fold_error_over_records_that_have_it():

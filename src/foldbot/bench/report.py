@@ -116,11 +116,21 @@ def markdown(summary: dict) -> str:
             )
     failed = summary["overall"]["failed_episodes"]
     if failed:
+        evidence = summary["overall"].get("failed_evidence", {})
+
+        def link(i: str) -> str:
+            return f"[{i}]({evidence[i]})" if i in evidence else i
+
         lines += ["", "## Failures by cause", "", "| cause | episodes | ids |", "|---|---|---|"]
         for cause, ids in failed.items():
-            shown = ", ".join(ids[:8]) + (f", … ({len(ids) - 8} more)" if len(ids) > 8 else "")
+            shown = ", ".join(link(i) for i in ids)
             lines.append(f"| {cause} | {len(ids)} | {shown} |")
-        lines += ["", "Causes: " + ", ".join(CAUSES) + "."]
+        lines += [
+            "",
+            "Causes: " + ", ".join(CAUSES) + ". Each id links to the episode's folder, or for "
+            "one that ended in an error to what it recorded up to it (`<id>.failed/`: video, "
+            "pictures) or its error record.",
+        ]
     ref = summary.get("ravens_speed_reference")
     if ref:
         lines += [

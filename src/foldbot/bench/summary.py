@@ -79,6 +79,16 @@ def failure_cause(record: dict) -> str | None:
     return f"other error ({kind or 'unknown'})"
 
 
+def evidence_path(record: dict) -> str:
+    """Where, relative to the benchmark folder, to look at an episode: its folder when scored;
+    what it recorded up to its error (`<id>.failed/`) when kept; else its error record."""
+    if "result" in record:
+        return f"episodes/{record['id']}"
+    if record.get("failed_dir"):
+        return f"episodes/{record['failed_dir']}"
+    return f"episodes/{record['id']}.error.json"
+
+
 def _finite(values: list[Any]) -> np.ndarray:
     a = np.array([v for v in values if v is not None], dtype=float)
     return a[np.isfinite(a)]
@@ -111,10 +121,12 @@ def group_stats(records: list[dict]) -> dict[str, Any]:
     sim = sum(r.get("sim_seconds") or 0.0 for r in scored)
     wall = sum(r.get("wall_seconds") or 0.0 for r in scored)
     causes: dict[str, list[str]] = defaultdict(list)
+    evidence: dict[str, str] = {}
     for rec in records:
         cause = failure_cause(rec)
         if cause is not None:
             causes[cause].append(rec["id"])
+            evidence[rec["id"]] = evidence_path(rec)
     order = {c: i for i, c in enumerate(CAUSES)}
     failures = dict(sorted(causes.items(), key=lambda kv: (order.get(kv[0], len(order)), kv[0])))
     return {
@@ -135,6 +147,7 @@ def group_stats(records: list[dict]) -> dict[str, Any]:
         "sim_speed": sim / wall if wall > 0 else None,
         "failures": {c: len(ids) for c, ids in failures.items()},
         "failed_episodes": failures,
+        "failed_evidence": evidence,
         "flatten": flatten_stats(records),
     }
 
