@@ -35,7 +35,8 @@ def test_cpu_flags_reads_the_first_flags_line() -> None:
 
 def test_caps_an_avx512_cpu_at_avx2(tmp_path: Path) -> None:
     env: dict[str, str] = {}
-    got = cap_simd_level(env, cpuinfo(tmp_path, "avx2 fma avx512f"), machine="x86_64")
+    avx512 = "avx2 fma avx512f avx512cd avx512bw avx512dq avx512vl"
+    got = cap_simd_level(env, cpuinfo(tmp_path, avx512), machine="x86_64")
     assert (
         env
         == got
@@ -50,12 +51,41 @@ def test_caps_an_avx512_cpu_at_avx2(tmp_path: Path) -> None:
     assert "AVX512_SKX" in NUMPY_DISABLED_FEATURES.split()  # older numpy's
 
 
+def test_an_avx2_cpu_leaves_opencv_alone(tmp_path: Path) -> None:
+    """OpenCV has nothing above AVX2 to switch off there, and warns at every start if asked to."""
+    env: dict[str, str] = {}
+    got = cap_simd_level(env, cpuinfo(tmp_path, "avx2 fma avx512f"), machine="x86_64")
+    assert (
+        env
+        == got
+        == {
+            "OPENBLAS_CORETYPE": OPENBLAS_CORETYPE,
+            "NPY_DISABLE_CPU_FEATURES": NUMPY_DISABLED_FEATURES,
+        }
+    )
+
+
+def test_opencv_starts_without_a_warning_in_a_capped_process() -> None:
+    out = subprocess.run(
+        [sys.executable, "-c", "import foldbot, cv2"],
+        capture_output=True,
+        text=True,
+        env={k: v for k, v in os.environ.items() if k not in CAP},
+        check=True,
+    )
+    assert "OPENCV" not in out.stderr, out.stderr
+
+
 def test_keeps_what_the_user_set(tmp_path: Path) -> None:
-    env = {"OPENBLAS_CORETYPE": "SkylakeX", "NPY_DISABLE_CPU_FEATURES": ""}
+    env = {
+        "OPENBLAS_CORETYPE": "SkylakeX",
+        "NPY_DISABLE_CPU_FEATURES": "",
+        "OPENCV_CPU_DISABLE": "",
+    }
     got = cap_simd_level(env, cpuinfo(tmp_path, "avx2 fma"), machine="x86_64")
     assert got["OPENBLAS_CORETYPE"] == "SkylakeX"
     assert got["NPY_DISABLE_CPU_FEATURES"] == ""
-    assert got["OPENCV_CPU_DISABLE"] == OPENCV_DISABLED_FEATURES
+    assert got["OPENCV_CPU_DISABLE"] == ""
 
 
 @pytest.mark.parametrize(

@@ -60,13 +60,15 @@ class FlattenRecord:
         return contact_sheet(self.overlays, self.captions) if self.overlays else None
 
     def result_entry(
-        self, coverage_start: float, coverage_end: float, max_actions: int
+        self, coverage_start: float, coverage_end: float, max_actions: int, policy: str = "vision"
     ) -> dict[str, Any]:
         """result.json's "flatten" entry; the two coverages are GROUND TRUTH (metrics only),
-        measured by the caller before and after flattening."""
+        measured by the caller before and after flattening; `policy` names what planned the
+        pulls ("vision", or "oracle")."""
         n = sum(not a.get("skipped_unreachable", False) for a in self.actions)
         return {
             "success": bool(metrics.flatten_success(coverage_end) and n <= max_actions),
+            "policy": policy,
             "actions": n,
             "max_actions": max_actions,
             "coverage_start": coverage_start,
@@ -235,8 +237,9 @@ def flatten_and_score(
     sheet = record.sheet()
     if sheet is not None:
         write_image("flatten.png", sheet)
-    entry = record.result_entry(start, end, cfg.max_actions)
-    entry["policy"] = "vision" if oracle is None else "oracle"
+    entry = record.result_entry(
+        start, end, cfg.max_actions, "vision" if oracle is None else "oracle"
+    )
     log(f"flattened: coverage {start:.2f} → {end:.2f} in {entry['actions']} actions")
     return entry, flattened
 

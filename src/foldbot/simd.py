@@ -33,6 +33,9 @@ CAP = {
 """The environment variables that cap the three libraries, and their values."""
 REQUIRED_CPU_FLAGS = frozenset({"avx2", "fma"})
 """CPU flags (as /proc/cpuinfo spells them) of the level every machine is capped at."""
+OPENCV_AVX512_FLAGS = frozenset({"avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl"})
+"""CPU flags OpenCV's AVX512-SKX dispatch needs: only where all are present is it switched off
+(elsewhere OpenCV would not use it, and prints a warning at every start when asked to)."""
 
 
 def cpu_flags(cpuinfo: str) -> frozenset[str]:
@@ -49,8 +52,9 @@ def cap_simd_level(
     cpuinfo_path: Path = Path("/proc/cpuinfo"),
     machine: str | None = None,
 ) -> dict[str, str]:
-    """Cap numpy, OpenBLAS and OpenCV at AVX2 with FMA where the CPU has both (x86-64 Linux),
-    keeping any value the user set; return the settings in force (empty: the libraries choose)."""
+    """Cap numpy, OpenBLAS and OpenCV at AVX2 with FMA where the CPU has both (x86-64 Linux; OpenCV
+    only where it has AVX-512 to switch off), keeping any value the user set; return the settings
+    in force (empty: the libraries choose)."""
     if (machine or platform.machine()).lower() in ("x86_64", "amd64"):
         try:
             flags = cpu_flags(cpuinfo_path.read_text())
@@ -58,5 +62,7 @@ def cap_simd_level(
             flags = frozenset()
         if flags >= REQUIRED_CPU_FLAGS:
             for name, value in CAP.items():
+                if name == "OPENCV_CPU_DISABLE" and not flags >= OPENCV_AVX512_FLAGS:
+                    continue
                 environ.setdefault(name, value)
     return {k: environ[k] for k in CAP if k in environ}
