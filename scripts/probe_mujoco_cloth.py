@@ -16,11 +16,15 @@ membrane, damping 1e-4) on a rigid table. Three measurements:
   cm, dragged 20–60 % of the diagonal across the cloth, let go 2–8 cm up), 2 s of settling, then
   4 s of rest with nothing touching: the fastest vertex's speed (median over the rest), the
   deepest vertex centre under the table top, and whether the cloth stayed finite and in place.
-- Both report simulated / wall seconds (one core).
+- `flatten`: `towel_crumpled`'s towels crumpled as `heap` does, then flattened by foldbot's
+  corner-pulling oracle (`sim.flatten_oracle`, ground truth) with an ideal holder, within
+  `FlattenConfig`'s budget and target coverage.
+- Each reports simulated / wall seconds (one core).
 
     pip install "mujoco>=4"        # not a foldbot dependency
     python scripts/probe_mujoco_cloth.py fold --recipe half --grippers 2 --seeds 0-4
     python scripts/probe_mujoco_cloth.py heap --seeds 0-7
+    python scripts/probe_mujoco_cloth.py flatten --seeds 0-9 --timestep 0.005 --young 1e5
 
 One JSON line per seed on stdout, a summary line on stderr.
 """
@@ -51,13 +55,13 @@ RADIUS = 0.005
 REST_S = 4.0
 
 
-def towel_mesh(seed: int):
-    """`towel_loop`'s towel for this seed (its size and odd-count mesh), unrotated at (0, 0)."""
+def towel_mesh(seed: int, suite: str = "towel_loop"):
+    """`suite`'s towel for this seed (its size and mesh), unrotated, centred at the origin."""
     from foldbot.bench.suite import load_suite
     from foldbot.garments.towel import make_towel
     from foldbot.pipeline import seeded_towel
 
-    spec = next(e for e in load_suite("towel_loop").episodes if e.seed == seed)
+    spec = next(e for e in load_suite(suite).episodes if e.seed == seed)
     towel = seeded_towel(spec.to_config())
     return towel, make_towel(towel)
 
@@ -66,10 +70,11 @@ ELASTICITY = {"young": 2e4, "elastic2d": "both"}
 """The shell elasticity used (the command line may change it)."""
 
 
-def build(mesh, timestep: float, grippers: int):
-    """The MuJoCo model: table, the towel as a flex on the table top, `grippers` mocap bodies with
-    an inactive `connect` from every vertex to each (activated to hold that vertex)."""
+def build(mesh, timestep: float, grippers: int, centre: tuple[float, float] = (0.0, 0.0)):
+    """The MuJoCo model: table, the towel as a flex on the table top at `centre`, `grippers`
+    mocap bodies with an inactive `connect` from every vertex to each (activated to hold it)."""
     v = mesh.vertices.copy()
+    v[:, :2] += centre
     v[:, 2] = TABLE_TOP + RADIUS + 1e-4
     points = " ".join(f"{x:.6f} {y:.6f} {z:.6f}" for x, y, z in v)
     elements = " ".join(str(int(i)) for i in mesh.faces.ravel())
@@ -236,6 +241,30 @@ def fold(seed: int, recipe: str, grippers: int, timestep: float) -> dict:
     return out
 
 
+def crumple(model, data, cloth: MjCloth, holder: Holder, towel, rng, timestep: float) -> None:
+    """Settle, then one pinch-lift-drag-drop like sim.crumple's fold style (drawn from `rng`),
+    then 2 s of settling."""
+    step(model, data, round(1.0 / timestep), cloth)
+    v = cloth.sim_vertices()
+    pick = int(rng.integers(len(v)))
+    start = v[pick]
+    centroid = v.mean(axis=0)
+    heading = np.arctan2(*(centroid - start)[1::-1]) + rng.uniform(-np.pi / 4, np.pi / 4)
+    diagonal = float(np.hypot(towel.width, towel.height))
+    drag = rng.uniform(0.2, 0.6) * diagonal
+    lift = start + [0, 0, rng.uniform(0.20, 0.35)]
+    low = lift.copy()
+    low[2] = TABLE_TOP + 0.12
+    drop = low + drag * np.array([np.cos(heading), np.sin(heading), 0.0])
+    drop[2] = TABLE_TOP + rng.uniform(0.02, 0.08)
+    holder.hold(pick)
+    for p in timed_path(np.array([start, lift, low, drop]), 0.4, timestep):
+        holder.move_to(p)
+        step(model, data, 1, cloth)
+    holder.release()
+    step(model, data, round(2.0 / timestep), cloth)
+
+
 def heap(seed: int, timestep: float) -> dict:
     """Crumple the settled towel once (seeded), let it settle, then rest and watch it."""
     towel, mesh = towel_mesh(seed)
@@ -246,26 +275,7 @@ def heap(seed: int, timestep: float) -> dict:
     out: dict = {"seed": seed, "timestep": timestep}
     wall = time.perf_counter()
     try:
-        step(model, data, round(1.0 / timestep), cloth)
-        v = cloth.sim_vertices()
-        pick = int(rng.integers(len(v)))
-        start = v[pick]
-        centroid = v.mean(axis=0)
-        heading = np.arctan2(*(centroid - start)[1::-1]) + rng.uniform(-np.pi / 4, np.pi / 4)
-        diagonal = float(np.hypot(towel.width, towel.height))
-        drag = rng.uniform(0.2, 0.6) * diagonal
-        lift = start + [0, 0, rng.uniform(0.20, 0.35)]
-        low = lift.copy()
-        low[2] = TABLE_TOP + 0.12
-        drop = low + drag * np.array([np.cos(heading), np.sin(heading), 0.0])
-        drop[2] = TABLE_TOP + rng.uniform(0.02, 0.08)
-        holder.hold(pick)
-        path = timed_path(np.array([start, lift, low, drop]), 0.4, timestep)
-        for p in path:
-            holder.move_to(p)
-            step(model, data, 1, cloth)
-        holder.release()
-        step(model, data, round(2.0 / timestep), cloth)
+        crumple(model, data, cloth, holder, towel, rng, timestep)
         speeds, deepest = [], 0.0
         prev = cloth.sim_vertices()
         every = max(1, round(0.01 / timestep))
@@ -289,9 +299,65 @@ def heap(seed: int, timestep: float) -> dict:
     return out
 
 
+def flatten(seed: int, timestep: float) -> dict:
+    """`towel_crumpled`'s towel crumpled (this probe's crumple), then flattened by the corner-
+    pulling oracle (sim.flatten_oracle, ground truth) with an ideal holder: at most
+    FlattenConfig.max_actions pulls, each along the planner's carry arc, until the coverage
+    reaches FlattenConfig.target_coverage."""
+    from types import SimpleNamespace
+
+    from foldbot import metrics
+    from foldbot.planning.flatten import FlattenConfig
+    from foldbot.planning.motion import MotionConfig, carry_arc
+    from foldbot.sim.flatten_oracle import CornerPullOracle
+
+    towel, mesh = towel_mesh(seed, "towel_crumpled")
+    cfg, mcfg = FlattenConfig(), MotionConfig()
+    centre = (0.45, 0.0)  # the cell's workspace centre, which FlattenConfig.workspace is around
+    model, data = build(mesh, timestep, 1, centre)
+    cloth = MjCloth(model, data, mesh)
+    holder = Holder(model, data, cloth, 0)
+    rest = mesh.vertices.copy()
+    rest[:, :2] += centre
+    oracle = CornerPullOracle(cloth.sim_vertices, rest, mesh.keypoints)
+    state = SimpleNamespace(table_plane=np.array([0.0, 0.0, 1.0, -TABLE_TOP]))
+    out: dict = {"seed": seed, "timestep": timestep, "coverage": []}
+    wall = time.perf_counter()
+    try:
+        crumple(model, data, cloth, holder, towel, np.random.default_rng([seed, 2]), timestep)
+        coverage = metrics.coverage(cloth.sim_vertices(), mesh.faces, mesh.area)
+        out["coverage"].append(round(coverage, 3))
+        pulls = 0
+        while coverage < cfg.target_coverage and pulls < cfg.max_actions:
+            _outline, planned = oracle(state, cfg)
+            if not planned:
+                break
+            action = planned[0].action
+            v = cloth.sim_vertices()
+            grab = int(np.linalg.norm(v[:, :2] - action.grasp[:2], axis=1).argmin())
+            path = timed_path(
+                carry_arc(v[grab], action.place, mcfg), mcfg.cartesian_speed, timestep
+            )
+            holder.hold(grab)
+            for p in path:
+                holder.move_to(p)
+                step(model, data, 1, cloth)
+            holder.release()
+            step(model, data, round((0.5 + cfg.settle_time) / timestep), cloth)
+            pulls += 1
+            coverage = metrics.coverage(cloth.sim_vertices(), mesh.faces, mesh.area)
+            out["coverage"].append(round(coverage, 3))
+        out.update(pulls=pulls, flattened=bool(coverage >= cfg.target_coverage))
+    except FloatingPointError as exc:
+        out["error"] = str(exc)
+    out["sim_s"] = round(float(data.time), 2)
+    out["speed"] = round(float(data.time) / (time.perf_counter() - wall), 2)
+    return out
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("what", choices=("fold", "heap"))
+    ap.add_argument("what", choices=("fold", "heap", "flatten"))
     ap.add_argument("--recipe", default="half")
     ap.add_argument("--grippers", type=int, choices=(1, 2), default=2)
     ap.add_argument("--seeds", default="0-4")
@@ -307,8 +373,10 @@ def main() -> int:
     for seed in parse_seeds(args.seeds):
         if args.what == "fold":
             row = fold(seed, args.recipe, args.grippers, args.timestep)
-        else:
+        elif args.what == "heap":
             row = heap(seed, args.timestep)
+        else:
+            row = flatten(seed, args.timestep)
         rows.append(row)
         print(json.dumps(row), flush=True)
     ok = [r for r in rows if "error" not in r]
@@ -320,6 +388,13 @@ def main() -> int:
             f"{len(rows) - len(ok)} of {len(rows)} diverged; success "
             f"{sum(r['success'] for r in ok)}; fold error mean {err.mean():.1f} / median "
             f"{np.median(err):.1f} mm; speed median {speed:.2f}x",
+            file=sys.stderr,
+        )
+    elif args.what == "flatten":
+        print(
+            f"# flatten, dt {args.timestep}: {len(rows) - len(ok)} of {len(rows)} diverged; "
+            f"flattened {sum(r['flattened'] for r in ok)} of {len(rows)}; coverage after "
+            f"{np.round([r['coverage'][-1] for r in ok], 2).tolist()}; speed median {speed:.2f}x",
             file=sys.stderr,
         )
     elif ok:
