@@ -5,7 +5,7 @@ The same towels as `scripts/measure_two_grippers.py` (`towel_loop`'s sizes and o
 laid flat at the workspace centre unrotated) become a MuJoCo `flexcomp` (the mesh's own vertices
 and triangles; 0.1 kg; collision radius 5 mm, so 10 mm thick as foldbot's cloth; self-collision;
 MuJoCo's shell elasticity with its drape example's values: Young 2e4 Pa, Poisson 0.2, 1 mm
-membrane, damping 1e-4) on a rigid table. Three measurements:
+membrane, damping 1e-4; `--young` changes the modulus) on a rigid table. Four measurements:
 
 - `fold`: ideal grippers fold the towel as the PyBullet probe does: each stage planned by
   `planning.recipes.plan_stage` on GROUND-TRUTH corners; each action holds the vertex nearest its
@@ -19,12 +19,16 @@ membrane, damping 1e-4) on a rigid table. Three measurements:
 - `flatten`: `towel_crumpled`'s towels crumpled as `heap` does, then flattened by foldbot's
   corner-pulling oracle (`sim.flatten_oracle`, ground truth) with an ideal holder, within
   `FlattenConfig`'s budget and target coverage.
+- `spread`: the same crumpled towels flattened by two ideal holders lifting two adjacent corners
+  (ground truth) until the towel hangs free, spreading them one edge apart, and laying it down
+  at 45°; `scripts/measure_spread.py` is its PyBullet twin.
 - Each reports simulated / wall seconds (one core).
 
     pip install "mujoco>=4"        # not a foldbot dependency
     python scripts/probe_mujoco_cloth.py fold --recipe half --grippers 2 --seeds 0-4
     python scripts/probe_mujoco_cloth.py heap --seeds 0-7
     python scripts/probe_mujoco_cloth.py flatten --seeds 0-9 --timestep 0.005 --young 1e5
+    python scripts/probe_mujoco_cloth.py spread --seeds 0-19 --timestep 0.005 --young 1e5
 
 One JSON line per seed on stdout, a summary line on stderr.
 """
@@ -53,6 +57,8 @@ TABLE_TOP = 0.0
 RADIUS = 0.005
 """Flex collision radius (m): a 10 mm thick sheet, as foldbot's cloth."""
 REST_S = 4.0
+SPREAD_LAY_SPEED = 0.1
+"""m/s at which `spread` lays the hanging towel down (after 1 s hanging still)."""
 
 
 def towel_mesh(seed: int, suite: str = "towel_loop"):
@@ -355,9 +361,86 @@ def flatten(seed: int, timestep: float) -> dict:
     return out
 
 
+def spread(seed: int, timestep: float) -> dict:
+    """`towel_crumpled`'s towel crumpled as in `flatten`, then flattened by two ideal holders
+    lifting two adjacent corners (GROUND TRUTH) until the towel hangs free, spreading them one
+    edge apart in the air and laying the hanging towel down at 45° from the far side of the
+    workspace to the near one; repeated with the next edge while under the target coverage,
+    within FlattenConfig's budget."""
+    from foldbot import metrics
+    from foldbot.planning.flatten import FlattenConfig
+
+    towel, mesh = towel_mesh(seed, "towel_crumpled")
+    cfg = FlattenConfig()
+    centre = np.array([0.45, 0.0])
+    model, data = build(mesh, timestep, 2, tuple(centre))
+    cloth = MjCloth(model, data, mesh)
+    holders = [Holder(model, data, cloth, g) for g in range(2)]
+    corners = [mesh.keypoints[k] for k in ("corner_00", "corner_10", "corner_11", "corner_01")]
+    rest = mesh.vertices[:, :2]
+    out: dict = {"seed": seed, "timestep": timestep, "coverage": []}
+    wall = time.perf_counter()
+    try:
+        rng = np.random.default_rng([seed, 2])
+        crumple(model, data, cloth, holders[0], towel, rng, timestep)
+        coverage = metrics.coverage(cloth.sim_vertices(), mesh.faces, mesh.area)
+        out["coverage"].append(round(coverage, 3))
+        actions = 0
+        while coverage < cfg.target_coverage and actions < cfg.max_actions:
+            a, b = corners[actions % 4], corners[(actions + 1) % 4]  # an edge, then the next
+            edge = float(np.linalg.norm(rest[a] - rest[b]))
+            depth = float(mesh.area / edge)  # the towel's other side
+            lift = depth + 0.1  # the towel hangs free of the table
+            v = cloth.sim_vertices()
+            # The corner that lies to the left in the flat towel (looking along +x) goes left.
+            ya, yb = (-edge / 2, edge / 2)
+            paths = []
+            for vertex, y in ((a, ya), (b, yb)):
+                now = v[vertex]
+                waypoints = np.array(
+                    [
+                        now,
+                        [now[0], now[1], TABLE_TOP + lift],
+                        [centre[0] + depth / 2, centre[1] + y, TABLE_TOP + lift],
+                        [centre[0] + depth / 2, centre[1] + y, TABLE_TOP + lift],  # hang still
+                        # The free edge just touches the table at the far side, then the held
+                        # edge comes down at 45° so the towel is laid, not heaped.
+                        [centre[0] + depth / 2, centre[1] + y, TABLE_TOP + depth + RADIUS],
+                        [centre[0] - depth / 2, centre[1] + y, TABLE_TOP + 0.02],
+                    ]
+                )
+                paths.append(
+                    np.vstack(
+                        [
+                            timed_path(waypoints[:3], 0.25, timestep),
+                            np.repeat(waypoints[3:4], round(1.0 / timestep), axis=0),
+                            timed_path(waypoints[3:], SPREAD_LAY_SPEED, timestep),
+                        ]
+                    )
+                )
+            for holder, vertex in zip(holders, (a, b), strict=True):
+                holder.hold(vertex)
+            for k in range(max(len(q) for q in paths)):
+                for holder, path in zip(holders, paths, strict=True):
+                    holder.move_to(path[min(k, len(path) - 1)])
+                step(model, data, 1, cloth)
+            for holder in holders:
+                holder.release()
+            step(model, data, round((0.5 + cfg.settle_time) / timestep), cloth)
+            actions += 1
+            coverage = metrics.coverage(cloth.sim_vertices(), mesh.faces, mesh.area)
+            out["coverage"].append(round(coverage, 3))
+        out.update(pulls=actions, flattened=bool(coverage >= cfg.target_coverage))
+    except FloatingPointError as exc:
+        out["error"] = str(exc)
+    out["sim_s"] = round(float(data.time), 2)
+    out["speed"] = round(float(data.time) / (time.perf_counter() - wall), 2)
+    return out
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("what", choices=("fold", "heap", "flatten"))
+    ap.add_argument("what", choices=("fold", "heap", "flatten", "spread"))
     ap.add_argument("--recipe", default="half")
     ap.add_argument("--grippers", type=int, choices=(1, 2), default=2)
     ap.add_argument("--seeds", default="0-4")
@@ -375,8 +458,10 @@ def main() -> int:
             row = fold(seed, args.recipe, args.grippers, args.timestep)
         elif args.what == "heap":
             row = heap(seed, args.timestep)
-        else:
+        elif args.what == "flatten":
             row = flatten(seed, args.timestep)
+        else:
+            row = spread(seed, args.timestep)
         rows.append(row)
         print(json.dumps(row), flush=True)
     ok = [r for r in rows if "error" not in r]
@@ -390,9 +475,9 @@ def main() -> int:
             f"{np.median(err):.1f} mm; speed median {speed:.2f}x",
             file=sys.stderr,
         )
-    elif args.what == "flatten":
+    elif args.what in ("flatten", "spread"):
         print(
-            f"# flatten, dt {args.timestep}: {len(rows) - len(ok)} of {len(rows)} diverged; "
+            f"# {args.what}, dt {args.timestep}: {len(rows) - len(ok)} of {len(rows)} diverged; "
             f"flattened {sum(r['flattened'] for r in ok)} of {len(rows)}; coverage after "
             f"{np.round([r['coverage'][-1] for r in ok], 2).tolist()}; speed median {speed:.2f}x",
             file=sys.stderr,

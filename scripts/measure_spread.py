@@ -1,0 +1,149 @@
+"""Would two corners lifted, spread and laid flatten a crumpled towel in Bullet's cloth? A probe
+with ideal grippers, the PyBullet twin of `probe_mujoco_cloth.py spread`.
+
+For each seed of `towel_crumpled` (its towel, pose and mesh): settle, crumple as the episode does
+(`pipeline.crumple_start`), take the arm out of the world, then flatten with two kinematic
+grippers (`measure_two_grippers.KinematicGripper`) holding two adjacent GROUND-TRUTH corner
+vertices: lift until the towel hangs free (its other side + 10 cm), spread them one edge apart
+over the far side of the workspace, hang still 1 s, then lay the towel at 45° towards the near
+side at 0.1 m/s and let go 2 cm up. Repeated with the next edge while the coverage is under
+FlattenConfig's target, within its budget. One JSON line per seed on stdout.
+
+    .venv/bin/python scripts/measure_spread.py --seeds 0-9
+"""
+
+from __future__ import annotations
+
+# isort: off
+import foldbot  # noqa: F401  first: caps numpy's SIMD level before numpy loads (foldbot.simd)
+
+# isort: on
+import argparse
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from foldbot.bench.suite import parse_seeds
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from measure_two_grippers import KinematicGripper, _timed_path
+
+HANG_S = 1.0
+LAY_SPEED = 0.1
+LIFT_SPEED = 0.25
+CORNERS = ("corner_00", "corner_10", "corner_11", "corner_01")
+
+
+def measure(seed: int) -> dict:
+    """One seed (runs in the calling process: the first simulation in it)."""
+    import pybullet as p
+
+    from foldbot import metrics
+    from foldbot.bench.suite import load_suite
+    from foldbot.pipeline import build_sim_cell, crumple_start
+    from foldbot.planning.flatten import FlattenConfig
+    from foldbot.sim.cloth import settle
+    from foldbot.sim.world import SimWorld
+
+    spec = next(e for e in load_suite("towel_crumpled").episodes if e.seed == seed)
+    cfg = spec.to_config()
+    flat = FlattenConfig()
+    out: dict = {"seed": seed, "coverage": []}
+    wall = time.perf_counter()
+    with SimWorld(cfg.sim) as world:
+        parts = build_sim_cell(cfg, world)
+        parts.model_world.close()
+        cloth, oracle, mesh = parts.cloth, parts.oracle, parts.mesh
+        try:
+            settle(world, cloth)
+            crumple_start(cfg, world, cloth)
+            p.removeBody(parts.robot.body_id, physicsClientId=world.client)  # ideal grippers only
+            dt, table = world.time_step, cloth.table_height
+            centre = np.asarray(cfg.sim.layout.workspace_center_xy, dtype=float)
+            tools = [KinematicGripper(world.client, cloth) for _ in range(2)]
+            corners = [mesh.keypoints[k] for k in CORNERS]
+            coverage = metrics.coverage(oracle.cloth_vertices(), mesh.faces, mesh.area)
+            out["coverage"].append(round(coverage, 3))
+            actions = 0
+            while coverage < flat.target_coverage and actions < flat.max_actions:
+                a, b = corners[actions % 4], corners[(actions + 1) % 4]
+                edge = float(np.linalg.norm(mesh.vertices[a, :2] - mesh.vertices[b, :2]))
+                depth = float(mesh.area / edge)
+                lift = depth + 0.1
+                v = oracle.cloth_vertices()
+                paths = []
+                for vertex, y in ((a, -edge / 2), (b, edge / 2)):
+                    now = v[vertex]
+                    top = [centre[0] + depth / 2, centre[1] + y, table + lift]
+                    up = _timed_path(
+                        np.array([now, [now[0], now[1], table + lift], top]), LIFT_SPEED, dt
+                    )
+                    hang = np.repeat(np.array([top]), round(HANG_S / dt), axis=0)
+                    lay = _timed_path(
+                        np.array(
+                            [
+                                top,
+                                [top[0], top[1], table + depth + 0.005],
+                                [centre[0] - depth / 2, centre[1] + y, table + 0.02],
+                            ]
+                        ),
+                        LAY_SPEED,
+                        dt,
+                    )
+                    paths.append(np.vstack([up, hang, lay]))
+                for tool, vertex, path in zip(tools, (a, b), paths, strict=True):
+                    tool.move_to(path[0], teleport=True)
+                    tool.hold(np.array([vertex]))
+                for k in range(max(len(q) for q in paths)):
+                    for tool, path in zip(tools, paths, strict=True):
+                        tool.move_to(path[min(k, len(path) - 1)])
+                    world.step()
+                for tool in tools:
+                    tool.release()
+                    tool.move_to(np.array([0.0, 0.0, 2.0]), teleport=True)
+                world.step(round((0.5 + flat.settle_time) / dt))
+                actions += 1
+                coverage = metrics.coverage(oracle.cloth_vertices(), mesh.faces, mesh.area)
+                out["coverage"].append(round(coverage, 3))
+            out.update(actions=actions, flattened=bool(coverage >= flat.target_coverage))
+        except Exception as exc:  # a diverged cloth is a result here, not a crash
+            out["error"] = f"{type(exc).__name__}: {exc}"[:200]
+        out["sim_s"] = round(world.sim_time, 2)
+    out["speed"] = round(out["sim_s"] / (time.perf_counter() - wall), 2)
+    return out
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--seeds", default="0-9", help="seeds: '0-9', '0,3,5' or one seed")
+    ap.add_argument("--one", type=int, help=argparse.SUPPRESS)  # child process: one seed
+    args = ap.parse_args()
+    if args.one is not None:
+        print(json.dumps(measure(args.one)), flush=True)
+        return 0
+    rows = []
+    for seed in parse_seeds(args.seeds):
+        res = subprocess.run(
+            [sys.executable, __file__, "--one", str(seed)], capture_output=True, text=True
+        )
+        line = res.stdout.strip().splitlines()[-1] if res.stdout.strip() else ""
+        row = (
+            json.loads(line) if line.startswith("{") else {"seed": seed, "error": res.stderr[-300:]}
+        )
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+    ok = [r for r in rows if "error" not in r]
+    print(
+        f"# spread: {len(rows) - len(ok)} of {len(rows)} diverged; flattened "
+        f"{sum(r['flattened'] for r in ok)} of {len(rows)}",
+        file=sys.stderr,
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
