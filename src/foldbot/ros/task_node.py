@@ -53,6 +53,8 @@ from foldbot.types import GraspResult, Observation
 
 REPLY_TIMEOUT_S = 300.0
 """Longest wall time to wait for a node's reply before the fold is abandoned."""
+TF_WAIT_S = 30.0
+"""How long the task waits for the latched world → camera transform after its first frame."""
 FRAME_RETRY_S = 10.0
 """Wall time after which a resting frame whose perception has not arrived is asked for again."""
 
@@ -260,6 +262,18 @@ class RosCell(FoldCell):
     def arm_for(self, point: np.ndarray) -> int:
         return nearest_arm(point, self.bases_y)
 
+    def camera_transform(self, timeout_s: float = TF_WAIT_S) -> np.ndarray:
+        """The world → camera transform. /tf_static is latched, but its connection may come up
+        after the first frame's (seen once in CI), so it is waited for rather than missed."""
+        deadline = time.monotonic() + timeout_s
+        while self.T_world_camera is None:
+            if time.monotonic() > deadline or rospy.is_shutdown():
+                raise errors.FoldbotError(
+                    f"no world → camera transform on /tf_static within {timeout_s:g} s"
+                )
+            time.sleep(0.05)
+        return self.T_world_camera
+
     def wait_ready(self) -> dict:
         reply = self.results.take(
             lambda r: r.get("command") == "ready", "ready report from the sim node"
@@ -300,13 +314,11 @@ class RosCell(FoldCell):
         with self.perceived:
             state = convert.state_from(self.states[key], self.masks[key])
             color, info, depth = self.frames[key], self._infos[key], self.depths[key]
-        if self.T_world_camera is None:
-            raise errors.FoldbotError("no world → camera transform on /tf_static")
         obs = Observation(
             rgb=convert.image_array(color),
             depth=convert.image_array(depth),
             intrinsics=convert.intrinsics_of(info),
-            T_world_camera=self.T_world_camera,
+            T_world_camera=self.camera_transform(),
             stamp=self.rest_stamp,
         )
         self.latest_state = state
