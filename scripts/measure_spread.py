@@ -7,9 +7,12 @@ grippers (`measure_two_grippers.KinematicGripper`) holding two adjacent GROUND-T
 vertices: lift until the towel hangs free (its other side + 10 cm), spread them one edge apart
 over the far side of the workspace, hang still 1 s, then lay the towel at 45° towards the near
 side at 0.1 m/s and let go 2 cm up. Repeated with the next edge while the coverage is under
-FlattenConfig's target, within its budget. One JSON line per seed on stdout.
+FlattenConfig's target, within its budget. With `--grasp extremes` the two points are what a
+top-down camera could pick instead: the ends of the top-view outline's longest chord (top layer),
+spread to their true distance apart. One JSON line per seed on stdout.
 
-    .venv/bin/python scripts/measure_spread.py --seeds 0-9
+    .venv/bin/python scripts/measure_spread.py --seeds 0-19
+    .venv/bin/python scripts/measure_spread.py --seeds 0-11 --grasp extremes
 """
 
 from __future__ import annotations
@@ -38,7 +41,24 @@ LIFT_SPEED = 0.25
 CORNERS = ("corner_00", "corner_10", "corner_11", "corner_01")
 
 
-def measure(seed: int) -> dict:
+def outline_extremes(v: np.ndarray) -> tuple[int, int]:
+    """The two vertices a top-down camera could pick without knowing the corners: the ends of
+    the top-view outline's longest chord, each the highest vertex within 1.5 cm of it (the top
+    layer, where jaws closing from above take the cloth)."""
+    import cv2
+
+    hull = cv2.convexHull(v[:, :2].astype(np.float32), returnPoints=False).reshape(-1)
+    pts = v[hull, :2]
+    d = np.linalg.norm(pts[:, None] - pts[None], axis=2)
+    i, j = np.unravel_index(int(d.argmax()), d.shape)
+    picks = []
+    for k in (hull[i], hull[j]):
+        near = np.flatnonzero(np.linalg.norm(v[:, :2] - v[k, :2], axis=1) < 0.015)
+        picks.append(int(near[v[near, 2].argmax()]))
+    return picks[0], picks[1]
+
+
+def measure(seed: int, grasp: str = "corners") -> dict:
     """One seed (runs in the calling process: the first simulation in it)."""
     import pybullet as p
 
@@ -52,7 +72,7 @@ def measure(seed: int) -> dict:
     spec = next(e for e in load_suite("towel_crumpled").episodes if e.seed == seed)
     cfg = spec.to_config()
     flat = FlattenConfig()
-    out: dict = {"seed": seed, "coverage": []}
+    out: dict = {"seed": seed, "grasp": grasp, "coverage": []}
     wall = time.perf_counter()
     with SimWorld(cfg.sim) as world:
         parts = build_sim_cell(cfg, world)
@@ -70,11 +90,21 @@ def measure(seed: int) -> dict:
             out["coverage"].append(round(coverage, 3))
             actions = 0
             while coverage < flat.target_coverage and actions < flat.max_actions:
-                a, b = corners[actions % 4], corners[(actions + 1) % 4]
-                edge = float(np.linalg.norm(mesh.vertices[a, :2] - mesh.vertices[b, :2]))
-                depth = float(mesh.area / edge)
-                lift = depth + 0.1
                 v = oracle.cloth_vertices()
+                if grasp == "corners":
+                    a, b = corners[actions % 4], corners[(actions + 1) % 4]
+                else:
+                    a, b = outline_extremes(v)
+                edge = float(np.linalg.norm(mesh.vertices[a, :2] - mesh.vertices[b, :2]))
+                depth = float(mesh.area / max(edge, 0.05))
+                if grasp == "extremes":  # the towel hangs down to its farthest point from them
+                    rest = mesh.vertices[:, :2]
+                    hang = np.minimum(
+                        np.linalg.norm(rest - rest[a], axis=1),
+                        np.linalg.norm(rest - rest[b], axis=1),
+                    )
+                    depth = float(hang.max())
+                lift = depth + 0.1
                 paths = []
                 for vertex, y in ((a, -edge / 2), (b, edge / 2)):
                     now = v[vertex]
@@ -120,15 +150,22 @@ def measure(seed: int) -> dict:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", default="0-9", help="seeds: '0-9', '0,3,5' or one seed")
+    ap.add_argument(
+        "--grasp", choices=("corners", "extremes"), default="corners",
+        help="corners: two adjacent GROUND-TRUTH corners; extremes: the ends of the top-view "
+        "outline's longest chord, spread to their true distance apart (default corners)",
+    )  # fmt: skip
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)  # child process: one seed
     args = ap.parse_args()
     if args.one is not None:
-        print(json.dumps(measure(args.one)), flush=True)
+        print(json.dumps(measure(args.one, args.grasp)), flush=True)
         return 0
     rows = []
     for seed in parse_seeds(args.seeds):
         res = subprocess.run(
-            [sys.executable, __file__, "--one", str(seed)], capture_output=True, text=True
+            [sys.executable, __file__, "--one", str(seed), "--grasp", args.grasp],
+            capture_output=True,
+            text=True,
         )
         line = res.stdout.strip().splitlines()[-1] if res.stdout.strip() else ""
         row = (
