@@ -43,10 +43,14 @@ import argparse
 import json
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
 from foldbot.bench.suite import parse_seeds
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from measure_two_grippers import _timed_path as timed_path
 
 try:
     import mujoco
@@ -159,17 +163,17 @@ class Holder:
         self.vertex = None
 
 
-def _smooth(u: np.ndarray) -> np.ndarray:
-    return u * u * (3.0 - 2.0 * u)
-
-
-def timed_path(points: np.ndarray, speed: float, dt: float) -> np.ndarray:
-    """Positions at every physics step along a polyline, eased, at `speed` nominal (m/s)."""
-    seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
-    cum = np.concatenate([[0.0], np.cumsum(seg)])
-    n = max(2, int(np.ceil(cum[-1] / speed / dt)) + 1)
-    s = _smooth(np.linspace(0.0, 1.0, n)) * cum[-1]
-    return np.column_stack([np.interp(s, cum, points[:, j]) for j in range(3)])
+def carry(model, data, cloth: MjCloth, holders: list[Holder], vertices, paths) -> None:
+    """Hold each vertex with its holder, move them along their paths (one position per step) on
+    one clock, a path that ends first waiting at its end, then let go."""
+    for holder, vertex in zip(holders, vertices, strict=False):
+        holder.hold(int(vertex))
+    for k in range(max(len(q) for q in paths)):
+        for holder, path in zip(holders, paths, strict=False):
+            holder.move_to(path[min(k, len(path) - 1)])
+        step(model, data, 1, cloth)
+    for holder in holders:
+        holder.release()
 
 
 def step(model, data, n: int, cloth: MjCloth) -> None:
@@ -216,20 +220,13 @@ def fold(seed: int, recipe: str, grippers: int, timestep: float) -> dict:
                     end = action.place.copy()
                     end[2] += max(0.0, start[2] - action.grasp[2])
                     pre = end + up * mcfg.place_height
-                    carry = timed_path(carry_arc(start, pre, mcfg), mcfg.cartesian_speed, timestep)
+                    arc = timed_path(carry_arc(start, pre, mcfg), mcfg.cartesian_speed, timestep)
                     lower = timed_path(
                         line_path(pre, end, 0.003), mcfg.cartesian_speed / 3, timestep
                     )
-                    batch.append((grab, np.vstack([carry, lower])))
-                for holder, (grab, _path) in zip(holders, batch, strict=False):
-                    holder.hold(grab)
-                n = max(len(path) for _, path in batch)
-                for k in range(n):
-                    for holder, (_, path) in zip(holders, batch, strict=False):
-                        holder.move_to(path[min(k, len(path) - 1)])
-                    step(model, data, 1, cloth)
-                for holder in holders:
-                    holder.release()
+                    batch.append((grab, np.vstack([arc, lower])))
+                grabs_now, paths = zip(*batch, strict=True)
+                carry(model, data, cloth, holders, grabs_now, paths)
                 step(model, data, round(0.3 / timestep), cloth)
             step(model, data, round(1.0 / timestep), cloth)
         final = cloth.sim_vertices()
@@ -263,11 +260,8 @@ def crumple(model, data, cloth: MjCloth, holder: Holder, towel, rng, timestep: f
     low[2] = TABLE_TOP + 0.12
     drop = low + drag * np.array([np.cos(heading), np.sin(heading), 0.0])
     drop[2] = TABLE_TOP + rng.uniform(0.02, 0.08)
-    holder.hold(pick)
-    for p in timed_path(np.array([start, lift, low, drop]), 0.4, timestep):
-        holder.move_to(p)
-        step(model, data, 1, cloth)
-    holder.release()
+    path = timed_path(np.array([start, lift, low, drop]), 0.4, timestep)
+    carry(model, data, cloth, [holder], [pick], [path])
     step(model, data, round(2.0 / timestep), cloth)
 
 
@@ -344,11 +338,7 @@ def flatten(seed: int, timestep: float) -> dict:
             path = timed_path(
                 carry_arc(v[grab], action.place, mcfg), mcfg.cartesian_speed, timestep
             )
-            holder.hold(grab)
-            for p in path:
-                holder.move_to(p)
-                step(model, data, 1, cloth)
-            holder.release()
+            carry(model, data, cloth, [holder], [grab], [path])
             step(model, data, round((0.5 + cfg.settle_time) / timestep), cloth)
             pulls += 1
             coverage = metrics.coverage(cloth.sim_vertices(), mesh.faces, mesh.area)
@@ -418,14 +408,7 @@ def spread(seed: int, timestep: float) -> dict:
                         ]
                     )
                 )
-            for holder, vertex in zip(holders, (a, b), strict=True):
-                holder.hold(vertex)
-            for k in range(max(len(q) for q in paths)):
-                for holder, path in zip(holders, paths, strict=True):
-                    holder.move_to(path[min(k, len(path) - 1)])
-                step(model, data, 1, cloth)
-            for holder in holders:
-                holder.release()
+            carry(model, data, cloth, holders, (a, b), paths)
             step(model, data, round((0.5 + cfg.settle_time) / timestep), cloth)
             actions += 1
             coverage = metrics.coverage(cloth.sim_vertices(), mesh.faces, mesh.area)

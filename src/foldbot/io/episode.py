@@ -126,11 +126,16 @@ def _validate_cloth(
     return tri, init, fin, t
 
 
-def _discard_staging(staging_dir: Path, videos: list[VideoWriter]) -> None:
-    """Close any open video (ending its ffmpeg process) and delete the staging folder."""
+def _close_videos(videos: list[VideoWriter]) -> None:
+    """Close every open video (ending its ffmpeg process), whatever state an error left it in."""
     for video in videos:
-        with contextlib.suppress(Exception):  # the folder is removed anyway
+        with contextlib.suppress(Exception):
             video.close()
+
+
+def _discard_staging(staging_dir: Path, videos: list[VideoWriter]) -> None:
+    """Close any open video and delete the staging folder."""
+    _close_videos(videos)
     shutil.rmtree(staging_dir, ignore_errors=True)
 
 
@@ -334,9 +339,7 @@ class EpisodeWriter:
         if self._committed is not None or self._aborted:
             return self.failed
         self._aborted = True
-        for video in self._videos:
-            with contextlib.suppress(Exception):  # a video cut short by the error is still kept
-                video.close()
+        _close_videos(self._videos)  # a video cut short by the error is still kept
         target = failed_dir(self.out_dir)
         try:
             staged = any(self.staging_dir.iterdir())
