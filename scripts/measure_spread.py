@@ -9,10 +9,14 @@ over the far side of the workspace, hang still 1 s, then lay the towel at 45° t
 side at 0.1 m/s and let go 2 cm up. Repeated with the next edge while the coverage is under
 FlattenConfig's target, within its budget. With `--grasp extremes` the two points are what a
 top-down camera could pick instead: the ends of the top-view outline's longest chord (top layer),
-spread to their true distance apart. One JSON line per seed on stdout.
+spread to their true distance apart; with `--grasp vision`, the two adjacent corners the RGB-D
+estimator sees on the heap (the cell's camera, the arm out of the world), also spread to their
+true distance apart. Each pick's distance along the flat towel to the nearest true corner is
+recorded (`pick_to_corner_mm`). One JSON line per seed on stdout.
 
     .venv/bin/python scripts/measure_spread.py --seeds 0-19
     .venv/bin/python scripts/measure_spread.py --seeds 0-11 --grasp extremes
+    .venv/bin/python scripts/measure_spread.py --seeds 0-19 --grasp vision
 """
 
 from __future__ import annotations
@@ -58,6 +62,26 @@ def outline_extremes(v: np.ndarray) -> tuple[int, int]:
     return picks[0], picks[1]
 
 
+def vision_corners(camera, v: np.ndarray) -> tuple[int, int]:
+    """The two adjacent corners the RGB-D estimator sees on the heap and is surest of (the pair,
+    in its counter-clockwise order, with the larger smaller confidence), each taken at the
+    highest vertex within 1.5 cm of it (the top layer; the nearest vertex if none)."""
+    from foldbot.perception.estimator import VisionEstimator
+    from foldbot.perception.keypoints import CORNER_LABELS
+
+    state = VisionEstimator().estimate(camera.observe())
+    if len(state.keypoints) != 4:
+        raise RuntimeError(f"vision found no 4 corners: {state.reason}")
+    pts = [state.keypoints[k] for k in CORNER_LABELS]
+    best = max(range(4), key=lambda i: min(pts[i][1], pts[(i + 1) % 4][1]))
+    picks = []
+    for xyz, _conf in (pts[best], pts[(best + 1) % 4]):
+        d = np.linalg.norm(v[:, :2] - xyz[:2], axis=1)
+        near = np.flatnonzero(d < 0.015)
+        picks.append(int(near[v[near, 2].argmax()]) if len(near) else int(d.argmin()))
+    return picks[0], picks[1]
+
+
 def measure(seed: int, grasp: str = "corners") -> dict:
     """One seed (runs in the calling process: the first simulation in it)."""
     import pybullet as p
@@ -93,11 +117,23 @@ def measure(seed: int, grasp: str = "corners") -> dict:
                 v = oracle.cloth_vertices()
                 if grasp == "corners":
                     a, b = corners[actions % 4], corners[(actions + 1) % 4]
+                elif grasp == "vision":
+                    a, b = vision_corners(parts.camera, v)
                 else:
                     a, b = outline_extremes(v)
                 edge = float(np.linalg.norm(mesh.vertices[a, :2] - mesh.vertices[b, :2]))
                 depth = float(mesh.area / max(edge, 0.05))
-                if grasp == "extremes":  # the towel hangs down to its farthest point from them
+                if grasp != "corners":
+                    true = np.array([mesh.vertices[c] for c in corners])
+                    out.setdefault("pick_to_corner_mm", []).append(
+                        [
+                            round(
+                                float(np.linalg.norm(true - mesh.vertices[k], axis=1).min()) * 1000
+                            )
+                            for k in (a, b)
+                        ]
+                    )
+                if grasp != "corners":  # the towel hangs down to its farthest point from them
                     rest = mesh.vertices[:, :2]
                     hang = np.minimum(
                         np.linalg.norm(rest - rest[a], axis=1),
@@ -151,9 +187,10 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", default="0-9", help="seeds: '0-9', '0,3,5' or one seed")
     ap.add_argument(
-        "--grasp", choices=("corners", "extremes"), default="corners",
+        "--grasp", choices=("corners", "extremes", "vision"), default="corners",
         help="corners: two adjacent GROUND-TRUTH corners; extremes: the ends of the top-view "
-        "outline's longest chord, spread to their true distance apart (default corners)",
+        "outline's longest chord; vision: the two adjacent corners the RGB-D estimator is "
+        "surest of; both spread to their true distance apart (default corners)",
     )  # fmt: skip
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)  # child process: one seed
     args = ap.parse_args()

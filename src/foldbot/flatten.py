@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import itertools
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -17,8 +18,8 @@ from typing import Any
 import numpy as np
 
 from foldbot import metrics
-from foldbot.errors import FoldbotError, UnreachableTargetError
-from foldbot.loop import FoldCell, execute_action, line_points
+from foldbot.errors import ArmsWouldCollideError, FoldbotError, UnreachableTargetError, require
+from foldbot.loop import FoldCell, execute_action, execute_together, line_points
 from foldbot.perception.overlay import contact_sheet, draw_overlay
 from foldbot.perception.state import ClothState
 from foldbot.planning.flatten import (
@@ -29,6 +30,7 @@ from foldbot.planning.flatten import (
     perceived_coverage,
     plan_pulls,
 )
+from foldbot.planning.spread import SpreadConfig, SpreadPlan, corner_pairs, plan_spread
 from foldbot.types import Observation
 
 
@@ -95,12 +97,15 @@ def run_flatten(
 ) -> FlattenRecord:
     """Flatten the cloth on `cell` with pick-and-place pulls until its perceived coverage of
     the item's expected `(width, height)` (m) reaches `cfg.target_coverage`, or `cfg.max_actions`.
-    The pulls are planned from perception, or by `oracle` (ground truth, for comparison).
+    The pulls are planned from perception, or by `oracle` (ground truth, for comparison). A
+    two-arm cell spreads the towel instead (run_spreads; the oracle still pulls).
     Fills and returns `record` (a new one if None), so a caller holding it keeps the pulls made
     before an error; the pull an error stopped gets its overlay, captioned with the error."""
+    rec = FlattenRecord() if record is None else record
+    if oracle is None and cell.arms == 2:
+        return run_spreads(cfg, SpreadConfig(), cell, expected_size, log, rec)
     width, height = (float(v) for v in expected_size)
     area = width * height
-    rec = FlattenRecord() if record is None else record
     cell.park()
     state, obs = cell.observe()
     if not state.detected:
@@ -151,24 +156,8 @@ def run_flatten(
             + ("" if outcome["grasp_success"] else f", grasp failed: {outcome['grasp_reason']}")
         )
         rec.actions.append(
-            {
-                "kind": "flatten_pull",
-                **dataclasses.replace(action, grasp=np.asarray(attempts[-1]["grasp"])).as_dict(),
-                "target": pull.target,
-                "shortfall_m": pull.shortfall,
-                "palm_clear": pull.palm_ok,
-                "grasp_success": outcome["grasp_success"],
-                "grasp_reason": outcome["grasp_reason"],
-                "grasped_vertices": outcome["grasped_vertices"],
-                "max_tracking_error_m": outcome["max_tracking_error"],
-                "retries": len(attempts) - 1,
-                "attempts": attempts,
-                "skipped_unreachable": skipped,
-                "coverage_before": coverage,
-                "coverage_after": after,
-                "sim_seconds": cell.sim_time - t_sim,
-                "wall_seconds": time.perf_counter() - t_wall,
-            }
+            pull_entry(pull, outcome, attempts, skipped, coverage, after)
+            | {"sim_seconds": cell.sim_time - t_sim, "wall_seconds": time.perf_counter() - t_wall}
         )
         rec.overlays.append(
             draw_overlay(
@@ -244,6 +233,29 @@ def flatten_and_score(
     return entry, flattened
 
 
+def pull_entry(
+    pull: Pull, outcome: dict, attempts: list[dict], skipped: int, before: float, after: float
+) -> dict[str, Any]:
+    """A pull's FlattenRecord entry (without its times): what was planned, the grasp tried
+    last, its outcome and the perceived coverage it went from and to."""
+    return {
+        "kind": "flatten_pull",
+        **dataclasses.replace(pull.action, grasp=np.asarray(attempts[-1]["grasp"])).as_dict(),
+        "target": pull.target,
+        "shortfall_m": pull.shortfall,
+        "palm_clear": pull.palm_ok,
+        "grasp_success": outcome["grasp_success"],
+        "grasp_reason": outcome["grasp_reason"],
+        "grasped_vertices": outcome["grasped_vertices"],
+        "max_tracking_error_m": outcome["max_tracking_error"],
+        "retries": len(attempts) - 1,
+        "attempts": attempts,
+        "skipped_unreachable": skipped,
+        "coverage_before": before,
+        "coverage_after": after,
+    }
+
+
 def _execute_pull(
     cfg: FlattenConfig,
     cell: FoldCell,
@@ -289,3 +301,229 @@ def _execute_pull(
             skipped += 1  # planned before anything moved: try the next target
             log(f"  {action.label} unreachable ({exc}); next target")
     raise UnreachableTargetError(f"every flattening pull ({len(pulls)}) is out of the arm's reach")
+
+
+def run_spreads(
+    cfg: FlattenConfig,
+    spread: SpreadConfig,
+    cell: FoldCell,
+    expected_size: tuple[float, float],
+    log: Callable[[str], None] = print,
+    record: FlattenRecord | None = None,
+) -> FlattenRecord:
+    """Flatten the towel on a two-arm `cell` by spreads (planning.spread: two adjacent perceived
+    corners lifted, spread, hung and laid) until its perceived coverage of the expected
+    `(width, height)` (m) reaches `cfg.target_coverage`, or `cfg.max_actions` spreads. Fills and
+    returns `record` as run_flatten does; each spread's entry has kind "flatten_spread"."""
+    require(cell.arms == 2, f"a spread needs a two-arm cell, this one has {cell.arms}")
+    width, height = (float(v) for v in expected_size)
+    area = width * height
+    rec = FlattenRecord() if record is None else record
+    cell.park()
+    state, obs = cell.observe()
+    if not state.detected:
+        raise FoldbotError(f"no cloth found to flatten: {state.reason}")
+    coverage = rec.initial_coverage = perceived_coverage(state, area)
+    log(f"flatten: perceived coverage {coverage:.2f} (target {cfg.target_coverage:.2f}), spreading")
+    laid = None  # where the last spread that carried the towel let go
+    while coverage < cfg.target_coverage and len(rec.actions) < cfg.max_actions:
+        t_sim, t_wall = cell.sim_time, time.perf_counter()
+        seen_state, seen_obs = state, obs
+        attempts: list[dict] = []
+        plan, tried = None, []
+        try:
+            for attempt in range(cfg.retries + 1):
+                inset = spread.grasp_inset + attempt * cfg.retry_step
+                done = _spread_once(
+                    cfg, dataclasses.replace(spread, grasp_inset=inset), cell, state, obs,
+                    expected_size, log, laid, tried,
+                )  # fmt: skip
+                if done is None:
+                    break
+                plan, outcomes = done
+                attempts.append(
+                    {
+                        "grasps": [[float(v) for v in a.grasp] for a in plan.actions],
+                        "grasp_success": [o["grasp_success"] for o in outcomes],
+                        "grasp_reasons": [o["grasp_reason"] for o in outcomes],
+                    }
+                )
+                cell.park()
+                cell.wait(cfg.settle_time)
+                state, obs = cell.observe()
+                if outcomes[0]["carried"] or not state.detected:
+                    break
+                missed = "; ".join(
+                    f"{a.label}: {o['grasp_reason']}"
+                    for a, o in zip(plan.actions, outcomes, strict=True)
+                    if not o["grasp_success"]
+                )
+                log(f"  grasp failed ({missed}); both arms let go, re-observed")
+            if plan is None:  # not one spread feasible: one pull instead, by the arm beside it
+                log("  no spread is feasible here; one pull instead")
+                state, obs, coverage = _pull_instead(cfg, cell, state, obs, expected_size, log, rec)
+                continue
+        except Exception as exc:  # diverged, unreachable …: the picture shows what was tried
+            shown = tried[-1].actions if tried else ()
+            rec.overlays.append(
+                draw_overlay(
+                    seen_obs,
+                    seen_state,
+                    grasp_points=[a.grasp for a in shown] or None,
+                    place_points=[a.release for a in shown] or None,
+                )
+            )
+            rec.captions.append(
+                f"{len(rec.actions) + 1}: spread {coverage:.2f} -> stopped ({type(exc).__name__})"
+            )
+            raise
+        after = perceived_coverage(state, area) if state.detected else 0.0
+        if outcomes[0]["carried"]:
+            laid = np.array([a.release for a in plan.actions])
+        log(
+            f"flatten {len(rec.actions) + 1}: spread {' + '.join(plan.corners)} "
+            f"({plan.width * 1000:.0f} mm apart, hung {plan.margin * 1000:.0f} mm clear) "
+            f"→ coverage {coverage:.2f} → {after:.2f}"
+            + ("" if outcomes[0]["carried"] else ", grasp failed")
+        )
+        rec.actions.append(
+            {
+                "kind": "flatten_spread",
+                "label": "spread " + " + ".join(plan.corners),
+                "arms": [a.as_dict() for a in plan.actions],
+                "spread_width_m": plan.width,
+                "hang_m": plan.hang,
+                "hang_margin_m": plan.margin,
+                "grasp_success": bool(outcomes[0]["carried"]),
+                "grasp_reason": "; ".join(o["grasp_reason"] for o in outcomes),
+                "grasped_vertices": [o["grasped_vertices"] for o in outcomes],
+                "max_tracking_error_m": max(o["max_tracking_error"] for o in outcomes),
+                "retries": len(attempts) - 1,
+                "attempts": attempts,
+                "coverage_before": coverage,
+                "coverage_after": after,
+                "sim_seconds": cell.sim_time - t_sim,
+                "wall_seconds": time.perf_counter() - t_wall,
+            }
+        )
+        rec.overlays.append(
+            draw_overlay(
+                seen_obs,
+                seen_state,
+                grasp_points=[a.grasp for a in plan.actions],
+                place_points=[a.release for a in plan.actions],
+            )
+        )
+        rec.captions.append(
+            f"{len(rec.actions)}: spread {coverage:.2f} -> {after:.2f}"
+            + ("" if outcomes[0]["carried"] else " (missed)")
+        )
+        coverage = after
+        if not state.detected:
+            raise FoldbotError(
+                f"the cloth was lost after flattening spread {len(rec.actions)}: {state.reason}"
+            )
+    rec.final_coverage = coverage
+    rec.reached = coverage >= cfg.target_coverage
+    rec.overlays.append(draw_overlay(obs, state))
+    rec.captions.append(
+        f"end: {coverage:.2f}"
+        + (" (target reached)" if rec.reached else f" (target {cfg.target_coverage:.2f})")
+    )
+    rec.final_state, rec.final_obs = state, obs
+    return rec
+
+
+def _spread_once(
+    cfg: FlattenConfig,
+    spread: SpreadConfig,
+    cell: FoldCell,
+    state: ClothState,
+    obs: Observation,
+    expected_size: tuple[float, float],
+    log: Callable[[str], None],
+    laid: np.ndarray | None = None,
+    tried: list[SpreadPlan] | None = None,
+) -> tuple[SpreadPlan, list[dict]] | None:
+    """Plan a spread on the observation and run it (loop.execute_together: both arms planned
+    before anything moves, on one clock; a missed grasp lets both go), holding the towel as
+    high as the arms reach: the surest pair of corners whose grasps keep the palm clear of the
+    heap at each of `spread.hang_margins` in turn, then the next pair, until one is feasible (a pair on one side of the cell can bring the arms
+    together). `laid`: where the last spread let go (corner_pairs ranks that edge last); each
+    plan tried is appended to `tried` (the picture after an error shows the last). None
+    when no pair is feasible at any margin (nothing moved; the log names why each was not)."""
+    surface = cloth_surface(obs, state, cfg)
+    pairs = [
+        pair
+        for pair in corner_pairs(state, laid)
+        if plan_spread(state, expected_size, spread, cfg, surface, pair=pair).palm_clear
+    ]
+    if not pairs:
+        log("  every pair of corners lies where the palm would press into the heap")
+    problems = []
+    for pair, margin in itertools.product(pairs, spread.hang_margins):
+        plan = plan_spread(state, expected_size, spread, cfg, surface, margin, pair)
+        cell.show(
+            state,
+            grasp_points=[a.grasp for a in plan.actions],
+            place_points=[a.release for a in plan.actions],
+        )
+        if tried is not None:
+            tried.append(plan)
+        try:
+            return plan, execute_together(cell, [(0, plan.actions[0]), (1, plan.actions[1])])
+        except (UnreachableTargetError, ArmsWouldCollideError) as exc:
+            problems.append(f"{' + '.join(pair)} hung {margin * 1000:.0f} mm clear: {exc}")
+            log(f"  spread infeasible ({problems[-1]})")
+    return None
+
+
+def _pull_instead(
+    cfg: FlattenConfig,
+    cell: FoldCell,
+    state: ClothState,
+    obs: Observation,
+    expected_size: tuple[float, float],
+    log: Callable[[str], None],
+    rec: FlattenRecord,
+) -> tuple[ClothState, Observation, float]:
+    """One flattening pull by the arm on the grasp's side (as run_flatten's), recorded in `rec`
+    as one of the flattening actions; returns the state, observation and perceived coverage it
+    ends on."""
+    width, height = (float(v) for v in expected_size)
+    before = perceived_coverage(state, width * height)
+    t_sim, t_wall = cell.sim_time, time.perf_counter()
+    fit, pulls = plan_pulls(state, width, height, cfg, cloth_surface(obs, state, cfg))
+    if not pulls:
+        raise FoldbotError("no spread is feasible and no point of the outline is short to pull")
+    expected = expected_outline_world(fit, state.table_plane)
+    pull, outcome, attempts, skipped = _execute_pull(cfg, cell, state, pulls, expected, log)
+    cell.park()
+    cell.wait(cfg.settle_time)
+    new_state, new_obs = cell.observe()
+    after = perceived_coverage(new_state, width * height) if new_state.detected else 0.0
+    log(
+        f"flatten {len(rec.actions) + 1}: {pull.action.label} → coverage {before:.2f} → {after:.2f}"
+    )
+    rec.actions.append(
+        pull_entry(pull, outcome, attempts, skipped, before, after)
+        | {"sim_seconds": cell.sim_time - t_sim, "wall_seconds": time.perf_counter() - t_wall}
+    )
+    rec.overlays.append(
+        draw_overlay(
+            obs,
+            state,
+            grasp_points=[attempts[-1]["grasp"]],
+            place_points=[pull.action.place],
+            expected_outline=expected,
+        )
+    )
+    rec.captions.append(
+        f"{len(rec.actions)}: {pull.action.label} {before:.2f} -> {after:.2f}"
+        + ("" if outcome["grasp_success"] else " (missed)")
+    )
+    if not new_state.detected:
+        raise FoldbotError(
+            f"the cloth was lost after flattening pull {len(rec.actions)}: {new_state.reason}"
+        )
+    return new_state, new_obs, after

@@ -49,6 +49,7 @@ from foldbot.planning.actions import FoldAction
 from foldbot.planning.garment_recipes import GARMENT_RECIPES
 from foldbot.planning.motion import MotionConfig, Segment, action_segments, line_path
 from foldbot.planning.recipes import RECIPES
+from foldbot.planning.spread import SpreadAction, motion_segments
 from foldbot.sim.camera import CameraConfig, RGBDCamera
 from foldbot.sim.cloth import ClothConfig, DivergenceMonitor, SoftCloth, settle
 from foldbot.sim.crumple import crumple
@@ -203,12 +204,6 @@ class EpisodeConfig:
             self.arms in ARM_COUNTS and not isinstance(self.arms, bool),
             f"arms must be one of {ARM_COUNTS}, got {self.arms!r}",
         )
-        require(
-            self.arms == 1 or self.start == "flat",
-            f"the two-arm cell starts from a flat towel; start {self.start!r} runs with arms = 1 "
-            "(flattening with two arms pulling at once flattened 2 of 20 crumpled towels, one "
-            "arm 5)",
-        )
 
 
 def garment_recipes(garment: str) -> tuple[str, ...]:
@@ -329,10 +324,12 @@ class SimCell(FoldCell):
     def arm_for(self, point: np.ndarray) -> int:
         return nearest_arm(point, tuple(e.robot.layout.robot_base_xyz[1] for e in self.executors))
 
-    def plan_together(self, actions: list[tuple[int, FoldAction]]) -> list[list[PlannedSegment]]:
+    def plan_together(
+        self, actions: list[tuple[int, FoldAction | SpreadAction]]
+    ) -> list[list[PlannedSegment]]:
         plans = [
             self.executors[arm].plan(
-                action_segments(action, self.executors[arm].robot.tcp_pose()[0], self.motion)
+                motion_segments(action, self.executors[arm].robot.tcp_pose()[0], self.motion)
             )
             for arm, action in actions
         ]

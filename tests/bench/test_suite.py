@@ -166,13 +166,27 @@ def test_the_loop_acceptance_suite_parks_out_of_view_over_20_seeds():
 
 
 @pytest.mark.parametrize(
-    "name", ["tshirt", "pants", "tshirt_two_arms", "pants_two_arms", "towel_crumpled"]
+    "name",
+    [
+        "tshirt",
+        "pants",
+        "tshirt_two_arms",
+        "pants_two_arms",
+        "towel_crumpled",
+        "towel_crumpled_two_arms",
+    ],
 )
 def test_the_garment_and_crumpled_suites_park_at_home(name):
     # Measured: parked out of view, garments folded worse and crumpled towels diverged more.
     assert {e.park for e in load_suite(name).episodes} == {"home"}
     # 20 seeds, as the towel targets: a 10-seed mean moved 2-7 mm between runs of the same code.
     assert {e.seed for e in load_suite(name).episodes} == set(range(20))
+
+
+def test_the_two_arm_crumpled_suite_is_the_crumpled_one_with_two_arms():
+    one, two = load_suite("towel_crumpled").episodes, load_suite("towel_crumpled_two_arms").episodes
+    assert {e.arms for e in two} == {2} and {e.arms for e in one} == {1}
+    assert [dataclasses.replace(e, arms=1) for e in two] == list(one)
 
 
 def load_one(data):

@@ -97,3 +97,18 @@ def test_one_arm_must_clear_the_other_where_it_stands(two_arms):
     with pytest.raises(UnreachableTargetError, match=r"arm 0: segment 'reach'"):
         check_clear_of_still_arms(0, (left, reach), still)
     check_clear_of_still_arms(0, (left, own), still)
+
+
+def test_a_dwell_is_checked_as_time_standing_at_the_segment_end(two_arms):
+    from foldbot.control.bimanual import step_timelines
+
+    world, (left, _right) = two_arms
+    a0 = left.robot.tcp_pose()[0]
+    seg = Segment("hang", line_path(a0, a0 + [0.0, 0.0, 0.05]), 0.25)
+    (moving,) = left.plan([seg])
+    (dwelling,) = left.plan([Segment("hang", seg.points, 0.25, dwell=0.5)])
+    (plain,), (held,) = step_timelines(left, [moving]), step_timelines(left, [dwelling])
+    extra = round(0.5 / world.time_step)
+    assert len(held) == len(plain) + extra
+    assert np.array_equal(held[: len(plain)], plain)
+    assert np.array_equal(held[len(plain) :], np.repeat(plain[-1:], extra, axis=0))

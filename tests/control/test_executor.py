@@ -100,3 +100,16 @@ def test_arms_in_different_worlds_are_refused(two_arms):
         ]
         with pytest.raises(ValueError, match="share one world"):
             run_together(steps)
+
+
+def test_a_dwell_holds_the_arm_still_at_the_segment_end(executor):
+    world, robot = executor.world, executor.robot
+    a0 = robot.tcp_pose()[0]
+    a1 = a0 + [0.0, 0.0, 0.05]
+    (planned,) = executor.plan([Segment("hang", line_path(a0, a1), 0.25, dwell=0.5)])
+    samples = len(executor.start(planned).traj.times)
+    executor.run(planned)
+    # The move, then 0.5 s more at its end, on the world's clock.
+    assert world.steps == samples - 1 + round(0.5 / world.time_step)
+    assert np.linalg.norm(robot.tcp_pose()[0] - a1) < 0.005
+    assert np.abs(robot.joint_velocities()).max() < 0.01

@@ -63,7 +63,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="flat",
         choices=START_STATES,
         help="flat (default), or crumpled: the seed crumples the towel and the robot flattens it "
-        "(perceived coverage ≥ 0.9, at most 6 pulls) before folding",
+        "(perceived coverage ≥ 0.9, at most 6 actions: pulls with one arm, spreads with two) "
+        "before folding",
     )
     parser.add_argument(
         "--park",
@@ -78,7 +79,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=1,
         choices=ARM_COUNTS,
         help="arms in the cell: 1 (default), or 2 side by side, which carry a stage's two grasps "
-        "together (flat towels and garments)",
+        "together and flatten a crumpled towel by lifting, spreading and laying it",
     )
     parser.add_argument("--seed", type=int, default=0, help="randomisation seed (default 0)")
     parser.add_argument("--width", type=float, default=0.30, help="towel width in m (0.05–1.0)")

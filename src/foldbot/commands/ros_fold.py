@@ -19,6 +19,7 @@ from pathlib import Path
 from foldbot import errors
 from foldbot.commands import fold
 from foldbot.errors import ConfigError, FoldbotError, OutputError
+from foldbot.ros.node_args import require_over_ros
 
 ROS_PACKAGE_DIR = Path(__file__).resolve().parents[3] / "ros"
 """The repository's ROS package folder (holds foldbot_ros/)."""
@@ -100,7 +101,8 @@ def run(args: argparse.Namespace) -> int:
             f"--perception {args.perception!r} is not available over ROS: the perception node "
             "is vision (RGB-D) only; use `foldbot fold --perception oracle` for the oracle"
         )
-    fold.config_from_args(args)  # bad values fail here, before anything starts
+    # Bad values fail here, before anything starts.
+    require_over_ros(fold.config_from_args(args))
     if not (1 <= args.port <= 65535):
         raise ConfigError(f"--port must be in 1–65535, got {args.port}")
     out = Path(args.out)

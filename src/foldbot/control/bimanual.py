@@ -19,14 +19,18 @@ simulated links' collision shapes leave out."""
 
 def step_timelines(executor: ArmExecutor, steps: list[PlannedSegment]) -> list[np.ndarray]:
     """Joint positions (T × dof) an arm passes through in each of its steps, one per physics step,
-    time-parametrised as the executor will run them; a step whose joint path is one configuration
-    is an arm standing still there."""
-    return [
-        np.asarray(s.joint_path, dtype=float)
-        if len(s.joint_path) == 1
-        else executor.trajectory_for(s.joint_path, s.points, s.segment.speed).positions
-        for s in steps
-    ]
+    time-parametrised as the executor will run them, then still for the segment's dwell; a step
+    whose joint path is one configuration is an arm standing still there."""
+    out = []
+    for s in steps:
+        line = (
+            np.asarray(s.joint_path, dtype=float)
+            if len(s.joint_path) == 1
+            else executor.trajectory_for(s.joint_path, s.points, s.segment.speed).positions
+        )
+        dwell = round(s.segment.dwell / executor.world.time_step)
+        out.append(np.vstack([line, np.repeat(line[-1:], dwell, axis=0)]) if dwell else line)
+    return out
 
 
 def check_arms_clear(

@@ -196,11 +196,13 @@ class _Run:
 
     @property
     def samples(self) -> int:
-        return len(self.traj.times)
+        """Physics steps the segment takes: its trajectory, then its dwell at the last sample."""
+        dwell = round(self.segment.dwell / self.executor.world.time_step)
+        return len(self.traj.times) + dwell
 
     def command(self, k: int) -> None:
         """Command sample k (held at the last sample, at rest, once the trajectory has ended)."""
-        robot, last = self.executor.robot, self.samples - 1
+        robot, last = self.executor.robot, len(self.traj.times) - 1
         if k <= last:
             robot.command_joint_positions(self.traj.positions[k], self.traj.velocities[k])
         else:
@@ -208,7 +210,7 @@ class _Run:
 
     def monitor(self, k: int) -> None:
         """After the step that followed command(k): update the tracking error."""
-        last = self.samples - 1
+        last = len(self.traj.times) - 1
         if k > last or not (k % 8 == 0 or k == last):
             return
         target = np.array(

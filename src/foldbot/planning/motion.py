@@ -52,6 +52,8 @@ class Segment:
     points: np.ndarray  # N×3
     speed: float
     gripper: str | None = None  # "close" | "open" | None
+    dwell: float = 0.0
+    """Held still this long (s) at the segment's end, before its gripper event."""
 
 
 def line_path(a: np.ndarray, b: np.ndarray, step: float = 0.01) -> np.ndarray:

@@ -1,0 +1,291 @@
+"""Two-arm spread for flattening, from perception alone: take two adjacent perceived corners, lift
+them until the towel hangs free, spread them one nominal side apart over the far half of the
+workspace, hang still, then lay the towel towards the near side at 45° and let go — as a person
+lays out a towel. World frame, metres.
+
+Chosen because corner pulls plateau on a heap: in `scripts/measure_spread.py` (ideal grippers)
+this motion flattened 12 of 20 crumpled towels from the true corners, the cell's pulls 5 of 20
+(docs/experiments.md). The robot knows the towel's nominal size, never its state.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from foldbot.errors import FoldbotError, require
+from foldbot.perception.keypoints import CORNER_LABELS
+from foldbot.perception.state import ClothState
+from foldbot.planning.actions import FoldAction
+from foldbot.planning.flatten import _JAW_REACH_BELOW, FlattenConfig, _surface_at, table_z
+from foldbot.planning.motion import MotionConfig, Segment, action_segments, line_path
+
+
+@dataclass(frozen=True)
+class SpreadConfig:
+    """Shape and speed of the two-arm spread."""
+
+    hang_margins: tuple[float, ...] = (0.10, 0.05, 0.0)
+    """How far above the table the hanging towel's far side is held (m), tried in turn until
+    both arms reach the hold points (a larger towel needs a higher hold)."""
+    max_hold_height: float = 0.50
+    """Highest hold above the table (m): the arms' reach over the far side of the workspace."""
+    hold_far_x: float = 0.62
+    """Farthest the hold points go along x (m): where the arms still reach that high."""
+    hang_time: float = 1.0
+    """Still time at the hold (s), so the hanging towel stops swinging before it is laid."""
+    lift_speed: float = 0.25
+    """TCP speed lifting and spreading (m/s)."""
+    lay_speed: float = 0.10
+    """TCP speed laying the towel down (m/s): slow, so the towel lays instead of heaping."""
+    release_height: float = 0.02
+    """The held corners are let go this high above the table (m)."""
+    center_xy: tuple[float, float] = (0.45, 0.0)
+    """Where the laid towel is centred (m): the cell's workspace centre
+    (CellLayout.workspace_center_xy)."""
+    grasp_inset: float = 0.008
+    """Each grasp lies this far inside the perceived corner (m, towards the perceived centre):
+    the jaws catch cloth within ~1 cm of the TCP, and a corner's mesh point is at the corner."""
+    top_depth: float = 0.002
+    """The jaws close this far below the perceived top surface at the grasp (m): the top layer,
+    the corner the camera sees, not the cloth under it."""
+
+    def __post_init__(self) -> None:
+        require(
+            len(self.hang_margins) >= 1
+            and all(isinstance(m, int | float) and 0.0 <= m <= 0.3 for m in self.hang_margins),
+            f"SpreadConfig.hang_margins must be 1 or more values in [0, 0.3] m, "
+            f"got {self.hang_margins!r}",
+        )
+        for name, lo, hi in (
+            ("max_hold_height", 0.1, 1.0),
+            ("hold_far_x", 0.2, 1.0),
+            ("hang_time", 0.0, 10.0),
+            ("lift_speed", 0.01, 1.0),
+            ("lay_speed", 0.01, 1.0),
+            ("release_height", 0.0, 0.2),
+            ("grasp_inset", 0.0, 0.1),
+            ("top_depth", 0.0, 0.02),
+        ):
+            v = getattr(self, name)
+            require(
+                isinstance(v, int | float) and math.isfinite(v) and lo <= v <= hi,
+                f"SpreadConfig.{name} must be in [{lo:.4g}, {hi:.4g}], got {v!r}",
+            )
+
+
+@dataclass(frozen=True)
+class SpreadAction:
+    """One arm's part of a spread: grasp a corner, hold it at `hold`, lay it to `release`."""
+
+    grasp: np.ndarray
+    """(3,) world xyz where the jaws close on the corner."""
+    hold: np.ndarray
+    """(3,) where the corner is held while the towel hangs."""
+    touch: np.ndarray
+    """(3,) straight below `hold`, where the hanging towel's far side meets the table."""
+    release: np.ndarray
+    """(3,) where the corner is let go, after the 45° lay."""
+    label: str = ""
+    hang_time: float = 1.0
+    lift_speed: float = 0.25
+    lay_speed: float = 0.10
+    first_lift: float = 0.10
+    """Straight up this far (m) off the heap before the rise to the hold, which is a straight
+    line: a corner far out is not lifted high where the arm cannot reach."""
+
+    @property
+    def place(self) -> np.ndarray:
+        """Where the carried corner ends (as a FoldAction's place)."""
+        return self.release
+
+    def as_dict(self) -> dict:
+        return {
+            "label": self.label,
+            "grasp": [float(v) for v in self.grasp],
+            "hold": [float(v) for v in self.hold],
+            "touch": [float(v) for v in self.touch],
+            "release": [float(v) for v in self.release],
+            "hang_time": self.hang_time,
+        }
+
+
+@dataclass(frozen=True)
+class SpreadPlan:
+    """A spread planned on one observation: the two arms' parts (the +y one first)."""
+
+    actions: tuple[SpreadAction, SpreadAction]
+    corners: tuple[str, str]
+    """The perceived corners taken (CORNER_LABELS), in the actions' order."""
+    width: float
+    """How far apart the corners are held (m): the nominal side they are taken to span."""
+    hang: float
+    """How far the towel is expected to hang below them (m): nominal area / width."""
+    margin: float
+    """The hanging towel's far side is held this far above the table (m)."""
+    palm_clear: bool = True
+    """False when at either grasp the palm would meet heaped cloth before the jaws reach the
+    corner (see FlattenConfig.palm_clearance): pressing a heap into the table blows the
+    simulated cloth up."""
+
+
+def corner_pairs(
+    state: ClothState, laid: np.ndarray | None = None, laid_radius: float = 0.06
+) -> list[tuple[str, str]]:
+    """The four pairs of adjacent perceived corners (counter-clockwise neighbours), the one the
+    estimator is surest of first: ranked by the less confident corner of each pair. A pair whose
+    corners both lie within `laid_radius` (m) of the points `laid` (N×3: where the last spread
+    let go) comes last: spreading the same edge again lays the towel as before, while the
+    opposite edge lifts the side that was laid first (folded under, if anything)."""
+    if not state.detected:
+        raise FoldbotError(f"no cloth to spread: {state.reason}")
+    missing = [k for k in CORNER_LABELS if k not in state.keypoints]
+    if missing:
+        raise FoldbotError(f"a spread needs the 4 perceived corners; missing {', '.join(missing)}")
+    conf = [float(state.keypoints[k][1]) for k in CORNER_LABELS]
+    xy = state.keypoint_array(CORNER_LABELS)[:, :2]
+    near = np.zeros(4, bool)
+    if laid is not None and len(laid):
+        d = np.linalg.norm(xy[:, None] - np.asarray(laid, dtype=float)[None, :, :2], axis=2)
+        near = d.min(axis=1) <= laid_radius
+    ranked = sorted(
+        range(4),
+        key=lambda i: (bool(near[i] and near[(i + 1) % 4]), -min(conf[i], conf[(i + 1) % 4]), i),
+    )
+    return [(CORNER_LABELS[i], CORNER_LABELS[(i + 1) % 4]) for i in ranked]
+
+
+def spread_width(seen: float, width: float, height: float) -> float:
+    """The nominal side two adjacent corners seen `seen` m apart are taken to span: the shorter
+    unless they are seen nearer the longer (a heap shows its corners closer than they are, and
+    a slack edge lays better than one pulled past its length)."""
+    short, long = sorted((float(width), float(height)))
+    return long if seen > 0.5 * (short + long) else short
+
+
+def _grasp_point(
+    state: ClothState, label: str, surface: np.ndarray | None, flat: FlattenConfig, cfg
+) -> tuple[np.ndarray, bool]:
+    """Where the jaws close on the perceived corner `label`: `cfg.grasp_inset` inside it, just
+    under the top surface there, raised (as flattening pulls are) until the palm clears the
+    heap around; and whether the jaws still reach the cloth at that height."""
+    corner = np.asarray(state.keypoints[label][0], dtype=float)
+    centre = state.keypoint_array(CORNER_LABELS).mean(axis=0)
+    inward = centre[:2] - corner[:2]
+    inward = inward / max(float(np.linalg.norm(inward)), 1e-9)
+    xy = corner[:2] + inward * cfg.grasp_inset
+    z_table = table_z(state.table_plane, xy)
+    level, reached = flat.grasp_height, True
+    if surface is not None:
+        here = _surface_at(surface, xy, flat, flat.raster)
+        heap = _surface_at(surface, xy, flat, flat.palm_radius)
+        if math.isfinite(here):
+            level = max(level, here - cfg.top_depth)
+        if math.isfinite(heap):
+            level = max(level, heap - flat.palm_clearance)
+        reached = not math.isfinite(here) or here >= level - _JAW_REACH_BELOW
+    return np.array([xy[0], xy[1], z_table + level]), reached
+
+
+def plan_spread(
+    state: ClothState,
+    expected_size: tuple[float, float],
+    cfg: SpreadConfig,
+    flat: FlattenConfig,
+    surface: np.ndarray | None = None,
+    margin: float | None = None,
+    pair: tuple[str, str] | None = None,
+) -> SpreadPlan:
+    """The spread of the towel of nominal `expected_size` (w, h; m) seen in `state`: the two
+    adjacent corners `pair` (default: those the estimator is surest of, corner_pairs), held one nominal side apart
+    (spread_width) over cfg.center_xy + half the hang along x, the hanging far side
+    `margin` (default the first of cfg.hang_margins) above the table, then laid to end centred
+    on the workspace. `surface` (planning.flatten.cloth_surface) puts each grasp on the top
+    layer at the corner."""
+    w, h = (float(v) for v in expected_size)
+    require(
+        math.isfinite(w) and math.isfinite(h) and w > 0.0 and h > 0.0,
+        f"expected width × height must be > 0 m, got {w!r} × {h!r}",
+    )
+    margin = cfg.hang_margins[0] if margin is None else float(margin)
+    labels = corner_pairs(state)[0] if pair is None else pair
+    picked = [_grasp_point(state, k, surface, flat, cfg) for k in labels]
+    grasps = [g for g, _ in picked]
+    seen = float(np.linalg.norm(grasps[0][:2] - grasps[1][:2]))
+    width = spread_width(seen, w, h)
+    hang = w * h / width
+    cx, cy = (float(v) for v in cfg.center_xy)
+    hold_x = min(cx + hang / 2, cfg.hold_far_x)
+    x0, _x1, _y0, _y1 = flat.workspace
+    release_x = max(hold_x - hang, x0 + flat.margin)
+    lift = min(hang + margin, cfg.max_hold_height)
+    # The corner further along +y is held on the +y side, so the arms' paths do not cross.
+    order = sorted(range(2), key=lambda i: -float(grasps[i][1]))
+    actions = []
+    for side, i in zip((1.0, -1.0), order, strict=True):
+        y = cy + side * width / 2
+        z_hold = table_z(state.table_plane, np.array([hold_x, y])) + lift
+        z_touch = min(
+            table_z(state.table_plane, np.array([hold_x, y])) + hang + 0.005, z_hold - 0.02
+        )
+        z_rel = table_z(state.table_plane, np.array([release_x, y])) + cfg.release_height
+        actions.append(
+            SpreadAction(
+                grasp=grasps[i],
+                hold=np.array([hold_x, y, z_hold]),
+                touch=np.array([hold_x, y, z_touch]),
+                release=np.array([release_x, y, z_rel]),
+                label=f"spread {labels[i]}",
+                hang_time=cfg.hang_time,
+                lift_speed=cfg.lift_speed,
+                lay_speed=cfg.lay_speed,
+            )
+        )
+    return SpreadPlan(
+        (actions[0], actions[1]),
+        (labels[order[0]], labels[order[1]]),
+        width,
+        hang,
+        margin,
+        all(ok for _, ok in picked),
+    )
+
+
+def spread_segments(
+    action: SpreadAction, current: np.ndarray, motion: MotionConfig
+) -> list[Segment]:
+    """The segments one arm runs for its part of a spread, from TCP position `current`: approach,
+    descend and close, lift straight up off the heap, rise and spread to the hold, hang (still, `hang_time`), lower
+    until the towel touches, lay at 45° and open, retreat. Both arms' lists have the same steps."""
+    up = np.array([0.0, 0.0, 1.0])
+    grasp_tcp = action.grasp + up * motion.grasp_depth
+    pre_grasp = action.grasp + up * motion.approach_height
+    lifted = grasp_tcp + up * min(action.first_lift, max(action.hold[2] - grasp_tcp[2], 0.0) / 2)
+    release_tcp = action.release + up * motion.grasp_depth
+    return [
+        Segment("approach", line_path(current, pre_grasp), motion.free_speed),
+        Segment("descend", line_path(pre_grasp, grasp_tcp, 0.005), motion.free_speed / 3, "close"),
+        Segment("lift", line_path(grasp_tcp, lifted), action.lift_speed),
+        Segment(
+            "spread", line_path(lifted, action.hold), action.lift_speed, dwell=action.hang_time
+        ),
+        Segment("lower", line_path(action.hold, action.touch), action.lay_speed),
+        Segment("lay", line_path(action.touch, release_tcp), action.lay_speed, "open"),
+        Segment(
+            "retreat",
+            line_path(release_tcp, release_tcp + up * motion.retreat_height),
+            motion.free_speed,
+        ),
+    ]
+
+
+def motion_segments(
+    action: FoldAction | SpreadAction, current: np.ndarray, motion: MotionConfig
+) -> list[Segment]:
+    """The segments that execute `action` from TCP position `current`: a spread's, or a
+    pick-and-place's (planning.motion.action_segments)."""
+    if isinstance(action, SpreadAction):
+        return spread_segments(action, current, motion)
+    return action_segments(action, current, motion)

@@ -1,0 +1,149 @@
+import numpy as np
+import pytest
+
+from foldbot.errors import ConfigError, FoldbotError
+from foldbot.perception.keypoints import CORNER_LABELS
+from foldbot.perception.state import ClothState
+from foldbot.planning.flatten import FlattenConfig
+from foldbot.planning.motion import MotionConfig
+from foldbot.planning.spread import (
+    SpreadConfig,
+    corner_pairs,
+    motion_segments,
+    plan_spread,
+    spread_segments,
+    spread_width,
+)
+
+TABLE = 0.75
+W, H = 0.40, 0.30
+
+
+def heap_state(corners_xy, confidences, z=TABLE + 0.03) -> ClothState:
+    """A perceived heap with four corners (CORNER_LABELS order) at `corners_xy`."""
+    xy = np.asarray(corners_xy, dtype=float)
+    return ClothState(
+        detected=True,
+        reason="synthetic",
+        keypoints={
+            k: (np.array([x, y, z]), c)
+            for k, (x, y), c in zip(CORNER_LABELS, xy, confidences, strict=True)
+        },
+        mask=np.ones((4, 4), bool),
+        coverage_m2=0.05,
+        outline_world=np.c_[xy, np.full(4, z)],
+        table_plane=np.array([0.0, 0.0, 1.0, -TABLE]),
+    )
+
+
+# near_left, near_right, far_right, far_left (counter-clockwise seen from above)
+HEAP = [[0.38, 0.08], [0.40, -0.10], [0.55, -0.07], [0.52, 0.12]]
+
+
+def test_the_surest_adjacent_pair_is_taken():
+    state = heap_state(HEAP, [0.9, 0.2, 0.8, 0.85])
+    # near_left–near_right: min 0.2; near_right–far_right: 0.2; far_right–far_left: 0.8;
+    # far_left–near_left: 0.85 → the best pair.
+    pairs = corner_pairs(state)
+    assert pairs[0] == ("far_left", "near_left")
+    assert pairs[1] == ("far_right", "far_left")
+    assert set(pairs[2:]) == {("near_left", "near_right"), ("near_right", "far_right")}
+    plan = plan_spread(state, (W, H), SpreadConfig(), FlattenConfig())
+    assert set(plan.corners) == {"far_left", "near_left"}
+    plan = plan_spread(state, (W, H), SpreadConfig(), FlattenConfig(), pair=pairs[1])
+    assert set(plan.corners) == {"far_right", "far_left"}
+
+
+def test_a_state_without_four_corners_is_refused():
+    state = heap_state(HEAP, [0.9, 0.9, 0.9, 0.9])
+    del state.keypoints["far_left"]
+    with pytest.raises(FoldbotError, match="missing far_left"):
+        corner_pairs(state)
+    with pytest.raises(FoldbotError, match="no cloth"):
+        corner_pairs(ClothState.not_detected())
+
+
+def test_the_spread_width_is_a_nominal_side():
+    assert spread_width(0.12, W, H) == pytest.approx(H)  # a heap: corners seen close
+    assert spread_width(0.34, W, H) == pytest.approx(H)
+    assert spread_width(0.36, W, H) == pytest.approx(W)
+
+
+def test_a_spread_holds_the_corners_apart_and_lays_the_towel_centred():
+    cfg, flat = SpreadConfig(), FlattenConfig()
+    state = heap_state(HEAP, [0.9, 0.9, 0.9, 0.9])
+    plan = plan_spread(state, (W, H), cfg, flat)
+    left, right = plan.actions
+    # The corner further along +y goes to the +y side (arm 0): no crossing.
+    assert left.grasp[1] > right.grasp[1]
+    assert left.hold[1] - right.hold[1] == pytest.approx(plan.width)
+    assert plan.width == pytest.approx(H) and plan.hang == pytest.approx(W)
+    for a in plan.actions:
+        # Each grasp a little inside its perceived corner, on the cloth's top.
+        assert a.grasp[2] == pytest.approx(TABLE + flat.grasp_height)  # no surface given
+        # The towel hangs clear of the table at the hold, no higher than the arms reach.
+        assert a.hold[2] - TABLE == pytest.approx(min(W + cfg.hang_margins[0], cfg.max_hold_height))
+        assert a.hold[0] <= cfg.hold_far_x
+        # Laid at 45°-ish towards the near side, let go just above the table.
+        assert a.touch[2] < a.hold[2] and a.touch[:2] == pytest.approx(a.hold[:2])
+        assert a.release[0] < a.hold[0]
+        assert a.release[2] == pytest.approx(TABLE + cfg.release_height)
+        assert a.release[0] >= flat.workspace[0] + flat.margin - 1e-9
+    # Centred on the workspace across y.
+    assert left.hold[1] + right.hold[1] == pytest.approx(2 * cfg.center_xy[1])
+
+
+def test_a_lower_margin_holds_lower():
+    cfg, flat = SpreadConfig(), FlattenConfig()
+    state = heap_state(HEAP, [0.9, 0.9, 0.9, 0.9])
+    high = plan_spread(state, (0.30, 0.25), cfg, flat, margin=0.10)
+    low = plan_spread(state, (0.30, 0.25), cfg, flat, margin=0.0)
+    assert low.actions[0].hold[2] == pytest.approx(high.actions[0].hold[2] - 0.10)
+
+
+def test_grasps_take_the_top_layer_from_the_surface():
+    flat = FlattenConfig()
+    state = heap_state(HEAP, [0.9, 0.9, 0.9, 0.9])
+    ny = round((flat.workspace[3] - flat.workspace[2]) / flat.raster) + 1
+    nx = round((flat.workspace[1] - flat.workspace[0]) / flat.raster) + 1
+    surface = np.full((ny, nx), 0.05, np.float32)  # a heap 5 cm high everywhere
+    plan = plan_spread(state, (W, H), SpreadConfig(), flat, surface)
+    for a in plan.actions:
+        assert a.grasp[2] == pytest.approx(TABLE + 0.05 - SpreadConfig().top_depth, abs=1e-6)
+
+
+def test_both_arms_get_the_same_steps_with_a_still_hang():
+    motion = MotionConfig()
+    plan = plan_spread(heap_state(HEAP, [0.9] * 4), (W, H), SpreadConfig(), FlattenConfig())
+    lists = [spread_segments(a, np.array([0.45, 0.3, 1.0]), motion) for a in plan.actions]
+    names = [[s.name for s in segs] for segs in lists]
+    assert names[0] == names[1]
+    assert names[0] == ["approach", "descend", "lift", "spread", "lower", "lay", "retreat"]
+    for segs, a in zip(lists, plan.actions, strict=True):
+        by = {s.name: s for s in segs}
+        assert by["descend"].gripper == "close" and by["lay"].gripper == "open"
+        assert by["spread"].dwell == pytest.approx(SpreadConfig().hang_time)
+        assert by["lay"].speed == pytest.approx(SpreadConfig().lay_speed)
+        assert by["spread"].points[-1] == pytest.approx(a.hold)
+        # The dispatcher gives the same segments.
+        again = motion_segments(a, np.array([0.45, 0.3, 1.0]), motion)
+        assert [s.name for s in again] == names[0]
+
+
+@pytest.mark.parametrize(
+    ("kw", "match"),
+    [
+        ({"hang_time": -1.0}, "hang_time"),
+        ({"lay_speed": 0.0}, "lay_speed"),
+        ({"hang_margins": ()}, "hang_margins"),
+        ({"hang_margins": (0.5,)}, "hang_margins"),
+    ],
+)
+def test_bad_config_is_named(kw, match):
+    with pytest.raises(ConfigError, match=match):
+        SpreadConfig(**kw)
+
+
+def test_a_bad_expected_size_is_named():
+    with pytest.raises(ConfigError, match="expected width"):
+        plan_spread(heap_state(HEAP, [0.9] * 4), (0.0, H), SpreadConfig(), FlattenConfig())
