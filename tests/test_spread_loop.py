@@ -82,3 +82,26 @@ def test_the_spread_is_recorded_with_both_arms(spread):
     assert action["coverage_after"] == spread["final"]
     assert spread["captions"][0].startswith(f"1: spread {spread['initial']:.2f}")
     assert spread["captions"][-1].startswith(f"end: {spread['final']:.2f}")
+
+
+@pytest.fixture(scope="module")
+def heap_too_small_to_spread():
+    # Seed 0's 30 cm towel crumples into a heap whose corners lie so close together that every
+    # pair would bring the two grippers into each other (planned, nothing moved).
+    out = subprocess.run(
+        [sys.executable, "-c", SCRIPT, "0"],
+        capture_output=True,
+        text=True,
+        timeout=900,
+        check=True,
+    )
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.slow
+def test_where_no_spread_is_feasible_one_arm_pulls(heap_too_small_to_spread):
+    (action,) = heap_too_small_to_spread["actions"]
+    assert action["kind"] == "flatten_pull"
+    assert action["label"].startswith("pull ")
+    assert len(action["grasp"]) == 3 and len(action["place"]) == 3
+    assert heap_too_small_to_spread["captions"][0].startswith(f"1: {action['label']}")

@@ -314,7 +314,8 @@ def run_spreads(
     """Flatten the towel on a two-arm `cell` by spreads (planning.spread: two adjacent perceived
     corners lifted, spread, hung and laid) until its perceived coverage of the expected
     `(width, height)` (m) reaches `cfg.target_coverage`, or `cfg.max_actions` spreads. Fills and
-    returns `record` as run_flatten does; each spread's entry has kind "flatten_spread"."""
+    returns `record` as run_flatten does; each spread's entry has kind "flatten_spread", and
+    where no spread is feasible the action is one pull (kind "flatten_pull")."""
     require(cell.arms == 2, f"a spread needs a two-arm cell, this one has {cell.arms}")
     width, height = (float(v) for v in expected_size)
     area = width * height
@@ -448,10 +449,11 @@ def _spread_once(
     """Plan a spread on the observation and run it (loop.execute_together: both arms planned
     before anything moves, on one clock; a missed grasp lets both go), holding the towel as
     high as the arms reach: the surest pair of corners whose grasps keep the palm clear of the
-    heap at each of `spread.hang_margins` in turn, then the next pair, until one is feasible (a pair on one side of the cell can bring the arms
-    together). `laid`: where the last spread let go (corner_pairs ranks that edge last); each
-    plan tried is appended to `tried` (the picture after an error shows the last). None
-    when no pair is feasible at any margin (nothing moved; the log names why each was not)."""
+    heap, at each of `spread.hang_margins` in turn, then the next pair, until one is feasible
+    (a pair on one side of the cell can bring the arms together). `laid`: where the last
+    spread let go (corner_pairs ranks that edge last); each plan tried is appended to `tried`
+    (the picture after an error shows the last). None when no pair is feasible at any margin
+    (nothing moved; the log names why each was not)."""
     surface = cloth_surface(obs, state, cfg)
     pairs = [
         pair
@@ -460,7 +462,6 @@ def _spread_once(
     ]
     if not pairs:
         log("  every pair of corners lies where the palm would press into the heap")
-    problems = []
     for pair, margin in itertools.product(pairs, spread.hang_margins):
         plan = plan_spread(state, expected_size, spread, cfg, surface, margin, pair)
         cell.show(
@@ -473,8 +474,9 @@ def _spread_once(
         try:
             return plan, execute_together(cell, [(0, plan.actions[0]), (1, plan.actions[1])])
         except (UnreachableTargetError, ArmsWouldCollideError) as exc:
-            problems.append(f"{' + '.join(pair)} hung {margin * 1000:.0f} mm clear: {exc}")
-            log(f"  spread infeasible ({problems[-1]})")
+            log(
+                f"  spread infeasible ({' + '.join(pair)} hung {margin * 1000:.0f} mm clear: {exc})"
+            )
     return None
 
 
