@@ -147,3 +147,37 @@ def test_bad_config_is_named(kw, match):
 def test_a_bad_expected_size_is_named():
     with pytest.raises(ConfigError, match="expected width"):
         plan_spread(heap_state(HEAP, [0.9] * 4), (0.0, H), SpreadConfig(), FlattenConfig())
+
+
+def test_the_edge_just_laid_is_tried_last():
+    state = heap_state(HEAP, [0.9, 0.9, 0.8, 0.85])
+    first = corner_pairs(state)[0]
+    assert first == ("near_left", "near_right")
+    # The last spread let go where near_left and near_right now lie: that edge goes last.
+    laid = np.array([[*HEAP[0], TABLE], [*HEAP[1], TABLE]])
+    pairs = corner_pairs(state, laid)
+    assert pairs[-1] == ("near_left", "near_right")
+    assert pairs[0] == ("far_left", "near_left")
+
+
+def _raster(flat: FlattenConfig, height: float) -> np.ndarray:
+    ny = round((flat.workspace[3] - flat.workspace[2]) / flat.raster) + 1
+    nx = round((flat.workspace[1] - flat.workspace[0]) / flat.raster) + 1
+    return np.full((ny, nx), height, np.float32)
+
+
+def test_a_corner_under_a_heap_is_not_palm_clear():
+    flat = FlattenConfig()
+    state = heap_state(HEAP, [0.9] * 4)
+    surface = _raster(flat, 0.01)  # cloth 1 cm high everywhere: the palm clears it
+    assert plan_spread(state, (W, H), SpreadConfig(), flat, surface).palm_clear
+    # A 10 cm heap 4 cm from the far_left corner: the grasp must rise 6 cm for the palm to
+    # clear it, where the jaws no longer reach the corner's cloth.
+    x, y = HEAP[3][0] - 0.04, HEAP[3][1]
+    j = round((y - flat.workspace[2]) / flat.raster)
+    i = round((x - flat.workspace[0]) / flat.raster)
+    surface[j, i] = 0.10
+    plan = plan_spread(state, (W, H), SpreadConfig(), flat, surface, pair=("far_left", "near_left"))
+    assert not plan.palm_clear
+    far_left = next(a for a in plan.actions if a.label == "spread far_left")
+    assert far_left.grasp[2] == pytest.approx(TABLE + 0.10 - flat.palm_clearance, abs=1e-6)

@@ -166,7 +166,11 @@ def spread_width(seen: float, width: float, height: float) -> float:
 
 
 def _grasp_point(
-    state: ClothState, label: str, surface: np.ndarray | None, flat: FlattenConfig, cfg
+    state: ClothState,
+    label: str,
+    surface: np.ndarray | None,
+    flat: FlattenConfig,
+    cfg: SpreadConfig,
 ) -> tuple[np.ndarray, bool]:
     """Where the jaws close on the perceived corner `label`: `cfg.grasp_inset` inside it, just
     under the top surface there, raised (as flattening pulls are) until the palm clears the
@@ -199,11 +203,11 @@ def plan_spread(
     pair: tuple[str, str] | None = None,
 ) -> SpreadPlan:
     """The spread of the towel of nominal `expected_size` (w, h; m) seen in `state`: the two
-    adjacent corners `pair` (default: those the estimator is surest of, corner_pairs), held one nominal side apart
-    (spread_width) over cfg.center_xy + half the hang along x, the hanging far side
-    `margin` (default the first of cfg.hang_margins) above the table, then laid to end centred
-    on the workspace. `surface` (planning.flatten.cloth_surface) puts each grasp on the top
-    layer at the corner."""
+    adjacent corners `pair` (default: those the estimator is surest of, corner_pairs), held one
+    nominal side apart (spread_width) over cfg.center_xy + half the hang along x, the hanging
+    far side `margin` (default the first of cfg.hang_margins) above the table, then laid to end
+    centred on the workspace. `surface` (planning.flatten.cloth_surface) puts each grasp on the
+    top layer at the corner, with the palm clear of the heap (SpreadPlan.palm_clear)."""
     w, h = (float(v) for v in expected_size)
     require(
         math.isfinite(w) and math.isfinite(h) and w > 0.0 and h > 0.0,
