@@ -124,6 +124,7 @@ def test_both_arms_get_the_same_steps_with_a_still_hang():
         assert by["descend"].gripper == "close" and by["lay"].gripper == "open"
         assert by["spread"].dwell == pytest.approx(SpreadConfig().hang_time)
         assert by["lay"].speed == pytest.approx(SpreadConfig().lay_speed)
+        assert by["descend"].speed == pytest.approx(SpreadConfig().descend_speed)
         assert by["spread"].points[-1] == pytest.approx(a.hold)
         # The dispatcher gives the same segments.
         again = motion_segments(a, np.array([0.45, 0.3, 1.0]), motion)
@@ -135,6 +136,7 @@ def test_both_arms_get_the_same_steps_with_a_still_hang():
     [
         ({"hang_time": -1.0}, "hang_time"),
         ({"lay_speed": 0.0}, "lay_speed"),
+        ({"descend_speed": 0.0}, "descend_speed"),
         ({"hang_margins": ()}, "hang_margins"),
         ({"hang_margins": (0.5,)}, "hang_margins"),
     ],
