@@ -48,16 +48,21 @@ print(json.dumps({
 """
 
 
-@pytest.fixture(scope="module")
-def spread():
+def flatten_crumpled(seed: int) -> dict:
+    """SCRIPT's report for `seed`, run in a fresh interpreter."""
     out = subprocess.run(
-        [sys.executable, "-c", SCRIPT, "4"],
+        [sys.executable, "-c", SCRIPT, str(seed)],
         capture_output=True,
         text=True,
         timeout=900,
         check=True,
     )
     return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+@pytest.fixture(scope="module")
+def spread():
+    return flatten_crumpled(4)
 
 
 @pytest.mark.slow
@@ -88,14 +93,7 @@ def test_the_spread_is_recorded_with_both_arms(spread):
 def heap_too_small_to_spread():
     # Seed 0's 30 cm towel crumples into a heap whose corners lie so close together that every
     # pair would bring the two grippers into each other (planned, nothing moved).
-    out = subprocess.run(
-        [sys.executable, "-c", SCRIPT, "0"],
-        capture_output=True,
-        text=True,
-        timeout=900,
-        check=True,
-    )
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    return flatten_crumpled(0)
 
 
 @pytest.mark.slow

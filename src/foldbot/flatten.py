@@ -125,59 +125,9 @@ def run_flatten(
         if not pulls:
             log("flatten: no point of the expected outline is short enough to pull")
             break
-        t_sim, t_wall = cell.sim_time, time.perf_counter()
-        seen_state, seen_obs = state, obs
-        try:
-            pull, outcome, attempts, skipped = _execute_pull(cfg, cell, state, pulls, expected, log)
-            action = pull.action
-            cell.park()
-            cell.wait(cfg.settle_time)
-            state, obs = cell.observe()
-        except Exception as exc:  # diverged, unreachable …: the picture shows what was tried
-            planned = pulls[0].action
-            rec.overlays.append(
-                draw_overlay(
-                    seen_obs,
-                    seen_state,
-                    grasp_points=[planned.grasp],
-                    place_points=[planned.place],
-                    expected_outline=expected,
-                )
-            )
-            rec.captions.append(
-                f"{len(rec.actions) + 1}: {planned.label} {coverage:.2f} -> "
-                f"stopped ({type(exc).__name__})"
-            )
-            raise
-        after = perceived_coverage(state, area)
-        log(
-            f"flatten {len(rec.actions) + 1}: {action.label} "
-            f"({pull.shortfall * 1000:.0f} mm short) → coverage {coverage:.2f} → {after:.2f}"
-            + ("" if outcome["grasp_success"] else f", grasp failed: {outcome['grasp_reason']}")
+        state, obs, coverage = _pull_step(
+            cfg, cell, state, obs, pulls, expected, coverage, area, rec, log
         )
-        rec.actions.append(
-            pull_entry(pull, outcome, attempts, skipped, coverage, after)
-            | {"sim_seconds": cell.sim_time - t_sim, "wall_seconds": time.perf_counter() - t_wall}
-        )
-        rec.overlays.append(
-            draw_overlay(
-                seen_obs,
-                seen_state,
-                grasp_points=[attempts[-1]["grasp"]],
-                place_points=[action.place],
-                expected_outline=expected,
-            )
-        )
-        rec.captions.append(
-            f"{len(rec.actions)}: {action.label} {coverage:.2f} -> {after:.2f}"
-            + ("" if outcome["grasp_success"] else " (missed)")
-        )
-        coverage = after
-        if not state.detected:
-            raise FoldbotError(
-                f"the cloth was lost after flattening pull {len(rec.actions)} "
-                f"({action.label}): {state.reason}"
-            )
     rec.final_coverage = coverage
     rec.reached = coverage >= cfg.target_coverage
     rec.overlays.append(draw_overlay(obs, state, expected_outline=expected))
@@ -231,6 +181,75 @@ def flatten_and_score(
     )
     log(f"flattened: coverage {start:.2f} → {end:.2f} in {entry['actions']} actions")
     return entry, flattened
+
+
+def _pull_step(
+    cfg: FlattenConfig,
+    cell: FoldCell,
+    state: ClothState,
+    obs: Observation,
+    pulls: list[Pull],
+    expected: np.ndarray | None,
+    coverage: float,
+    area: float,
+    rec: FlattenRecord,
+    log: Callable[[str], None],
+) -> tuple[ClothState, Observation, float]:
+    """One flattening pull (the first reachable of `pulls`, _execute_pull), then park, settle
+    and re-observe; recorded in `rec` with its picture (after an error too, captioned with it).
+    Returns the state, observation and perceived coverage (of `area`) it ends on."""
+    t_sim, t_wall = cell.sim_time, time.perf_counter()
+    try:
+        pull, outcome, attempts, skipped = _execute_pull(cfg, cell, state, pulls, expected, log)
+        action = pull.action
+        cell.park()
+        cell.wait(cfg.settle_time)
+        new_state, new_obs = cell.observe()
+    except Exception as exc:  # diverged, unreachable …: the picture shows what was tried
+        planned = pulls[0].action
+        rec.overlays.append(
+            draw_overlay(
+                obs,
+                state,
+                grasp_points=[planned.grasp],
+                place_points=[planned.place],
+                expected_outline=expected,
+            )
+        )
+        rec.captions.append(
+            f"{len(rec.actions) + 1}: {planned.label} {coverage:.2f} -> "
+            f"stopped ({type(exc).__name__})"
+        )
+        raise
+    after = perceived_coverage(new_state, area)
+    log(
+        f"flatten {len(rec.actions) + 1}: {action.label} "
+        f"({pull.shortfall * 1000:.0f} mm short) → coverage {coverage:.2f} → {after:.2f}"
+        + ("" if outcome["grasp_success"] else f", grasp failed: {outcome['grasp_reason']}")
+    )
+    rec.actions.append(
+        pull_entry(pull, outcome, attempts, skipped, coverage, after)
+        | {"sim_seconds": cell.sim_time - t_sim, "wall_seconds": time.perf_counter() - t_wall}
+    )
+    rec.overlays.append(
+        draw_overlay(
+            obs,
+            state,
+            grasp_points=[attempts[-1]["grasp"]],
+            place_points=[action.place],
+            expected_outline=expected,
+        )
+    )
+    rec.captions.append(
+        f"{len(rec.actions)}: {action.label} {coverage:.2f} -> {after:.2f}"
+        + ("" if outcome["grasp_success"] else " (missed)")
+    )
+    if not new_state.detected:
+        raise FoldbotError(
+            f"the cloth was lost after flattening pull {len(rec.actions)} "
+            f"({action.label}): {new_state.reason}"
+        )
+    return new_state, new_obs, after
 
 
 def pull_entry(
@@ -360,10 +379,6 @@ def run_spreads(
                     if not o["grasp_success"]
                 )
                 log(f"  grasp failed ({missed}); both arms let go, re-observed")
-            if plan is None:  # not one spread feasible: one pull instead, by the arm beside it
-                log("  no spread is feasible here; one pull instead")
-                state, obs, coverage = _pull_instead(cfg, cell, state, obs, expected_size, log, rec)
-                continue
         except Exception as exc:  # diverged, unreachable …: the picture shows what was tried
             shown = tried[-1].actions if tried else ()
             rec.overlays.append(
@@ -378,6 +393,10 @@ def run_spreads(
                 f"{len(rec.actions) + 1}: spread {coverage:.2f} -> stopped ({type(exc).__name__})"
             )
             raise
+        if plan is None:  # not one spread feasible: one pull instead, by the arm beside it
+            log("  no spread is feasible here; one pull instead")
+            state, obs, coverage = _pull_instead(cfg, cell, state, obs, expected_size, log, rec)
+            continue
         after = perceived_coverage(state, area) if state.detected else 0.0
         if outcomes[0]["carried"]:
             laid = np.array([a.release for a in plan.actions])
@@ -489,43 +508,14 @@ def _pull_instead(
     log: Callable[[str], None],
     rec: FlattenRecord,
 ) -> tuple[ClothState, Observation, float]:
-    """One flattening pull by the arm on the grasp's side (as run_flatten's), recorded in `rec`
-    as one of the flattening actions; returns the state, observation and perceived coverage it
-    ends on."""
+    """One flattening pull by the arm on the grasp's side (run_flatten's _pull_step), recorded
+    in `rec` as one of the flattening actions; returns the state, observation and perceived
+    coverage it ends on."""
     width, height = (float(v) for v in expected_size)
-    before = perceived_coverage(state, width * height)
-    t_sim, t_wall = cell.sim_time, time.perf_counter()
     fit, pulls = plan_pulls(state, width, height, cfg, cloth_surface(obs, state, cfg))
     if not pulls:
         raise FoldbotError("no spread is feasible and no point of the outline is short to pull")
     expected = expected_outline_world(fit, state.table_plane)
-    pull, outcome, attempts, skipped = _execute_pull(cfg, cell, state, pulls, expected, log)
-    cell.park()
-    cell.wait(cfg.settle_time)
-    new_state, new_obs = cell.observe()
-    after = perceived_coverage(new_state, width * height) if new_state.detected else 0.0
-    log(
-        f"flatten {len(rec.actions) + 1}: {pull.action.label} → coverage {before:.2f} → {after:.2f}"
-    )
-    rec.actions.append(
-        pull_entry(pull, outcome, attempts, skipped, before, after)
-        | {"sim_seconds": cell.sim_time - t_sim, "wall_seconds": time.perf_counter() - t_wall}
-    )
-    rec.overlays.append(
-        draw_overlay(
-            obs,
-            state,
-            grasp_points=[attempts[-1]["grasp"]],
-            place_points=[pull.action.place],
-            expected_outline=expected,
-        )
-    )
-    rec.captions.append(
-        f"{len(rec.actions)}: {pull.action.label} {before:.2f} -> {after:.2f}"
-        + ("" if outcome["grasp_success"] else " (missed)")
-    )
-    if not new_state.detected:
-        raise FoldbotError(
-            f"the cloth was lost after flattening pull {len(rec.actions)}: {new_state.reason}"
-        )
-    return new_state, new_obs, after
+    area = width * height
+    coverage = perceived_coverage(state, area)
+    return _pull_step(cfg, cell, state, obs, pulls, expected, coverage, area, rec, log)
