@@ -25,3 +25,17 @@ def test_reported_error_keeps_the_reports_notes():
     report = {"error": "diverged", "error_type": "SimulationDivergedError", "notes": ["see x"]}
     exc = errors.reported_error(report, "over ROS")
     assert exc.__notes__ == ["see x"]
+
+
+def test_failed_segment_is_found_through_the_errors_raised_from():
+    inner = errors.UnreachableTargetError("segment 'approach': no IK")
+    inner.segment = "approach"
+    try:
+        try:
+            raise inner
+        except errors.UnreachableTargetError as exc:
+            raise errors.UnreachableTargetError(f"actions infeasible: {exc}") from exc
+    except errors.UnreachableTargetError as outer:
+        assert errors.failed_segment(outer) == "approach"
+    assert errors.failed_segment(errors.UnreachableTargetError("no segment named")) is None
+    assert errors.failed_segment(ValueError("other")) is None

@@ -14,9 +14,15 @@ class ConfigError(FoldbotError, ValueError):
 class UnreachableTargetError(FoldbotError):
     """Inverse kinematics found no joint configuration for a target pose within tolerance."""
 
+    segment: str | None = None
+    """The motion segment that failed ('approach', 'descend', …), where the planner knows it."""
+
 
 class ArmsWouldCollideError(FoldbotError):
     """Two arms' planned motions would bring them closer than their clearance."""
+
+    segment: str | None = None
+    """The motion segment in which they would meet, where the planner knows it."""
 
 
 class SimulationDivergedError(FoldbotError):
@@ -30,6 +36,18 @@ class OutputError(FoldbotError):
 class PerceptionError(FoldbotError, ValueError):
     """Perception cannot give what is asked of it: malformed input (wrong shapes, dtypes, empty
     images, bad intrinsics), or a garment whose keypoints it did not recognise."""
+
+
+def failed_segment(error: BaseException) -> str | None:
+    """The motion segment an infeasible-motion error (or the error it was raised from) names,
+    or None: lets a caller tell a failure that a changed parameter cannot fix from one it can."""
+    seen: BaseException | None = error
+    while seen is not None:
+        segment = getattr(seen, "segment", None)
+        if segment is not None:
+            return str(segment)
+        seen = seen.__cause__
+    return None
 
 
 def require(condition: bool, message: str) -> None:

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import itertools
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -18,7 +17,13 @@ from typing import Any
 import numpy as np
 
 from foldbot import metrics
-from foldbot.errors import ArmsWouldCollideError, FoldbotError, UnreachableTargetError, require
+from foldbot.errors import (
+    ArmsWouldCollideError,
+    FoldbotError,
+    UnreachableTargetError,
+    failed_segment,
+    require,
+)
 from foldbot.loop import FoldCell, execute_action, execute_together, line_points
 from foldbot.perception.overlay import contact_sheet, draw_overlay
 from foldbot.perception.state import ClothState
@@ -30,7 +35,13 @@ from foldbot.planning.flatten import (
     perceived_coverage,
     plan_pulls,
 )
-from foldbot.planning.spread import SpreadConfig, SpreadPlan, corner_pairs, plan_spread
+from foldbot.planning.spread import (
+    MARGIN_FREE_SEGMENTS,
+    SpreadConfig,
+    SpreadPlan,
+    corner_pairs,
+    plan_spread,
+)
 from foldbot.types import Observation
 
 
@@ -481,21 +492,25 @@ def _spread_once(
     ]
     if not pairs:
         log("  every pair of corners lies where the palm would press into the heap")
-    for pair, margin in itertools.product(pairs, spread.hang_margins):
-        plan = plan_spread(state, expected_size, spread, cfg, surface, margin, pair)
-        cell.show(
-            state,
-            grasp_points=[a.grasp for a in plan.actions],
-            place_points=[a.release for a in plan.actions],
-        )
-        if tried is not None:
-            tried.append(plan)
-        try:
-            return plan, execute_together(cell, [(0, plan.actions[0]), (1, plan.actions[1])])
-        except (UnreachableTargetError, ArmsWouldCollideError) as exc:
-            log(
-                f"  spread infeasible ({' + '.join(pair)} hung {margin * 1000:.0f} mm clear: {exc})"
+    for pair in pairs:
+        for margin in spread.hang_margins:
+            plan = plan_spread(state, expected_size, spread, cfg, surface, margin, pair)
+            cell.show(
+                state,
+                grasp_points=[a.grasp for a in plan.actions],
+                place_points=[a.release for a in plan.actions],
             )
+            if tried is not None:
+                tried.append(plan)
+            try:
+                return plan, execute_together(cell, [(0, plan.actions[0]), (1, plan.actions[1])])
+            except (UnreachableTargetError, ArmsWouldCollideError) as exc:
+                log(
+                    f"  spread infeasible ({' + '.join(pair)} hung {margin * 1000:.0f} mm clear: "
+                    f"{exc})"
+                )
+                if failed_segment(exc) in MARGIN_FREE_SEGMENTS:
+                    break  # the way to the corners fails at any margin: next pair
     return None
 
 

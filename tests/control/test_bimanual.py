@@ -4,6 +4,7 @@ PyBullet world."""
 import numpy as np
 import pytest
 
+from foldbot import errors
 from foldbot.control.executor import ArmExecutor
 from foldbot.planning.motion import Segment, line_path
 from foldbot.sim.robots import make_robot
@@ -43,8 +44,9 @@ def test_arms_that_would_meet_are_refused_before_moving(two_arms):
     world, (left, right) = two_arms
     reach, own = _reach_across_and_own_side(world, left, right)
     q_right = right.robot.joint_positions()
-    with pytest.raises(ArmsWouldCollideError, match="segment 'reach'"):
+    with pytest.raises(ArmsWouldCollideError, match="segment 'reach'") as e:
         check_arms_clear([(left, reach), (right, _still(right, q_right, reach))])
+    assert e.value.segment == "reach"
     # Reaching on its own side keeps clear.
     check_arms_clear([(left, own), (right, _still(right, q_right, own))])
     assert world.steps == 0, "checking moves nothing"
@@ -94,8 +96,9 @@ def test_one_arm_must_clear_the_other_where_it_stands(two_arms):
     reach, own = _reach_across_and_own_side(world, left, right)
     still = [(right, right.robot.joint_positions())]
     # Named as an unreachable action of that arm, so a cell gives it to another arm.
-    with pytest.raises(UnreachableTargetError, match=r"arm 0: segment 'reach'"):
+    with pytest.raises(UnreachableTargetError, match=r"arm 0: segment 'reach'") as e:
         check_clear_of_still_arms(0, (left, reach), still)
+    assert errors.failed_segment(e.value) == "reach", "named through the error it was raised from"
     check_clear_of_still_arms(0, (left, own), still)
 
 

@@ -24,8 +24,9 @@ def test_a_path_that_would_push_the_wrist_into_the_table_is_refused(executor):
     # IK reaches a TCP 10 cm under the table top; the palm would be inside the table.
     below = np.array([start[0], start[1], world.layout.table_height - 0.10])
     q0 = robot.joint_positions()
-    with pytest.raises(UnreachableTargetError, match=r"segment 'dive'.*would touch the table"):
+    with pytest.raises(UnreachableTargetError, match=r"segment 'dive'.*would touch the table") as e:
         executor.plan([Segment("dive", line_path(start, below), 0.25)])
+    assert e.value.segment == "dive"
     assert np.array_equal(robot.joint_positions(), q0) and world.steps == 0
 
 

@@ -7,6 +7,7 @@ from foldbot.perception.state import ClothState
 from foldbot.planning.flatten import FlattenConfig
 from foldbot.planning.motion import MotionConfig
 from foldbot.planning.spread import (
+    MARGIN_FREE_SEGMENTS,
     SpreadConfig,
     corner_pairs,
     motion_segments,
@@ -129,6 +130,29 @@ def test_both_arms_get_the_same_steps_with_a_still_hang():
         # The dispatcher gives the same segments.
         again = motion_segments(a, np.array([0.45, 0.3, 1.0]), motion)
         assert [s.name for s in again] == names[0]
+
+
+def test_the_way_to_the_corners_is_the_same_at_every_margin():
+    """flatten._spread_once moves on to the next pair when one of these segments fails, without
+    trying the lower margins: they must not depend on the margin."""
+    motion, cfg, flat = MotionConfig(), SpreadConfig(), FlattenConfig()
+    state = heap_state(HEAP, [0.9] * 4)
+    start = np.array([0.45, 0.3, 1.0])
+    by_margin = [
+        {
+            s.name: s
+            for s in spread_segments(
+                plan_spread(state, (W, H), cfg, flat, margin=m).actions[0], start, motion
+            )
+        }
+        for m in cfg.hang_margins
+    ]
+    assert set(by_margin[0]) >= MARGIN_FREE_SEGMENTS
+    for other in by_margin[1:]:
+        for name in MARGIN_FREE_SEGMENTS:
+            np.testing.assert_array_equal(other[name].points, by_margin[0][name].points)
+            assert other[name].speed == by_margin[0][name].speed
+        assert not np.array_equal(other["spread"].points, by_margin[0]["spread"].points)
 
 
 @pytest.mark.parametrize(

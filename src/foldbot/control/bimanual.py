@@ -65,11 +65,13 @@ def check_arms_clear(
                         if dist >= 0.0
                         else f"overlap by {-dist * 1000:.0f} mm"
                     )
-                    raise ArmsWouldCollideError(
+                    error = ArmsWouldCollideError(
                         f"segment '{seg.segment.name}': the arms' {ma.link_name(link_a)} and "
                         f"{mb.link_name(link_b)} would {how} "
                         f"(at least {clearance * 1000:.0f} mm apart needed)"
                     )
+                    error.segment = seg.segment.name
+                    raise error
 
 
 def check_clear_of_still_arms(

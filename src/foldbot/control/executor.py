@@ -144,7 +144,9 @@ class ArmExecutor:
                 path = self.joint_path(seg.points, q)
                 self.check_table_clearance(path)
             except UnreachableTargetError as exc:
-                raise UnreachableTargetError(f"segment '{seg.name}': {exc}") from exc
+                error = UnreachableTargetError(f"segment '{seg.name}': {exc}")
+                error.segment = seg.name
+                raise error from exc
             planned.append(
                 PlannedSegment(seg, np.vstack([q, path]), np.vstack([start, seg.points]))
             )

@@ -264,6 +264,11 @@ def plan_spread(
     )
 
 
+MARGIN_FREE_SEGMENTS = frozenset({"approach", "descend"})
+"""spread_segments' steps that do not depend on the hang margin: a pair infeasible in one of them
+is infeasible at every margin."""
+
+
 def spread_segments(
     action: SpreadAction, current: np.ndarray, motion: MotionConfig
 ) -> list[Segment]:
