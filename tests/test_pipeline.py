@@ -154,6 +154,7 @@ def test_two_arms_carry_a_half_folds_corners_together(tmp_path):
     cfg = EpisodeConfig(arms=2, towel=TowelSpec(0.24, 0.24, 10), video_fps=0)
     result = run_episode(cfg, tmp_path / "ep", log=lambda *_: None)
     assert result["arms"] == 2
+    assert result["time_step"] == pytest.approx(1 / 360), "the physics step is recorded"
     actions = result["actions"]
     # One stage, its two far corners carried at once, each by the arm on its side.
     assert [(a["label"], a["arm"]) for a in actions] == [("far_left", 0), ("far_right", 1)]

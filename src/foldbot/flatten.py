@@ -357,6 +357,7 @@ def run_spreads(
     coverage = rec.initial_coverage = perceived_coverage(state, area)
     log(f"flatten: perceived coverage {coverage:.2f} (target {cfg.target_coverage:.2f}), spreading")
     laid = None  # where the last spread that carried the towel let go
+    missed = None  # the corners whose grasps the last spread missed (its retry too)
     while coverage < cfg.target_coverage and len(rec.actions) < cfg.max_actions:
         t_sim, t_wall = cell.sim_time, time.perf_counter()
         seen_state, seen_obs = state, obs
@@ -367,7 +368,7 @@ def run_spreads(
                 inset = spread.grasp_inset + attempt * cfg.retry_step
                 done = _spread_once(
                     cfg, dataclasses.replace(spread, grasp_inset=inset), cell, state, obs,
-                    expected_size, log, laid, tried,
+                    expected_size, log, laid, tried, missed,
                 )  # fmt: skip
                 if done is None:
                     break
@@ -410,7 +411,9 @@ def run_spreads(
             continue
         after = perceived_coverage(state, area) if state.detected else 0.0
         if outcomes[0]["carried"]:
-            laid = np.array([a.release for a in plan.actions])
+            laid, missed = np.array([a.release for a in plan.actions]), None
+        else:
+            missed = seen_state.keypoint_array(plan.corners)
         log(
             f"flatten {len(rec.actions) + 1}: spread {' + '.join(plan.corners)} "
             f"({plan.width * 1000:.0f} mm apart, hung {plan.margin * 1000:.0f} mm clear) "
@@ -475,19 +478,21 @@ def _spread_once(
     log: Callable[[str], None],
     laid: np.ndarray | None = None,
     tried: list[SpreadPlan] | None = None,
+    missed: np.ndarray | None = None,
 ) -> tuple[SpreadPlan, list[dict]] | None:
     """Plan a spread on the observation and run it (loop.execute_together: both arms planned
     before anything moves, on one clock; a missed grasp lets both go), holding the towel as
     high as the arms reach: the surest pair of corners whose grasps keep the palm clear of the
     heap, at each of `spread.hang_margins` in turn, then the next pair, until one is feasible
     (a pair on one side of the cell can bring the arms together). `laid`: where the last
-    spread let go (corner_pairs ranks that edge last); each plan tried is appended to `tried`
+    spread let go (corner_pairs ranks that edge late), `missed`: the corners whose grasps the last
+    spread missed (ranked last); each plan tried is appended to `tried`
     (the picture after an error shows the last). None when no pair is feasible at any margin
     (nothing moved; the log names why each was not)."""
     surface = cloth_surface(obs, state, cfg)
     pairs = [
         pair
-        for pair in corner_pairs(state, laid)
+        for pair in corner_pairs(state, laid, missed=missed)
         if plan_spread(state, expected_size, spread, cfg, surface, pair=pair).palm_clear
     ]
     if not pairs:

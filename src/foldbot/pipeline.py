@@ -438,6 +438,7 @@ def episode_result(
         "recipe": cfg.recipe,
         "robot": cfg.robot,
         "arms": cfg.arms,
+        "time_step": cfg.sim.time_step,
         "seed": cfg.seed,
         "perception": cfg.perception,
         "closed_loop": cfg.closed_loop,

@@ -41,6 +41,8 @@ def test_subcommand_help(cmd, capsys):
         (["--height", "-0.3"], "height"),
         (["--mass", "0"], "mass"),
         (["--mass", "-1"], "mass"),
+        (["--time-step", "0"], "time_step"),
+        (["--time-step", "0.05"], "time_step"),
         (["--resolution", "2"], "resolution"),
         (["--resolution", "99"], "resolution"),
         (["--garment-yaw", "0"], "turns a T-shirt or pants"),
@@ -65,6 +67,15 @@ def test_odd_grid_flag_reaches_the_towel():
     assert cfg.towel.odd_grid is True and cfg.towel.grid_shape == (17, 17)  # the CLI's default
     cfg = config_from_args(parser.parse_args(["--out", "x", "--no-odd-grid"]))
     assert cfg.towel.odd_grid is False and cfg.towel.grid_shape == (16, 16)
+
+
+def test_time_step_reaches_the_world():
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    cfg = config_from_args(parser.parse_args(["--out", "x"]))
+    assert cfg.sim.time_step == pytest.approx(1 / 360)
+    cfg = config_from_args(parser.parse_args(["--out", "x", "--time-step", "0.0020833"]))
+    assert cfg.sim.time_step == pytest.approx(1 / 480, rel=1e-4)
 
 
 def test_unwritable_output_folder(tmp_path, capsys):

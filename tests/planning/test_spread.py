@@ -207,3 +207,17 @@ def test_a_corner_under_a_heap_is_not_palm_clear():
     assert not plan.palm_clear
     far_left = next(a for a in plan.actions if a.label == "spread far_left")
     assert far_left.grasp[2] == pytest.approx(TABLE + 0.10 - flat.palm_clearance, abs=1e-6)
+
+
+def test_a_pair_just_missed_is_tried_last_after_the_edge_just_laid():
+    state = heap_state(HEAP, [0.9, 0.2, 0.8, 0.85])
+    assert corner_pairs(state)[0] == ("far_left", "near_left")
+    xy = {k: np.array([x, y, TABLE]) for k, (x, y) in zip(CORNER_LABELS, HEAP, strict=True)}
+    missed = np.array([xy["far_left"], xy["near_left"]]) + [0.01, -0.01, 0.0]
+    laid = np.array([xy["far_right"], xy["far_left"]])
+    pairs = corner_pairs(state, laid, missed=missed)
+    assert pairs[-1] == ("far_left", "near_left"), "the pair whose grasps just missed"
+    assert pairs[-2] == ("far_right", "far_left"), "the edge just laid, before it"
+    # Points away from every corner change nothing.
+    far = np.array([[0.0, 0.9, TABLE], [0.1, 0.9, TABLE]])
+    assert corner_pairs(state, missed=far) == corner_pairs(state)

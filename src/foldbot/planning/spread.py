@@ -138,13 +138,18 @@ class SpreadPlan:
 
 
 def corner_pairs(
-    state: ClothState, laid: np.ndarray | None = None, laid_radius: float = 0.06
+    state: ClothState,
+    laid: np.ndarray | None = None,
+    laid_radius: float = 0.06,
+    missed: np.ndarray | None = None,
 ) -> list[tuple[str, str]]:
     """The four pairs of adjacent perceived corners (counter-clockwise neighbours), the one the
     estimator is surest of first: ranked by the less confident corner of each pair. A pair whose
     corners both lie within `laid_radius` (m) of the points `laid` (N×3: where the last spread
-    let go) comes last: spreading the same edge again lays the towel as before, while the
-    opposite edge lifts the side that was laid first (folded under, if anything)."""
+    let go) comes late: spreading the same edge again lays the towel as before, while the
+    opposite edge lifts the side that was laid first (folded under, if anything). A pair whose
+    corners both lie within it of the points `missed` (where the last spread's grasps missed,
+    its retry too) comes last: nothing moved, and the same grasps would miss again."""
     if not state.detected:
         raise FoldbotError(f"no cloth to spread: {state.reason}")
     missing = [k for k in CORNER_LABELS if k not in state.keypoints]
@@ -152,13 +157,22 @@ def corner_pairs(
         raise FoldbotError(f"a spread needs the 4 perceived corners; missing {', '.join(missing)}")
     conf = [float(state.keypoints[k][1]) for k in CORNER_LABELS]
     xy = state.keypoint_array(CORNER_LABELS)[:, :2]
-    near = np.zeros(4, bool)
-    if laid is not None and len(laid):
-        d = np.linalg.norm(xy[:, None] - np.asarray(laid, dtype=float)[None, :, :2], axis=2)
-        near = d.min(axis=1) <= laid_radius
+
+    def near(points: np.ndarray | None) -> np.ndarray:
+        if points is None or not len(points):
+            return np.zeros(4, bool)
+        d = np.linalg.norm(xy[:, None] - np.asarray(points, dtype=float)[None, :, :2], axis=2)
+        return d.min(axis=1) <= laid_radius
+
+    near_laid, near_missed = near(laid), near(missed)
     ranked = sorted(
         range(4),
-        key=lambda i: (bool(near[i] and near[(i + 1) % 4]), -min(conf[i], conf[(i + 1) % 4]), i),
+        key=lambda i: (
+            bool(near_missed[i] and near_missed[(i + 1) % 4]),
+            bool(near_laid[i] and near_laid[(i + 1) % 4]),
+            -min(conf[i], conf[(i + 1) % 4]),
+            i,
+        ),
     )
     return [(CORNER_LABELS[i], CORNER_LABELS[(i + 1) % 4]) for i in ranked]
 
