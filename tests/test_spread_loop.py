@@ -12,16 +12,18 @@ SCRIPT = """
 import contextlib, json, sys
 import numpy as np
 from foldbot import metrics
-from foldbot.flatten import run_flatten
+from foldbot.flatten import run_flatten, run_spreads
 from foldbot.garments.towel import TowelSpec
 from foldbot.perception.estimator import VisionEstimator
 from foldbot.pipeline import EpisodeConfig, SimCell, build_sim_cell
 from foldbot.planning.flatten import FlattenConfig
+from foldbot.planning.spread import SpreadConfig
 from foldbot.sim.cloth import settle
 from foldbot.sim.crumple import crumple
 from foldbot.sim.world import SimWorld
 
 seed = int(sys.argv[1])
+fault = float(sys.argv[2])  # m: the first spread aimed this far outside its corners
 cfg = EpisodeConfig(seed=seed, towel=TowelSpec(0.3, 0.3, 8), video_fps=0.0, arms=2)
 with SimWorld(cfg.sim) as world, contextlib.ExitStack() as stack:
     parts = build_sim_cell(cfg, world)
@@ -35,7 +37,13 @@ with SimWorld(cfg.sim) as world, contextlib.ExitStack() as stack:
         world, parts.robot, parts.executor, parts.camera, VisionEstimator(), cfg.motion,
         more_executors=parts.more_executors,
     )
-    rec = run_flatten(FlattenConfig(max_actions=1), cell, (0.3, 0.3), log=lambda s: None)
+    if fault > 0:
+        rec = run_spreads(
+            FlattenConfig(max_actions=2), SpreadConfig(fault_grasp_offset=fault), cell,
+            (0.3, 0.3), log=lambda s: None,
+        )
+    else:
+        rec = run_flatten(FlattenConfig(max_actions=1), cell, (0.3, 0.3), log=lambda s: None)
     after = metrics.coverage(parts.oracle.cloth_vertices(), faces, area)
 print(json.dumps({
     "before": before,
@@ -48,10 +56,11 @@ print(json.dumps({
 """
 
 
-def flatten_crumpled(seed: int) -> dict:
-    """SCRIPT's report for `seed`, run in a fresh interpreter."""
+def flatten_crumpled(seed: int, fault: float = 0.0) -> dict:
+    """SCRIPT's report for `seed`, run in a fresh interpreter (`fault`: the first spread aimed
+    that far outside its corners, m; then two spreads instead of one flattening action)."""
     out = subprocess.run(
-        [sys.executable, "-c", SCRIPT, str(seed)],
+        [sys.executable, "-c", SCRIPT, str(seed), str(fault)],
         capture_output=True,
         text=True,
         timeout=900,
@@ -103,3 +112,16 @@ def test_where_no_spread_is_feasible_one_arm_pulls(heap_too_small_to_spread):
     assert action["label"].startswith("pull ")
     assert len(action["grasp"]) == 3 and len(action["place"]) == 3
     assert heap_too_small_to_spread["captions"][0].startswith(f"1: {action['label']}")
+
+
+@pytest.mark.slow
+def test_a_missed_spread_is_followed_by_another_pair():
+    """The first spread's grasps aimed 6 cm outside the corners miss (its retry too); the next
+    action takes another pair of corners rather than the same grasps again (whether that pair
+    holds is up to where the camera put its corners)."""
+    report = flatten_crumpled(4, fault=0.06)
+    first, second = report["actions"]
+    assert first["kind"] == "flatten_spread" and first["grasp_success"] is False
+    assert first["retries"] == 1 and "no cloth" in first["grasp_reason"]
+    assert second["kind"] == "flatten_spread"
+    assert set(second["label"].split()[1::2]) != set(first["label"].split()[1::2])

@@ -357,18 +357,20 @@ def run_spreads(
     coverage = rec.initial_coverage = perceived_coverage(state, area)
     log(f"flatten: perceived coverage {coverage:.2f} (target {cfg.target_coverage:.2f}), spreading")
     laid = None  # where the last spread that carried the towel let go
-    missed = None  # the corners whose grasps the last spread missed (its retry too)
+    missed_corners = None  # the corners whose grasps the last spread missed (its retry too)
     while coverage < cfg.target_coverage and len(rec.actions) < cfg.max_actions:
         t_sim, t_wall = cell.sim_time, time.perf_counter()
         seen_state, seen_obs = state, obs
         attempts: list[dict] = []
         plan, tried = None, []
+        # An injected fault (tests) misaims the first action only.
+        this = spread if not rec.actions else dataclasses.replace(spread, fault_grasp_offset=0.0)
         try:
             for attempt in range(cfg.retries + 1):
-                inset = spread.grasp_inset + attempt * cfg.retry_step
+                inset = this.grasp_inset + attempt * cfg.retry_step
                 done = _spread_once(
-                    cfg, dataclasses.replace(spread, grasp_inset=inset), cell, state, obs,
-                    expected_size, log, laid, tried, missed,
+                    cfg, dataclasses.replace(this, grasp_inset=inset), cell, state, obs,
+                    expected_size, log, laid, tried, missed_corners,
                 )  # fmt: skip
                 if done is None:
                     break
@@ -385,12 +387,12 @@ def run_spreads(
                 state, obs = cell.observe()
                 if outcomes[0]["carried"] or not state.detected:
                     break
-                missed = "; ".join(
+                misses = "; ".join(
                     f"{a.label}: {o['grasp_reason']}"
                     for a, o in zip(plan.actions, outcomes, strict=True)
                     if not o["grasp_success"]
                 )
-                log(f"  grasp failed ({missed}); both arms let go, re-observed")
+                log(f"  grasp failed ({misses}); both arms let go, re-observed")
         except Exception as exc:  # diverged, unreachable …: the picture shows what was tried
             shown = tried[-1].actions if tried else ()
             rec.overlays.append(
@@ -411,9 +413,9 @@ def run_spreads(
             continue
         after = perceived_coverage(state, area) if state.detected else 0.0
         if outcomes[0]["carried"]:
-            laid, missed = np.array([a.release for a in plan.actions]), None
+            laid, missed_corners = np.array([a.release for a in plan.actions]), None
         else:
-            missed = seen_state.keypoint_array(plan.corners)
+            missed_corners = seen_state.keypoint_array(plan.corners)
         log(
             f"flatten {len(rec.actions) + 1}: spread {' + '.join(plan.corners)} "
             f"({plan.width * 1000:.0f} mm apart, hung {plan.margin * 1000:.0f} mm clear) "

@@ -55,6 +55,10 @@ class SpreadConfig:
     top_depth: float = 0.002
     """The jaws close this far below the perceived top surface at the grasp (m): the top layer,
     the corner the camera sees, not the cloth under it."""
+    fault_grasp_offset: float = 0.0
+    """Fault injection for tests (m; 0 in use): the first spread's grasps, its retry too, are
+    aimed this far outside the perceived corners, onto bare table, so the recovery from a missed
+    spread can be exercised (flatten.run_spreads)."""
 
     def __post_init__(self) -> None:
         require(
@@ -73,6 +77,7 @@ class SpreadConfig:
             ("release_height", 0.0, 0.2),
             ("grasp_inset", 0.0, 0.1),
             ("top_depth", 0.0, 0.02),
+            ("fault_grasp_offset", 0.0, 0.2),
         ):
             v = getattr(self, name)
             require(
@@ -199,7 +204,7 @@ def _grasp_point(
     centre = state.keypoint_array(CORNER_LABELS).mean(axis=0)
     inward = centre[:2] - corner[:2]
     inward = inward / max(float(np.linalg.norm(inward)), 1e-9)
-    xy = corner[:2] + inward * cfg.grasp_inset
+    xy = corner[:2] + inward * (cfg.grasp_inset - cfg.fault_grasp_offset)
     z_table = table_z(state.table_plane, xy)
     level, reached = flat.grasp_height, True
     if surface is not None:
