@@ -120,8 +120,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=float,
         default=SimConfig.time_step,
         metavar="S",
-        help=f"physics step in s (default 1/360 = {SimConfig.time_step:.6f}; the two-arm "
-        "crumpled suite runs at 1/480 = 0.002083, where heaps blow up less often)",
+        help=f"physics step in s (default 1/360 = {SimConfig.time_step:.6f}; a suite's "
+        "[episode] time_step; smaller steps cost time and blow crumpled heaps up less often)",
     )
     parser.add_argument(
         "--video-fps", type=float, default=10.0, help="video frames per simulated second (0 = off)"
