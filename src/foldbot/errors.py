@@ -28,6 +28,9 @@ class ArmsWouldCollideError(FoldbotError):
 class SimulationDivergedError(FoldbotError):
     """The physics blew up (NaN or cloth vertices far outside the workspace); never scored."""
 
+    segment: str | None = None
+    """The motion segment the arm was running when it happened ('lift', 'lay', …), where known."""
+
 
 class OutputError(FoldbotError):
     """An output folder cannot be created or written."""

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from foldbot.control.executor import ArmExecutor, move_joints_together, run_together
-from foldbot.errors import UnreachableTargetError
+from foldbot.errors import SimulationDivergedError, UnreachableTargetError, failed_segment
 from foldbot.planning.motion import Segment, line_path
 from foldbot.sim.robots import make_robot
 from foldbot.sim.world import SimWorld
@@ -114,3 +114,23 @@ def test_a_dwell_holds_the_arm_still_at_the_segment_end(executor):
     assert world.steps == samples - 1 + round(0.5 / world.time_step)
     assert np.linalg.norm(robot.tcp_pose()[0] - a1) < 0.005
     assert np.abs(robot.joint_velocities()).max() < 0.01
+
+
+def test_a_divergence_names_the_segment_the_arms_were_running(two_arms):
+    world, (left, right) = two_arms
+    a0, b0 = left.robot.tcp_pose()[0], right.robot.tcp_pose()[0]
+    steps = [
+        (left, left.plan([Segment("lift", line_path(a0, a0 + [0.0, 0.0, 0.05]), 0.25)])[0]),
+        (right, right.plan([Segment("lift", line_path(b0, b0 + [0.0, 0.0, 0.05]), 0.25)])[0]),
+    ]
+
+    def blow_up(w):  # as the cloth's DivergenceMonitor raises, 36 steps (0.1 s) in
+        if w.steps == 36:
+            raise SimulationDivergedError("cloth simulation diverged: non-finite vertex positions")
+
+    world.add_step_hook(blow_up)
+    with pytest.raises(
+        SimulationDivergedError, match=r"non-finite.*in segment lift, 0\.10 s in"
+    ) as e:
+        run_together(steps)
+    assert e.value.segment == "lift" and failed_segment(e.value) == "lift"

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from foldbot.control.trajectory import JointTrajectory, time_parametrize
-from foldbot.errors import ConfigError, UnreachableTargetError
+from foldbot.errors import ConfigError, SimulationDivergedError, UnreachableTargetError
 from foldbot.planning.motion import Segment
 from foldbot.sim.grasp import ClothGrasp
 from foldbot.sim.robots.base import Robot
@@ -248,13 +248,28 @@ def run_together(steps: list[tuple[ArmExecutor, Segment | PlannedSegment]]) -> l
     if any(ex.world is not world for ex, _ in steps):
         raise ValueError("arms stepped together must share one world")
     runs = [ex.start(step) for ex, step in steps]
-    for k in range(1, max(r.samples for r in runs)):
-        for r in runs:
-            r.command(k)
-        world.step()
-        for r in runs:
-            r.monitor(k)
-    return [r.finish() for r in runs]
+    t0 = world.sim_time
+    try:
+        for k in range(1, max(r.samples for r in runs)):
+            for r in runs:
+                r.command(k)
+            world.step()
+            for r in runs:
+                r.monitor(k)
+        return [r.finish() for r in runs]
+    except SimulationDivergedError as exc:
+        raise _diverged_in(exc, runs, world.sim_time - t0) from exc
+
+
+def _diverged_in(
+    exc: SimulationDivergedError, runs: list[_Run], t: float
+) -> SimulationDivergedError:
+    """`exc` restated with the segment(s) the arms were running and how far into them (s), so a
+    divergence record says in which motion (descend, lift, lay, …) the cloth blew up."""
+    names = list(dict.fromkeys(r.segment.name for r in runs))
+    error = SimulationDivergedError(f"{exc} (in segment {' + '.join(names)}, {t:.2f} s in)")
+    error.segment = names[0]
+    return error
 
 
 def move_joints_together(
