@@ -24,7 +24,14 @@ from foldbot.errors import (
     failed_segment,
     require,
 )
-from foldbot.loop import FoldCell, execute_action, execute_together, line_points
+from foldbot.loop import (
+    FoldCell,
+    execute_action,
+    execute_together,
+    line_points,
+    missed_grasps,
+    pair_attempt,
+)
 from foldbot.perception.overlay import contact_sheet, draw_overlay
 from foldbot.perception.state import ClothState
 from foldbot.planning.flatten import (
@@ -375,24 +382,16 @@ def run_spreads(
                 if done is None:
                     break
                 plan, outcomes = done
-                attempts.append(
-                    {
-                        "grasps": [[float(v) for v in a.grasp] for a in plan.actions],
-                        "grasp_success": [o["grasp_success"] for o in outcomes],
-                        "grasp_reasons": [o["grasp_reason"] for o in outcomes],
-                    }
-                )
+                attempts.append(pair_attempt(plan.actions, outcomes))
                 cell.park()
                 cell.wait(cfg.settle_time)
                 state, obs = cell.observe()
                 if outcomes[0]["carried"] or not state.detected:
                     break
-                misses = "; ".join(
-                    f"{a.label}: {o['grasp_reason']}"
-                    for a, o in zip(plan.actions, outcomes, strict=True)
-                    if not o["grasp_success"]
+                log(
+                    f"  grasp failed ({missed_grasps(plan.actions, outcomes)}); "
+                    "both arms let go, re-observed"
                 )
-                log(f"  grasp failed ({misses}); both arms let go, re-observed")
         except Exception as exc:  # diverged, unreachable …: the picture shows what was tried
             shown = tried[-1].actions if tried else ()
             rec.overlays.append(

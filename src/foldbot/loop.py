@@ -16,7 +16,7 @@ import abc
 import contextlib
 import dataclasses
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -46,6 +46,7 @@ from foldbot.planning.recipes import (
     recipe_stages,
     takes_crease_room,
 )
+from foldbot.planning.spread import SpreadAction
 from foldbot.types import GraspResult, Observation
 
 MIN_ARM_SEPARATION = 0.12
@@ -796,8 +797,9 @@ def show_and_carry_pair(
         return execute_together(cell, list(zip(arms, actions, strict=True))), arms
 
 
-def pair_attempt(actions: list[FoldAction], outcomes: list[dict]) -> dict:
-    """One try of a pair, as the entries' `attempts` record it: grasps aimed, and what they held."""
+def pair_attempt(actions: Sequence[FoldAction | SpreadAction], outcomes: list[dict]) -> dict:
+    """One try of a pair (pick-and-places or a spread's two arms), as the entries' `attempts`
+    record it: grasps aimed, and what they held."""
     return {
         "grasps": [[float(v) for v in a.grasp] for a in actions],
         "grasp_success": [o["grasp_success"] for o in outcomes],
@@ -805,7 +807,7 @@ def pair_attempt(actions: list[FoldAction], outcomes: list[dict]) -> dict:
     }
 
 
-def missed_grasps(planned: tuple[FoldAction, ...], outcomes: list[dict]) -> str:
+def missed_grasps(planned: Sequence[FoldAction | SpreadAction], outcomes: list[dict]) -> str:
     """The log's words for a pair's failed grasps: each missed action's label and reason."""
     return "; ".join(
         f"{a.label}: {o['grasp_reason']}"
