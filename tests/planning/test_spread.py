@@ -119,13 +119,20 @@ def test_both_arms_get_the_same_steps_with_a_still_hang():
     lists = [spread_segments(a, np.array([0.45, 0.3, 1.0]), motion) for a in plan.actions]
     names = [[s.name for s in segs] for segs in lists]
     assert names[0] == names[1]
-    assert names[0] == ["approach", "descend", "lift", "spread", "lower", "lay", "retreat"]
+    steps = ["approach", "come_down", "descend", "lift", "spread", "lower", "lay", "retreat"]
+    assert names[0] == steps
     for segs, a in zip(lists, plan.actions, strict=True):
         by = {s.name: s for s in segs}
         assert by["descend"].gripper == "close" and by["lay"].gripper == "open"
         assert by["spread"].dwell == pytest.approx(SpreadConfig().hang_time)
         assert by["lay"].speed == pytest.approx(SpreadConfig().lay_speed)
+        # Slow only over the last slow_descent above the corner, straight down onto it.
         assert by["descend"].speed == pytest.approx(SpreadConfig().descend_speed)
+        assert by["come_down"].speed == pytest.approx(motion.free_speed / 3)
+        assert by["come_down"].points[-1] == pytest.approx(by["descend"].points[0])
+        drop = by["descend"].points[0] - by["descend"].points[-1]
+        assert drop == pytest.approx([0.0, 0.0, SpreadConfig().slow_descent])
+        assert by["descend"].points[-1] == pytest.approx(a.grasp + [0, 0, motion.grasp_depth])
         assert by["spread"].points[-1] == pytest.approx(a.hold)
         # The dispatcher gives the same segments.
         again = motion_segments(a, np.array([0.45, 0.3, 1.0]), motion)
@@ -161,6 +168,7 @@ def test_the_way_to_the_corners_is_the_same_at_every_margin():
         ({"hang_time": -1.0}, "hang_time"),
         ({"lay_speed": 0.0}, "lay_speed"),
         ({"descend_speed": 0.0}, "descend_speed"),
+        ({"slow_descent": 0.0}, "slow_descent"),
         ({"hang_margins": ()}, "hang_margins"),
         ({"hang_margins": (0.5,)}, "hang_margins"),
     ],

@@ -40,6 +40,10 @@ class SpreadConfig:
     """TCP speed of the last approach to a corner (m/s): slow, so the jaws and palm come down
     on a heap without shoving it (towel_crumpled_two_arms: 10 of 20 flattened, against 8 at the
     pulls' 0.17 m/s; 10 diverged, against 8)."""
+    slow_descent: float = 0.03
+    """Only the last this many metres down to a corner are at `descend_speed`; above them the
+    jaws come down at the pulls' speed (MotionConfig.free_speed / 3), so a restless heap waits
+    less for the grasp."""
     lift_speed: float = 0.25
     """TCP speed lifting and spreading (m/s)."""
     lay_speed: float = 0.10
@@ -72,6 +76,7 @@ class SpreadConfig:
             ("hold_far_x", 0.2, 1.0),
             ("hang_time", 0.0, 10.0),
             ("descend_speed", 0.005, 1.0),
+            ("slow_descent", 0.005, 0.08),
             ("lift_speed", 0.01, 1.0),
             ("lay_speed", 0.01, 1.0),
             ("release_height", 0.0, 0.2),
@@ -101,6 +106,7 @@ class SpreadAction:
     label: str = ""
     hang_time: float = 1.0
     descend_speed: float = 0.03
+    slow_descent: float = 0.03
     lift_speed: float = 0.25
     lay_speed: float = 0.10
     first_lift: float = 0.10
@@ -269,6 +275,7 @@ def plan_spread(
                 label=f"spread {labels[i]}",
                 hang_time=cfg.hang_time,
                 descend_speed=cfg.descend_speed,
+                slow_descent=cfg.slow_descent,
                 lift_speed=cfg.lift_speed,
                 lay_speed=cfg.lay_speed,
             )
@@ -283,7 +290,7 @@ def plan_spread(
     )
 
 
-MARGIN_FREE_SEGMENTS = frozenset({"approach", "descend"})
+MARGIN_FREE_SEGMENTS = frozenset({"approach", "come_down", "descend"})
 """spread_segments' steps that do not depend on the hang margin: a pair infeasible in one of them
 is infeasible at every margin."""
 
@@ -292,16 +299,19 @@ def spread_segments(
     action: SpreadAction, current: np.ndarray, motion: MotionConfig
 ) -> list[Segment]:
     """The segments one arm runs for its part of a spread, from TCP position `current`: approach,
-    descend and close, lift straight up off the heap, rise and spread to the hold, hang (still, `hang_time`), lower
-    until the towel touches, lay at 45° and open, retreat. Both arms' lists have the same steps."""
+    come down to `slow_descent` over the corner, descend slowly and close, lift straight up off
+    the heap, rise and spread to the hold, hang (still, `hang_time`), lower until the towel
+    touches, lay at 45° and open, retreat. Both arms' lists have the same steps."""
     up = np.array([0.0, 0.0, 1.0])
     grasp_tcp = action.grasp + up * motion.grasp_depth
     pre_grasp = action.grasp + up * motion.approach_height
+    slow_from = grasp_tcp + up * min(action.slow_descent, float(pre_grasp[2] - grasp_tcp[2]))
     lifted = grasp_tcp + up * min(action.first_lift, max(action.hold[2] - grasp_tcp[2], 0.0) / 2)
     release_tcp = action.release + up * motion.grasp_depth
     return [
         Segment("approach", line_path(current, pre_grasp), motion.free_speed),
-        Segment("descend", line_path(pre_grasp, grasp_tcp, 0.005), action.descend_speed, "close"),
+        Segment("come_down", line_path(pre_grasp, slow_from, 0.005), motion.free_speed / 3),
+        Segment("descend", line_path(slow_from, grasp_tcp, 0.005), action.descend_speed, "close"),
         Segment("lift", line_path(grasp_tcp, lifted), action.lift_speed),
         Segment(
             "spread", line_path(lifted, action.hold), action.lift_speed, dwell=action.hang_time
