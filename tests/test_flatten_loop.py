@@ -1,6 +1,7 @@
 """Crumple a small towel and flatten it in the closed loop (vision only); coverage rises."""
 
 import json
+import re
 import subprocess
 import sys
 
@@ -161,7 +162,11 @@ def test_an_error_while_flattening_keeps_the_picture_of_the_pulls(tmp_path):
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
     report = json.loads(proc.stdout.strip().splitlines()[-1])
-    assert report["error"]["message"] == "cloth simulation diverged (injected)"
+    # The injected divergence comes one second into the first pull: on the way down to the cloth.
+    assert re.fullmatch(
+        r"cloth simulation diverged \(injected\) \(in segment (approach|descend), [\d.]+ s in\)",
+        report["error"]["message"],
+    )
     failed = tmp_path / "ep.failed"
     assert not out.exists() and "flatten.png" in report["error"]["notes"][0]
     assert sorted(p.name for p in failed.iterdir()) == ["error.json", "flatten.png"]
