@@ -55,7 +55,7 @@ from foldbot.sim.cloth import ClothConfig, DivergenceMonitor, SoftCloth, settle
 from foldbot.sim.crumple import crumple
 from foldbot.sim.flatten_oracle import CornerPullOracle
 from foldbot.sim.garment_oracle import GarmentOracleEstimator
-from foldbot.sim.grasp import ClothGrasp
+from foldbot.sim.grasp import JAW_CATCHES, ClothGrasp
 from foldbot.sim.oracle import GroundTruthOracle, OracleEstimator
 from foldbot.sim.robots import ROBOT_NAMES, make_robot
 from foldbot.sim.world import SimConfig, SimWorld
@@ -138,6 +138,9 @@ class EpisodeConfig:
     """Arms in the cell: 1, or 2 side by side (CellLayout.arm_layouts), which carry a stage's
     two grasps together (a towel's corners, a garment side's hem and cuff, a pants leg's waist
     and hem; single actions use the arm on their side). Flat starts only."""
+    jaw_catch: str = "vertices"
+    """What the closed jaws hold (sim.grasp.JAW_CATCHES): "vertices", the cloth's mesh points
+    between the pads; "surface", also cloth that passes between the pads between mesh points."""
 
     def __post_init__(self) -> None:
         require(
@@ -203,6 +206,10 @@ class EpisodeConfig:
         require(
             self.arms in ARM_COUNTS and not isinstance(self.arms, bool),
             f"arms must be one of {ARM_COUNTS}, got {self.arms!r}",
+        )
+        require(
+            self.jaw_catch in JAW_CATCHES,
+            f"unknown jaw_catch {self.jaw_catch!r}; allowed: {', '.join(JAW_CATCHES)}",
         )
 
 
@@ -439,6 +446,7 @@ def episode_result(
         "robot": cfg.robot,
         "arms": cfg.arms,
         "time_step": cfg.sim.time_step,
+        "jaw_catch": cfg.jaw_catch,
         "seed": cfg.seed,
         "perception": cfg.perception,
         "closed_loop": cfg.closed_loop,
@@ -495,7 +503,7 @@ def build_sim_cell(cfg: EpisodeConfig, world: SimWorld) -> SimCellParts:
         ArmExecutor(
             world,
             arm,
-            ClothGrasp(world, arm, cloth),
+            ClothGrasp(world, arm, cloth, catch=cfg.jaw_catch),
             model=make_robot(cfg.robot, model_world.client, lay),
             model_table_id=model_world.table_id,
         )

@@ -115,6 +115,17 @@ def test_arms_reach_the_cell_and_are_left_out_of_specs_by_default(tiny_suite_dat
     assert EpisodeSpec.from_dict(spec.as_dict()) == spec
 
 
+def test_jaw_catch_reaches_the_cell_and_is_left_out_of_specs_by_default(tiny_suite_data):
+    data = tiny_suite_data()
+    default = load_one(data)
+    assert default.to_config().jaw_catch == "vertices"
+    assert "jaw_catch" not in default.as_dict()  # older runs keep resuming
+    data["episode"]["jaw_catch"] = "surface"
+    spec = load_one(data)
+    assert spec.to_config().jaw_catch == "surface"
+    assert EpisodeSpec.from_dict(spec.as_dict()) == spec
+
+
 def test_garment_yaw_reaches_the_pose_and_is_left_out_of_specs_by_default(tiny_suite_data):
     data = tiny_suite_data()
     default = load_one(data)
@@ -233,6 +244,10 @@ def test_unknown_suite_name_lists_the_available_ones():
         (lambda d: d["episode"].update(park="garage"), ["episode.park", "garage", "out_of_view"]),
         (lambda d: d["episode"].update(time_step=0.5), ["episode.time_step", "0.5"]),
         (lambda d: d["episode"].update(arms=3), ["episode.arms", "3", "1, 2"]),
+        (
+            lambda d: d["episode"].update(jaw_catch="glue"),
+            ["episode.jaw_catch", "glue", "vertices, surface"],
+        ),
         (lambda d: d["episode"].update(time_step=0), ["episode.time_step", "0"]),
         (lambda d: d.update(reference={"ravens_speed": "yes"}), ["ravens_speed", "bool"]),
         (lambda d: d.update(name=""), ["name"]),

@@ -43,6 +43,7 @@ def test_subcommand_help(cmd, capsys):
         (["--mass", "-1"], "mass"),
         (["--time-step", "0"], "time_step"),
         (["--time-step", "0.05"], "time_step"),
+        (["--jaw-catch", "glue"], "glue"),
         (["--resolution", "2"], "resolution"),
         (["--resolution", "99"], "resolution"),
         (["--garment-yaw", "0"], "turns a T-shirt or pants"),
@@ -67,6 +68,14 @@ def test_odd_grid_flag_reaches_the_towel():
     assert cfg.towel.odd_grid is True and cfg.towel.grid_shape == (17, 17)  # the CLI's default
     cfg = config_from_args(parser.parse_args(["--out", "x", "--no-odd-grid"]))
     assert cfg.towel.odd_grid is False and cfg.towel.grid_shape == (16, 16)
+
+
+def test_jaw_catch_reaches_the_episode():
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    assert config_from_args(parser.parse_args(["--out", "x"])).jaw_catch == "vertices"
+    cfg = config_from_args(parser.parse_args(["--out", "x", "--jaw-catch", "surface"]))
+    assert cfg.jaw_catch == "surface"
 
 
 def test_time_step_reaches_the_world():

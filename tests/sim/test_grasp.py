@@ -1,8 +1,11 @@
 import numpy as np
 import pytest
 
+from foldbot.errors import ConfigError
+from foldbot.garments.towel import TowelSpec, make_towel
+from foldbot.sim.cloth import ClothConfig, DivergenceMonitor, SoftCloth, settle
 from foldbot.sim.grasp import ClothGrasp
-from foldbot.sim.robots import gripper_down_quaternion
+from foldbot.sim.robots import gripper_down_quaternion, make_robot
 
 
 def _move(world, robot, target, duration=0.8):
@@ -61,3 +64,66 @@ def test_grasp_beside_the_edge_catches_nothing(cell, offset):
     corner = cloth.sim_vertices()[cloth.mesh.keypoints["corner_00"]]
     _move(world, robot, corner + [-offset, -offset, 0.004])
     assert not grasp.close().success
+
+
+@pytest.fixture
+def coarse_cell(world):
+    """World + UR5 + a settled 0.2 m towel meshed 6×6 (4 cm squares, as coarse as the jaws)."""
+    lay = world.layout
+    robot = make_robot("ur5", world.client, lay)
+    mesh = make_towel(TowelSpec(0.2, 0.2, 6))
+    cloth = SoftCloth(world.client, mesh, ClothConfig(), lay.table_height, lay.workspace_center_xy)
+    world.add_step_hook(DivergenceMonitor(cloth, lay.workspace_center_xy, radius=1.0))
+    settle(world, cloth)
+    return world, robot, cloth
+
+
+def _cell_middle(cloth) -> np.ndarray:
+    """The middle of the mesh square at corner_00, where no mesh point lies within the jaws."""
+    verts = cloth.sim_vertices()
+    corner = verts[cloth.mesh.keypoints["corner_00"]]
+    toward = np.sign(verts[:, :2].mean(axis=0) - corner[:2])
+    middle = corner.copy()
+    middle[:2] += toward * cloth.mesh.edge_length / 2
+    return middle
+
+
+def test_surface_catch_holds_cloth_between_mesh_points(coarse_cell):
+    world, robot, cloth = coarse_cell
+    table = world.layout.table_height
+    middle = _cell_middle(cloth)
+    nearest = np.linalg.norm(cloth.sim_vertices() - middle, axis=1).min()
+    assert nearest > 0.02, "the jaws must close between mesh points for this test"
+    _move(world, robot, middle + [0, 0, 0.06])
+    _move(world, robot, middle + [0, 0, 0.004], 0.5)
+    points_only = ClothGrasp(world, robot, cloth)
+    missed = points_only.close()
+    assert not missed.success, "no mesh point lies between the pads"
+    points_only.open()
+    surface = ClothGrasp(world, robot, cloth, catch="surface")
+    result = surface.close()
+    assert result.success, result.reason
+    assert "holding the cloth between the jaws" in result.reason
+    held = cloth.sim_vertices()[list(result.vertex_ids)]
+    # Held at the surrounding square's points only, where they lay: nothing farther is attached.
+    assert np.linalg.norm(held[:, :2] - middle[:2], axis=1).max() < cloth.mesh.edge_length
+    _move(world, robot, middle + [0, 0, 0.12])
+    v = cloth.sim_vertices()
+    assert v[list(result.vertex_ids), 2].min() - table > 0.09, "the held cloth rises"
+    surface.open()
+
+
+def test_surface_catch_over_empty_table_holds_nothing(cell):
+    world, robot, cloth = cell
+    grasp = ClothGrasp(world, robot, cloth, catch="surface")
+    corner = cloth.sim_vertices()[cloth.mesh.keypoints["corner_00"]]
+    _move(world, robot, corner + [-0.04, -0.04, 0.004])
+    result = grasp.close()
+    assert not result.success and "no cloth" in result.reason
+    assert not grasp.holding
+
+
+def test_unknown_jaw_catch_is_refused(cell):
+    world, robot, cloth = cell
+    with pytest.raises(ConfigError, match="unknown jaw catch 'glue'; allowed: vertices, surface"):
+        ClothGrasp(world, robot, cloth, catch="glue")

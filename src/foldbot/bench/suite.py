@@ -37,6 +37,7 @@ start = "flat"                          # "crumpled": crumple the cloth, flatten
 park = "home"                           # "out_of_view": the arm waits outside the camera's image
 time_step = 0.0027778                   # s, physics step (optional; default SimConfig's 1/360)
 arms = 1                                # 2: two arms side by side carry a stage's corners together
+jaw_catch = "vertices"                  # "surface": closed jaws also hold cloth between mesh points
 
 [reference]
 ravens_speed = true                     # plain-PyBullet speed reference (ravens_reference.py)
@@ -68,6 +69,7 @@ from foldbot.pipeline import (
 )
 from foldbot.planning.garment_recipes import GARMENT_RECIPES
 from foldbot.planning.recipes import RECIPES
+from foldbot.sim.grasp import JAW_CATCHES
 from foldbot.sim.world import SimConfig
 
 ALL_RECIPES = RECIPES + tuple(r for rs in GARMENT_RECIPES.values() for r in rs)
@@ -82,7 +84,7 @@ _SCHEMA: dict[str, set[str]] = {
     "axes": {"garment", "recipe", "perception", "loop", "seeds"},
     "towel": {"resolution", "odd_grid", "width", "height"},
     "randomise": {"towel_side", "position_jitter", "yaw_deg", "garment_yaw_deg"},
-    "episode": {"retries", "video_fps", "start", "park", "time_step", "arms"},
+    "episode": {"retries", "video_fps", "start", "park", "time_step", "arms", "jaw_catch"},
     "reference": {"ravens_speed"},
 }
 
@@ -144,6 +146,8 @@ class EpisodeSpec:
     """Physics step (s); None = SimConfig's default (1/360 s)."""
     arms: int = 1
     """Arms in the cell (EpisodeConfig.arms): 1, or 2 side by side."""
+    jaw_catch: str = "vertices"
+    """What the closed jaws hold (EpisodeConfig.jaw_catch): vertices, or surface."""
 
     @property
     def id(self) -> str:
@@ -180,6 +184,7 @@ class EpisodeSpec:
             start=self.start,
             park=self.park,
             arms=self.arms,
+            jaw_catch=self.jaw_catch,
             sim=SimConfig() if self.time_step is None else SimConfig(time_step=self.time_step),
         )
 
@@ -192,6 +197,8 @@ class EpisodeSpec:
             del d["towel_odd_grid"]  # likewise
         if d["arms"] == 1:
             del d["arms"]  # likewise
+        if d["jaw_catch"] == "vertices":
+            del d["jaw_catch"]  # likewise
         if d["garment_yaw_deg"] == 90.0:
             del d["garment_yaw_deg"]  # likewise
         if d["towel_side_range"] is not None:
@@ -399,6 +406,12 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
             f"{where}: episode.arms = {arms!r} is not allowed; allowed: "
             f"{', '.join(map(str, ARM_COUNTS))}"
         )
+    jaw_catch = _get(data, "episode", "jaw_catch", str, "vertices", where)
+    if jaw_catch not in JAW_CATCHES:
+        raise ConfigError(
+            f"{where}: episode.jaw_catch = {jaw_catch!r} is unknown; allowed: "
+            f"{', '.join(JAW_CATCHES)}"
+        )
     time_step = ep.get("time_step")
     if time_step is not None:
         time_step = _range(time_step, "episode.time_step", 1e-4, 0.02, where)
@@ -431,6 +444,7 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
                                 park=park,
                                 time_step=time_step,
                                 arms=arms,
+                                jaw_catch=jaw_catch,
                             )
                         )
     for spec in specs[:1]:

@@ -20,6 +20,7 @@ from foldbot.pipeline import (
 )
 from foldbot.planning.garment_recipes import GARMENT_RECIPE_HELP, GARMENT_RECIPES
 from foldbot.planning.recipes import RECIPE_HELP, RECIPES
+from foldbot.sim.grasp import JAW_CATCHES
 from foldbot.sim.robots import ROBOT_NAMES
 from foldbot.sim.world import SimConfig
 
@@ -124,6 +125,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "[episode] time_step; smaller steps cost time and blow crumpled heaps up less often)",
     )
     parser.add_argument(
+        "--jaw-catch",
+        choices=JAW_CATCHES,
+        default="vertices",
+        help="what the closed jaws hold: the cloth's mesh points between the pads (default), or "
+        "also cloth that passes between the pads between mesh points (surface; a suite's "
+        "[episode] jaw_catch)",
+    )
+    parser.add_argument(
         "--video-fps", type=float, default=10.0, help="video frames per simulated second (0 = off)"
     )
     parser.add_argument("--out", type=Path, required=True, help="episode output folder")
@@ -146,6 +155,7 @@ def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
         start=args.start,
         park=args.park,
         arms=args.arms,
+        jaw_catch=args.jaw_catch,
         towel=TowelSpec(
             width=args.width,
             height=args.height,
