@@ -13,6 +13,7 @@ from foldbot.garments.towel import TowelSpec
 from foldbot.io.episode import REQUIRED_RESULT_KEYS, load_episode, rescore
 from foldbot.metrics import fold_goal
 from foldbot.pipeline import EpisodeConfig, run_episode
+from foldbot.sim.cloth import MAX_SLIDE_SPEED
 
 
 def run_cli(*args: str) -> subprocess.CompletedProcess:
@@ -116,6 +117,7 @@ def test_video_shows_planned_marks_during_actions_and_none_after_parking(half_fo
         ({"park": "garage"}, "out_of_view"),
         ({"arms": 3}, "arms must be one of"),
         ({"arms": True}, "arms must be one of"),
+        ({"jaw_catch": "glue"}, "unknown jaw_catch 'glue'; allowed: vertices, surface"),
     ],
 )
 def test_bad_episode_config(kwargs, needle):
@@ -155,6 +157,9 @@ def test_two_arms_carry_a_half_folds_corners_together(tmp_path):
     result = run_episode(cfg, tmp_path / "ep", log=lambda *_: None)
     assert result["arms"] == 2
     assert result["time_step"] == pytest.approx(1 / 360), "the physics step is recorded"
+    assert result["jaw_catch"] == "vertices", "what the jaws hold is recorded"
+    # The monitor's fastest slide of the whole cloth is recorded, under its divergence limit.
+    assert 0.0 < result["cloth_fastest_slide_mps"] < MAX_SLIDE_SPEED
     actions = result["actions"]
     # One stage, its two far corners carried at once, each by the arm on its side.
     assert [(a["label"], a["arm"]) for a in actions] == [("far_left", 0), ("far_right", 1)]
@@ -292,10 +297,12 @@ def test_two_arm_cell_hands_an_action_to_the_arm_that_can_do_it():
     from foldbot.planning.actions import FoldAction
     from foldbot.sim.world import SimWorld
 
-    cfg = EpisodeConfig(arms=2, towel=TowelSpec(0.2, 0.2, 6), video_fps=0)
+    cfg = EpisodeConfig(arms=2, towel=TowelSpec(0.2, 0.2, 6), video_fps=0, jaw_catch="surface")
     with SimWorld(cfg.sim) as world:
         parts = build_sim_cell(cfg, world)
         try:
+            arms = (parts.executor, *parts.more_executors)
+            assert [ex.grasp.catch for ex in arms] == ["surface", "surface"]
             cell = SimCell(
                 world, parts.robot, parts.executor, parts.camera, None, cfg.motion,
                 more_executors=parts.more_executors,

@@ -484,6 +484,8 @@ class SimCellParts:
     """The planner's kinematic twin of the arm lives here (never stepped); close it with the cell."""
     more_executors: tuple[ArmExecutor, ...] = ()
     """A two-arm cell's second arm (its robot is `more_executors[0].robot`)."""
+    monitor: DivergenceMonitor | None = None
+    """The cloth's divergence monitor (a step hook of `world`)."""
 
 
 def build_sim_cell(cfg: EpisodeConfig, world: SimWorld) -> SimCellParts:
@@ -495,7 +497,8 @@ def build_sim_cell(cfg: EpisodeConfig, world: SimWorld) -> SimCellParts:
     center, yaw = seeded_pose(cfg, layout.workspace_center_xy)
     spec, mesh = seeded_garment(cfg)
     cloth = SoftCloth(world.client, mesh, cfg.cloth, layout.table_height, center, yaw)
-    world.add_step_hook(DivergenceMonitor(cloth, layout.workspace_center_xy, radius=1.0))
+    monitor = DivergenceMonitor(cloth, layout.workspace_center_xy, radius=1.0)
+    world.add_step_hook(monitor)
     camera = RGBDCamera(world.client, cfg.camera)
     oracle = GroundTruthOracle(cloth, camera)
     model_world = SimWorld(dataclasses.replace(cfg.sim, gui=False))
@@ -522,6 +525,7 @@ def build_sim_cell(cfg: EpisodeConfig, world: SimWorld) -> SimCellParts:
         executors[0],
         model_world,
         tuple(executors[1:]),
+        monitor,
     )
 
 
@@ -614,6 +618,7 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
         )
         if flattened is not None:
             result["flatten"] = flattened
+        result["cloth_fastest_slide_mps"] = parts.monitor.fastest_slide
         writer.write_result(result)
         path = writer.commit()
     result["out_dir"] = str(path)

@@ -47,6 +47,29 @@ def test_divergence_is_detected(world):
         world.step(2)
 
 
+def test_a_cloth_sliding_across_the_table_is_a_divergence(world):
+    mesh = make_towel(TowelSpec(0.2, 0.2, 6))
+    cloth = SoftCloth(world.client, mesh, ClothConfig(), world.layout.table_height, (0.45, 0.0))
+    monitor = DivergenceMonitor(cloth, (0.45, 0.0), radius=1.0)
+    world.add_step_hook(monitor)
+    settle(world, cloth)
+    assert monitor.fastest_slide < 0.05, "a cloth settling flat barely moves across the table"
+    pos, orn = p.getBasePositionAndOrientation(cloth.body_id, physicsClientId=world.client)
+    # Straight up is not a slide: the lifted cloth falls back without an error.
+    p.resetBasePositionAndOrientation(
+        cloth.body_id, [pos[0], pos[1], pos[2] + 0.1], orn, physicsClientId=world.client
+    )
+    world.step(3 * monitor.every)
+    # 5 cm sideways between two checks (1/15 s apart) is 0.75 m/s: well inside the bounds, and
+    # faster than anything in the cell moves cloth.
+    pos, orn = p.getBasePositionAndOrientation(cloth.body_id, physicsClientId=world.client)
+    p.resetBasePositionAndOrientation(
+        cloth.body_id, [pos[0] + 0.05, pos[1], pos[2]], orn, physicsClientId=world.client
+    )
+    with pytest.raises(SimulationDivergedError, match=r"slid across the table at 0\.7\d m/s"):
+        world.step(monitor.every)
+
+
 def test_nan_vertices_are_detected(world):
     mesh = make_towel(TowelSpec(0.2, 0.2, 6))
     cloth = SoftCloth(world.client, mesh, ClothConfig(), world.layout.table_height, (0.45, 0.0))
