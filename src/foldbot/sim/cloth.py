@@ -172,8 +172,8 @@ class SoftCloth:
 
 
 MAX_SLIDE_SPEED = 0.6
-"""Fastest the cloth's centroid may move across the table (m/s): the cell moves cloth at 0.25 m/s
-at most (carries, lifts, pulls). A heap blowing up slowly drifts faster, as a whole, with nothing
+"""Fastest the cloth's centroid may move across the table (m/s): the robot moves cloth at 0.25 m/s
+at most (carries, lifts, pulls), the crumple's helper at 0.4 m/s (sim.crumple). A heap blowing up slowly drifts faster, as a whole, with nothing
 holding it (0.9 m/s seen, `towel_crumpled_two_arms` seed 6 at 1/480 s): its vertices stay inside
 the bounds, so the bounds alone let it run on as a cloth lost from view."""
 
@@ -212,8 +212,8 @@ class DivergenceMonitor:
         if speed > self.max_slide_speed:
             raise SimulationDivergedError(
                 f"cloth simulation diverged: the whole cloth slid across the table at "
-                f"{speed:.2f} m/s (limit {self.max_slide_speed:.2f} m/s; the cell moves cloth "
-                "at 0.25 m/s at most)"
+                f"{speed:.2f} m/s (limit {self.max_slide_speed:.2f} m/s; nothing in the cell "
+                "moves cloth faster than 0.4 m/s)"
             )
 
 
