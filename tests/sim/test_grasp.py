@@ -2,10 +2,8 @@ import numpy as np
 import pytest
 
 from foldbot.errors import ConfigError
-from foldbot.garments.towel import TowelSpec, make_towel
-from foldbot.sim.cloth import ClothConfig, DivergenceMonitor, SoftCloth, settle
 from foldbot.sim.grasp import ClothGrasp
-from foldbot.sim.robots import gripper_down_quaternion, make_robot
+from foldbot.sim.robots import gripper_down_quaternion
 
 
 def _move(world, robot, target, duration=0.8):
@@ -64,18 +62,6 @@ def test_grasp_beside_the_edge_catches_nothing(cell, offset):
     corner = cloth.sim_vertices()[cloth.mesh.keypoints["corner_00"]]
     _move(world, robot, corner + [-offset, -offset, 0.004])
     assert not grasp.close().success
-
-
-@pytest.fixture
-def coarse_cell(world):
-    """World + UR5 + a settled 0.2 m towel meshed 6×6 (4 cm squares, as coarse as the jaws)."""
-    lay = world.layout
-    robot = make_robot("ur5", world.client, lay)
-    mesh = make_towel(TowelSpec(0.2, 0.2, 6))
-    cloth = SoftCloth(world.client, mesh, ClothConfig(), lay.table_height, lay.workspace_center_xy)
-    world.add_step_hook(DivergenceMonitor(cloth, lay.workspace_center_xy, radius=1.0))
-    settle(world, cloth)
-    return world, robot, cloth
 
 
 def _cell_middle(cloth) -> np.ndarray:
