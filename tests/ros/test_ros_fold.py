@@ -12,6 +12,7 @@ import pytest
 from ros_helpers import free_port, requires_ros
 
 from foldbot.io.episode import REQUIRED_RESULT_KEYS, rescore
+from foldbot.sim.cloth import MAX_SLIDE_SPEED
 
 pytestmark = [requires_ros, pytest.mark.slow]
 
@@ -57,6 +58,8 @@ def test_episode_folder_matches_the_contract(ros_run):
     assert all(any(a["grasp_success"] for a in act["attempts"]) for act in result["actions"])
     assert result["coverage"] < 0.8
     assert result["sim_seconds"] > 5.0
+    # The sim node's divergence monitor reports the fastest slide, as `foldbot fold` records it.
+    assert 0.0 < result["cloth_fastest_slide_mps"] < MAX_SLIDE_SPEED
 
 
 def test_bag_holds_the_topics_with_ros_conventions(ros_run):

@@ -202,6 +202,8 @@ class SimNode:
         qs = [ex.robot.joint_positions().tolist() for ex in self.executors]
         payload.setdefault("q", qs[0])
         payload.setdefault("qs", qs)
+        # The divergence monitor's fastest slide so far: result.json records it, as in process.
+        payload.setdefault("cloth_fastest_slide_mps", self.parts.monitor.fastest_slide)
         self.pub["result"].publish(convert.string_msg(payload))
 
     # ------------------------------------------------------------------ commands

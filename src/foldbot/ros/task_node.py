@@ -104,6 +104,8 @@ class RosCell(FoldCell):
         self.active = 0
         self._ids = itertools.count(1)
         self._clock = 0.0
+        self.fastest_slide = 0.0
+        """The sim node's divergence monitor's fastest cloth slide (m/s), from its last report."""
         self.rest_qs = [np.zeros(0)] * arms
         """Every arm's joints where the last command left it (the sim node's report)."""
         self._lock = threading.Lock()
@@ -219,6 +221,7 @@ class RosCell(FoldCell):
                 f"the sim node reports {len(self.rest_qs)} arms, this fold has {self.arms}"
             )
         self._clock = float(reply["sim_time"])
+        self.fastest_slide = float(reply.get("cloth_fastest_slide_mps", 0.0))
 
     def _plan(self, kind: str, **payload: Any) -> dict:
         rid = next(self._ids)
@@ -519,6 +522,7 @@ def run_task(fold_args: str, log=rospy.loginfo) -> dict:
             )
             if flattened is not None:
                 result["flatten"] = flattened
+            result["cloth_fastest_slide_mps"] = cell.fastest_slide
             result["transport"] = "ros"
             writer.write_result(result)
             path = writer.commit()
