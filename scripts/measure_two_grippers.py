@@ -72,16 +72,11 @@ class KinematicGripper:
 
     def hold(self, vertices: np.ndarray) -> None:
         for v in vertices:
-            self.anchors.append(
-                self.p.createSoftBodyAnchor(
-                    self.cloth.body_id, self.cloth.sim_index(int(v)), self.body, -1,
-                    physicsClientId=self.client,
-                )
-            )  # fmt: skip
+            self.anchors.append(self.cloth.anchor(int(v), self.body))
 
     def release(self) -> None:
         for a in self.anchors:
-            self.p.removeConstraint(a, physicsClientId=self.client)
+            self.cloth.release(a)
         self.anchors.clear()
 
 

@@ -61,13 +61,47 @@ def test_a_cloth_sliding_across_the_table_is_a_divergence(world):
     )
     world.step(3 * monitor.every)
     # 5 cm sideways between two checks (1/15 s apart) is 0.75 m/s: well inside the bounds, and
-    # faster than anything in the cell moves cloth.
+    # faster than a cloth nothing holds moves.
     pos, orn = p.getBasePositionAndOrientation(cloth.body_id, physicsClientId=world.client)
     p.resetBasePositionAndOrientation(
         cloth.body_id, [pos[0] + 0.05, pos[1], pos[2]], orn, physicsClientId=world.client
     )
     with pytest.raises(SimulationDivergedError, match=r"slid across the table at 0\.7\d m/s"):
         world.step(monitor.every)
+
+
+def test_a_held_cloth_moving_fast_is_not_a_slide(world):
+    """While anything holds the cloth (SoftCloth.anchor) the slide rule does not apply: a towel
+    hung from grippers swings faster than they move. Let go, the same jump is a divergence."""
+    mesh = make_towel(TowelSpec(0.2, 0.2, 6))
+    cloth = SoftCloth(world.client, mesh, ClothConfig(), world.layout.table_height, (0.45, 0.0))
+    monitor = DivergenceMonitor(cloth, (0.45, 0.0), radius=1.0)
+    world.add_step_hook(monitor)
+    settle(world, cloth)
+    corner = mesh.keypoints["corner_00"]
+    hand = p.createMultiBody(
+        baseMass=0.1,
+        basePosition=cloth.sim_vertices()[corner].tolist(),
+        physicsClientId=world.client,
+    )
+    anchor = cloth.anchor(corner, hand)
+    assert cloth.held
+
+    def jump() -> None:
+        pos, orn = p.getBasePositionAndOrientation(cloth.body_id, physicsClientId=world.client)
+        p.resetBasePositionAndOrientation(
+            cloth.body_id, [pos[0] + 0.05, pos[1], pos[2]], orn, physicsClientId=world.client
+        )
+        world.step(monitor.every)
+
+    world.step(monitor.every)
+    jump()  # 0.75 m/s while held: no error
+    assert monitor.fastest_slide < 0.05
+    cloth.release(anchor)
+    assert not cloth.held
+    world.step(2 * monitor.every)
+    with pytest.raises(SimulationDivergedError, match="with nothing holding it"):
+        jump()
 
 
 def test_nan_vertices_are_detected(world):

@@ -156,19 +156,13 @@ class _Helper:
         )
         p.changeConstraint(self.constraint, maxForce=cfg.max_force, physicsClientId=self.client)
         self.position = np.asarray(position, dtype=float)
+        self.cloth: SoftCloth | None = None
         self.anchors: list[int] = []
 
     def attach(self, cloth: SoftCloth, vertices: np.ndarray) -> None:
+        self.cloth = cloth
         for v in vertices:
-            self.anchors.append(
-                p.createSoftBodyAnchor(
-                    cloth.body_id,
-                    cloth.sim_index(int(v)),
-                    self.body,
-                    -1,
-                    physicsClientId=self.client,
-                )
-            )
+            self.anchors.append(cloth.anchor(int(v), self.body))
 
     def move(self, path: list[np.ndarray], speed: float) -> None:
         """Drive the helper through the waypoints at `speed` (m/s), one pivot update per step."""
@@ -193,7 +187,7 @@ class _Helper:
 
     def remove(self) -> None:
         for a in self.anchors:
-            p.removeConstraint(a, physicsClientId=self.client)
+            self.cloth.release(a)
         self.anchors.clear()
         p.removeConstraint(self.constraint, physicsClientId=self.client)
         p.removeBody(self.body, physicsClientId=self.client)

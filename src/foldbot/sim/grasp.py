@@ -139,21 +139,14 @@ class ClothGrasp:
             # Attach each vertex to the finger on its side of the TCP.
             side_y = float((verts[v] - pos) @ rot[:, 1])
             link = left if side_y >= 0 else right
-            anchor = p.createSoftBodyAnchor(
-                self.cloth.body_id,
-                self.cloth.sim_index(int(v)),
-                self.robot.body_id,
-                link,
-                physicsClientId=self.world.client,
-            )
-            self._anchors.append(anchor)
+            self._anchors.append(self.cloth.anchor(int(v), self.robot.body_id, link))
         self.held = tuple(int(v) for v in caught)
         return GraspResult(True, self.held, f"{len(caught)} vertices {between}")
 
     def open(self, width: float | None = None, settle_time: float = 0.3) -> None:
         """Release every anchor and open the fingers."""
         for anchor in self._anchors:
-            p.removeConstraint(anchor, physicsClientId=self.world.client)
+            self.cloth.release(anchor)
         self._anchors.clear()
         self.held = ()
         self.robot.set_gripper_opening(self.robot.max_opening if width is None else width)
