@@ -5,11 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from foldbot.commands.eval_perception import default_scene, render_mesh, render_scene
+from foldbot.commands.eval_perception import default_scene, render_scene
 from foldbot.errors import ConfigError
-from foldbot.garments.mesh import ClothMesh
-from foldbot.garments.towel import TowelSpec, make_towel
-from foldbot.perception.segmentation import SegmentationConfig, heap_tops, segment_cloth
+from foldbot.perception.segmentation import SegmentationConfig, segment_cloth
 from foldbot.perception.state import mask_iou
 from foldbot.sim.camera import CameraConfig, RGBDCamera
 from foldbot.sim.world import SimWorld
@@ -65,49 +63,3 @@ def test_config_is_validated() -> None:
         SegmentationConfig(smooth_size=4)
     with pytest.raises(ConfigError, match="occluder_height"):
         SegmentationConfig(occluder_height=-1.0)
-    with pytest.raises(ConfigError, match="max_heap_height"):
-        SegmentationConfig(max_heap_height=0.05)  # under occluder_height (0.06)
-
-
-def ridge_towel() -> ClothMesh:
-    """A 40 × 30 cm towel draped over a ridge across it, 10 cm high (a crumpled heap's top is
-    as high): steep down to the flat left part, gentle down to the right edge."""
-    towel = make_towel(TowelSpec(0.40, 0.30, 17))
-    v = towel.vertices.copy()
-    x = v[:, 0]
-    left = np.clip(0.10 * (1.0 - (-0.06 - x) / 0.04), 0.0, None)
-    v[:, 2] = np.where(x < -0.06, left, 0.10 - 0.09 * (x + 0.06) / 0.26)
-    return ClothMesh(v, towel.faces, towel.keypoints, towel.grid_shape)
-
-
-def test_a_heap_higher_than_the_arm_threshold_is_cloth() -> None:
-    """Cloth over `occluder_height` (6 cm) that is cloth-coloured, low and clear of the image
-    border is a heap's top: the whole towel is one mask. (Taken for the arm, the ridge's top
-    cut the towel in two and the flat part was dropped: IoU 0.43.)"""
-    r = render_mesh(default_scene(yaw=0.0), ridge_towel(), lambda o: {}, W, H, 0, 0.0)
-    seg = segment_cloth(r.obs)
-    assert seg.cue == "colour"
-    assert mask_iou(seg.mask, r.cloth_mask) > 0.97
-    assert not seg.occluder.any()
-    # The heap's top has heights (the arm's pixels have none).
-    assert np.nanmax(seg.height) > 0.08
-
-
-def test_heap_tops_are_low_cloth_coloured_blobs_inside_the_image() -> None:
-    occ = np.zeros((40, 60), bool)
-    height = np.full(occ.shape, 0.01, np.float32)
-    cloth = np.zeros(occ.shape, bool)
-    occ[10:20, 10:20] = cloth[10:20, 10:20] = True  # a heap's top
-    height[10:20, 10:20] = 0.09
-    occ[10:20, 30:40] = True  # the gripper: not cloth-coloured
-    height[10:20, 30:40] = 0.09
-    occ[25:35, 10:20] = cloth[25:35, 10:20] = True  # cloth-coloured, but higher than a heap
-    height[25:35, 10:20] = 0.35
-    occ[0:8, 50:60] = cloth[0:8, 50:60] = True  # cloth-coloured, entering from the border
-    height[0:8, 50:60] = 0.09
-    tops = heap_tops(occ, height, cloth, 0.2)
-    expected = np.zeros(occ.shape, bool)
-    expected[10:20, 10:20] = True
-    np.testing.assert_array_equal(tops, expected)
-    occ[10:20, 10:20] = False
-    assert heap_tops(occ, height, cloth, 0.2) is None

@@ -7,10 +7,7 @@ Method (each step is what makes it robust to one nuisance):
    the plane). Every pixel gets a height above the table (m).
 2. Arm and gripper: anything higher than `occluder_height` above the table is an occluder, not
    cloth (a flat or folded towel lies within a few cm of the table). Occluders are left out of
-   the depth smoothing so they do not bleed into their surroundings. A crumpled heap rises
-   higher: an occluder blob that is cloth-coloured, lower than `max_heap_height` and clear of
-   the image border is cloth, and the frame is segmented again with it as cloth (colour cue
-   only; with depth alone a heap's top stays an occluder).
+   the depth smoothing so they do not bleed into their surroundings.
 3. Depth cue: heights averaged over 4×4 blocks and smoothed give a rough cloth mask against a
    threshold set from the measured depth noise. This finds the cloth whatever its colour, even on
    a table of the same colour (a settled flat cloth lies only ~1–2 mm above the table here).
@@ -62,12 +59,7 @@ class SegmentationConfig:
     block: int = 2
     """Block size (half-res px) of the averaged height/colour image for the coarse decisions."""
     occluder_height: float = 0.06
-    """Anything higher than this above the table (m) is arm/gripper, unless it is a heap's top
-    (`max_heap_height`)."""
-    max_heap_height: float = 0.2
-    """An occluder blob lower than this (m above the table), clear of the image border and
-    mostly of the cloth's colour is a crumpled heap's top, not the arm (whose blob reaches
-    higher: a gripper over the table hangs from its wrist and forearm)."""
+    """Anything higher than this above the table (m) is arm/gripper, never cloth."""
     smooth_size: int = 3
     """Smallest side (half-res px, odd) of the box filter smoothing heights for depth edges."""
     max_smooth_size: int = 11
@@ -97,7 +89,6 @@ class SegmentationConfig:
             "ransac_iterations": integer(self.ransac_iterations, 1, 10000),
             "block": integer(self.block, 1, 16),
             "occluder_height": 0.0 < self.occluder_height < 1.0,
-            "max_heap_height": self.occluder_height <= self.max_heap_height < 2.0,
             "smooth_size": odd(self.smooth_size, 31),
             "max_smooth_size": odd(self.max_smooth_size, 63)
             and self.max_smooth_size >= self.smooth_size,
@@ -266,45 +257,6 @@ def _plane_gain(plane: Plane, xn: np.ndarray, yn: np.ndarray) -> np.ndarray:
 def segment_cloth(obs: Observation, config: SegmentationConfig | None = None) -> Segmentation:
     """Segment the cloth lying on the table in `obs` (PerceptionError on malformed input)."""
     cfg = config or SegmentationConfig()
-    seg, heap_top = _segment(obs, cfg, None)
-    if heap_top is None:
-        return seg
-    # A heap's top rose over `occluder_height`: segment again with it as cloth, so the heights,
-    # the colour gate and the blobs the cloth region joins all see one heap.
-    return _segment(obs, cfg, heap_top)[0]
-
-
-def heap_tops(
-    occluder: np.ndarray,
-    height: np.ndarray,
-    cloth_colour: np.ndarray,
-    max_height: float,
-) -> np.ndarray | None:
-    """The occluder blobs (half-res bool `occluder`) that are a crumpled heap's top rather than
-    the arm: lower than `max_height` (m, `height` the blocks' heights above the table), clear of
-    the image border, and at least half of their blocks cloth-coloured (`cloth_colour`, bool).
-    None when there is none."""
-    n, labels, stats, _ = cv2.connectedComponentsWithStats(occluder.view(np.uint8), connectivity=8)
-    rows, cols = occluder.shape
-    out = np.zeros(occluder.shape, bool)
-    for k in range(1, n):
-        x, y, w, h, _area = (int(v) for v in stats[k])
-        if x == 0 or y == 0 or x + w >= cols or y + h >= rows:
-            continue  # the arm (or its pedestal) enters from outside the image
-        blob = labels == k
-        with np.errstate(invalid="ignore"):
-            low = bool(np.nanmax(np.where(blob, height, np.nan)) < max_height)
-        if low and cloth_colour[blob].mean() >= 0.5:
-            out |= blob
-    return out if out.any() else None
-
-
-def _segment(
-    obs: Observation, cfg: SegmentationConfig, heap_top: np.ndarray | None
-) -> tuple[Segmentation, np.ndarray | None]:
-    """One segmentation pass, with the half-res blocks `heap_top` counted as cloth however
-    high; also the heap tops this pass found among its occluders (None when there are none or
-    `heap_top` was given)."""
     K, T = check_observation(obs)
     h_img, w_img = obs.depth.shape
     depth = np.asarray(obs.depth, dtype=np.float32)
@@ -338,8 +290,6 @@ def _segment(
 
     # 2. Occluders, and block means of what is left (smoothing that ignores the arm and holes).
     occ2 = valid2 & (h2 > cfg.occluder_height)
-    if heap_top is not None:
-        occ2 &= ~heap_top
     weight2 = (valid2 & ~occ2).astype(np.float32)
     b = cfg.block
     hl, _ = _weighted_block_mean(h2, weight2, b)
@@ -407,7 +357,6 @@ def _segment(
     )
 
     shape = (h_img, w_img)
-    found_tops = None
     occ = _upsample(cv2.dilate(occ2.view(np.uint8), kernel), shape, False, 0).view(bool)
     if math.isfinite(separation) and separation >= cfg.min_colour_separation:
         # Position t along the table→cloth colour axis (0 table, 1 cloth), computed on uint8 as
@@ -435,10 +384,6 @@ def _segment(
         cls = cv2.transform(sub, m).reshape(sub.shape[:2]) > 150
         mask[roi] = cls & gate if gate is not None else cls
         cue = "colour"
-        if heap_top is None and occ2.any():
-            rgb2 = rgb[1::2, 1::2][: h2.shape[0], : h2.shape[1]]
-            cloth2 = cv2.transform(np.ascontiguousarray(rgb2), m).reshape(rgb2.shape[:2]) > 150
-            found_tops = heap_tops(occ2, h2, cloth2, cfg.max_heap_height)
     elif math.isfinite(cloth_height):
         # A half-res pixel's noise is σ_block·block; a k×k box divides it by k. Grow k until the
         # noise is well below half the cloth height, then threshold there, on the smoothed heights
@@ -464,7 +409,7 @@ def _segment(
     if not mask.any():
         cue = "none"
 
-    seg = Segmentation(
+    return Segmentation(
         mask=mask,
         height=h2,
         occluder=occ,
@@ -475,4 +420,3 @@ def _segment(
         depth_threshold=thr,
         colour_separation=separation,
     )
-    return seg, found_tops
