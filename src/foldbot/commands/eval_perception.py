@@ -427,7 +427,7 @@ def render_scene(
     def truth(oracle: GroundTruthOracle) -> dict[str, np.ndarray]:
         return oracle.labelled_corners() if scene.state == "flat" else oracle.outline_corners()
 
-    return render_mesh(scene, mesh, truth, width, height, seed, settle_time)
+    return _render(scene, mesh, truth, width, height, seed, settle_time)
 
 
 def render_garment_scene(
@@ -442,12 +442,12 @@ def render_garment_scene(
     `settle_time` 0 renders the garment as spawned (after one physics step), for unit tests.
     """
     mesh = make_garment(scene.spec)
-    return render_mesh(
+    return _render(
         scene, mesh, lambda oracle: oracle.keypoint_positions(), width, height, seed, settle_time
     )
 
 
-def render_mesh(
+def _render(
     scene: Scene | GarmentScene,
     mesh: ClothMesh,
     truth: Callable[[GroundTruthOracle], dict[str, np.ndarray]],
