@@ -21,13 +21,15 @@ import foldbot  # noqa: F401  first: caps numpy's SIMD level before numpy loads 
 # isort: on
 import argparse
 import json
-import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 
 from foldbot.bench.suite import parse_seeds
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from per_seed import run_each_seed
 
 
 def measure(suite: str, seed: int, save: Path | None) -> dict:
@@ -90,18 +92,8 @@ def main() -> int:
     if args.one is not None:
         print(json.dumps(measure(args.suite, args.one, args.save)), flush=True)
         return 0
-    rows = []
-    for seed in parse_seeds(args.seeds):
-        cmd = [sys.executable, __file__, "--one", str(seed), "--suite", args.suite]
-        if args.save is not None:
-            cmd += ["--save", str(args.save)]
-        res = subprocess.run(cmd, capture_output=True, text=True, check=False)
-        line = res.stdout.strip().splitlines()[-1] if res.stdout.strip() else ""
-        row = (
-            json.loads(line) if line.startswith("{") else {"seed": seed, "error": res.stderr[-200:]}
-        )
-        rows.append(row)
-        print(json.dumps(row), flush=True)
+    extra = ["--suite", args.suite] + ([] if args.save is None else ["--save", str(args.save)])
+    rows = run_each_seed(__file__, parse_seeds(args.seeds), extra)
     ok = [r for r in rows if "error" not in r]
     if not ok:
         print("no seed measured", file=sys.stderr)

@@ -23,12 +23,15 @@ import foldbot  # noqa: F401  first: caps numpy's SIMD level before numpy loads 
 import argparse
 import dataclasses
 import json
-import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 
 from foldbot.bench.suite import parse_seeds
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from per_seed import run_each_seed
 
 REST_SECONDS = 4.0
 GROUPS = ("cloth", "sim", "engine", "load")
@@ -125,18 +128,8 @@ def main() -> int:
     if args.one is not None:
         print(json.dumps(measure(args.one, over)), flush=True)
         return 0
-    rows = []
-    for seed in parse_seeds(args.seeds):
-        cmd = [sys.executable, __file__, "--one", str(seed)]
-        for item in args.set:
-            cmd += ["--set", item]
-        res = subprocess.run(cmd, capture_output=True, text=True, check=False)
-        line = res.stdout.strip().splitlines()[-1] if res.stdout.strip() else ""
-        row = (
-            json.loads(line) if line.startswith("{") else {"seed": seed, "error": res.stderr[-200:]}
-        )
-        rows.append(row)
-        print(json.dumps(row), flush=True)
+    extra = [arg for item in args.set for arg in ("--set", item)]
+    rows = run_each_seed(__file__, parse_seeds(args.seeds), extra)
     ok = [r for r in rows if "error" not in r]
     if ok:
         med = np.median([r["median_speed"] for r in ok])

@@ -28,7 +28,6 @@ import foldbot  # noqa: F401  first: caps numpy's SIMD level before numpy loads 
 # isort: on
 import argparse
 import json
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -39,6 +38,7 @@ from foldbot.bench.suite import parse_seeds
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from measure_two_grippers import KinematicGripper, _timed_path
+from per_seed import run_each_seed
 
 HANG_S = 1.0
 LAY_SPEED = 0.1
@@ -206,28 +206,8 @@ def main() -> int:
     if args.one is not None:
         print(json.dumps(measure(args.one, args.grasp, args.stretch)), flush=True)
         return 0
-    rows = []
-    for seed in parse_seeds(args.seeds):
-        res = subprocess.run(
-            [
-                sys.executable,
-                __file__,
-                "--one",
-                str(seed),
-                "--grasp",
-                args.grasp,
-                "--stretch",
-                str(args.stretch),
-            ],
-            capture_output=True,
-            text=True,
-        )
-        line = res.stdout.strip().splitlines()[-1] if res.stdout.strip() else ""
-        row = (
-            json.loads(line) if line.startswith("{") else {"seed": seed, "error": res.stderr[-300:]}
-        )
-        rows.append(row)
-        print(json.dumps(row), flush=True)
+    extra = ["--grasp", args.grasp, "--stretch", str(args.stretch)]
+    rows = run_each_seed(__file__, parse_seeds(args.seeds), extra)
     ok = [r for r in rows if "error" not in r]
     print(
         f"# spread: {len(rows) - len(ok)} of {len(rows)} diverged; flattened "

@@ -228,10 +228,10 @@ class DivergenceMonitor:
         if world.steps % self.every:
             return
         centroid = self.cloth.check_finite_and_bounded(self.center_xy, self.radius)[:, :2].mean(0)
-        last, self._last = self._last, (world.sim_time, centroid)
         if self.cloth.held:
-            self._last = None  # the interval from the last check spans a hold: not a slide
+            self._last = None  # an interval that spans a hold is not a slide
             return
+        last, self._last = self._last, (world.sim_time, centroid)
         if last is None or world.sim_time <= last[0]:
             return
         speed = float(np.linalg.norm(centroid - last[1])) / (world.sim_time - last[0])
