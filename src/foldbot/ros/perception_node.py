@@ -35,7 +35,10 @@ class PerceptionNode:
         self._lock = threading.Lock()
         self._pending: list[tuple[Image, Image, CameraInfo]] = []
         """Frames that came before the camera pose; estimated once it arrives."""
-        self.pub_keypoints = rospy.Publisher(TOPICS["keypoints"], PoseArray, queue_size=50)
+        # Latched: a planner node that subscribes late still gets the newest frame's corners.
+        self.pub_keypoints = rospy.Publisher(
+            TOPICS["keypoints"], PoseArray, queue_size=50, latch=True
+        )
         self.pub_mask = rospy.Publisher(TOPICS["mask"], Image, queue_size=50)
         self.pub_state = rospy.Publisher(TOPICS["state"], String, queue_size=50)
         rospy.Subscriber(TOPICS["tf_static"], TFMessage, self._on_tf)

@@ -36,6 +36,7 @@ from foldbot.planning.motion import Segment, action_segments, line_path
 from foldbot.planning.recipes import plan_stage, predicted_outline
 from foldbot.ros import TOPICS, arm_joint_names, convert
 from foldbot.ros.node_args import FOLD_ARGS_PARAM, parse_fold_args
+from foldbot.ros.publish import publish_when_heard
 from foldbot.sim.robots import make_robot
 from foldbot.sim.world import SimWorld
 
@@ -259,7 +260,10 @@ class PlannerNode:
                 "error": str(exc),
                 "error_type": type(exc).__name__,
             }
-        self.pub.publish(String(data=json.dumps(out)))
+        try:  # the task subscribed before it asked, but its connection to this node may lag
+            publish_when_heard(self.pub, String(data=json.dumps(out)), self.wait_s)
+        except FoldbotError as exc:
+            rospy.logerr("planner reply %s not sent: %s", req.get("id"), exc)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -48,6 +48,7 @@ from foldbot.planning.actions import FoldAction, FoldPlan
 from foldbot.planning.garment_recipes import GarmentPlan
 from foldbot.ros import CAMERA_FRAME, TOPICS, WORLD_FRAME, convert
 from foldbot.ros.node_args import ERROR_FILE_PARAM, FOLD_ARGS_PARAM, parse_fold_args
+from foldbot.ros.publish import publish_when_heard
 from foldbot.sim.layout import CellLayout
 from foldbot.types import GraspResult, Observation
 
@@ -204,8 +205,8 @@ class RosCell(FoldCell):
                 self.video.add_frame(frame)
 
     # ------------------------------------------------------------------ requests
-    def _command(self, publish, what: str) -> dict:
-        publish()
+    def _command(self, pub: rospy.Publisher, msg: Any, what: str) -> dict:
+        publish_when_heard(pub, msg, REPLY_TIMEOUT_S)
         reply = self.results.take(lambda r: True, f"reply from the sim node to {what}")
         if not reply.get("ok"):
             raise errors.reported_error(reply, what)
@@ -225,7 +226,8 @@ class RosCell(FoldCell):
 
     def _plan(self, kind: str, **payload: Any) -> dict:
         rid = next(self._ids)
-        self.pub_plan.publish(String(data=json.dumps({"id": rid, "kind": kind, **payload})))
+        request = String(data=json.dumps({"id": rid, "kind": kind, **payload}))
+        publish_when_heard(self.pub_plan, request, REPLY_TIMEOUT_S)
         reply = self.plans.take(lambda r: r.get("id") == rid, f"{kind} plan from the planner node")
         if not reply.get("ok"):
             raise errors.reported_error(reply, f"planning {kind}")
@@ -242,7 +244,7 @@ class RosCell(FoldCell):
     def _gripper(self, command: str, arm: int) -> dict:
         """Open or close `arm`'s gripper (the sim node's gripper/command: "close", "close 1")."""
         text = command if self.arms == 1 else f"{command} {arm}"
-        return self._command(lambda: self.pub_gripper.publish(String(data=text)), f"gripper {text}")
+        return self._command(self.pub_gripper, String(data=text), f"gripper {text}")
 
     # ------------------------------------------------------------------ FoldCell
     @property
@@ -421,7 +423,7 @@ class RosCell(FoldCell):
             self.sim_time,
             "",
         )
-        return self._command(lambda: self.pub_traj.publish(msg), f"trajectory '{traj['name']}'")
+        return self._command(self.pub_traj, msg, f"trajectory '{traj['name']}'")
 
     def run_step(self, step: dict) -> StepLog:
         # Time the planned joint path from where the arm really is (it may be off by the
@@ -457,7 +459,7 @@ class RosCell(FoldCell):
             self._follow(traj)
 
     def wait(self, seconds: float) -> None:
-        self._command(lambda: self.pub_wait.publish(Float64(data=float(seconds))), "wait")
+        self._command(self.pub_wait, Float64(data=float(seconds)), "wait")
 
     def show(self, state: ClothState | None = None, **overlay: Any) -> None:
         self.overlay = overlay
@@ -465,7 +467,7 @@ class RosCell(FoldCell):
     def ground_truth(self) -> np.ndarray:
         """The cloth's vertices now (for scoring only)."""
         self.truth.items.clear()
-        self._command(lambda: self.pub_truth.publish(Empty()), "ground-truth request")
+        self._command(self.pub_truth, Empty(), "ground-truth request")
         return convert.cloud_array(
             self.truth.take(lambda m: True, "ground truth from the sim node")
         )

@@ -1,0 +1,93 @@
+"""publish_when_heard with a live roscore: a request published before its subscriber comes up
+still reaches it (a plain publish is dropped), and no subscriber at all is an error naming the
+topic."""
+
+import os
+import subprocess
+import sys
+import textwrap
+import time
+
+import pytest
+from ros_helpers import free_port, requires_ros
+
+pytestmark = requires_ros
+
+TALKER = textwrap.dedent(
+    """
+    import sys
+    import rospy
+    from std_msgs.msg import String
+    from foldbot.errors import FoldbotError
+    from foldbot.ros.publish import publish_when_heard
+
+    rospy.init_node("talker", disable_signals=True)
+    pub = rospy.Publisher("request", String, queue_size=5)
+    try:
+        publish_when_heard(pub, String(data="park"), timeout_s=float(sys.argv[1]))
+    except FoldbotError as exc:
+        print("error:", exc, flush=True)
+        sys.exit(3)
+    rospy.sleep(1.0)  # let the message leave before the node goes
+    print("sent", flush=True)
+    """
+)
+LISTENER = textwrap.dedent(
+    """
+    import rospy
+    from std_msgs.msg import String
+
+    rospy.init_node("listener", disable_signals=True)
+    got = []
+    rospy.Subscriber("request", String, lambda m: got.append(m.data))
+    deadline = rospy.Time.now().to_sec() + 30.0
+    while not got and rospy.Time.now().to_sec() < deadline:
+        rospy.sleep(0.05)
+    print("got", got[0] if got else None, flush=True)
+    """
+)
+
+
+@pytest.fixture()
+def master():
+    """A private roscore; yields the environment that reaches it."""
+    import rosgraph
+
+    port = free_port()
+    uri = f"http://localhost:{port}"
+    env = {**os.environ, "ROS_MASTER_URI": uri, "ROS_HOSTNAME": "localhost"}
+    core = subprocess.Popen(
+        ["roscore", "-p", str(port)], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
+    try:
+        deadline = time.monotonic() + 60
+        while not rosgraph.is_master_online(uri):
+            assert time.monotonic() < deadline, f"roscore did not come up on port {port}"
+            time.sleep(0.2)
+        yield env
+    finally:
+        core.terminate()
+        core.wait(timeout=30)
+
+
+def python(code: str, *args: str, env: dict) -> subprocess.Popen:
+    return subprocess.Popen(
+        [sys.executable, "-c", code, *args], env=env, stdout=subprocess.PIPE, text=True
+    )
+
+
+def test_a_request_waits_for_a_late_subscriber(master):
+    talker = python(TALKER, "60", env=master)
+    time.sleep(3.0)  # the talker has published by now, were it not waiting
+    listener = python(LISTENER, env=master)
+    heard, _ = listener.communicate(timeout=90)
+    said, _ = talker.communicate(timeout=90)
+    assert said.strip() == "sent"
+    assert heard.strip() == "got park"
+
+
+def test_no_subscriber_is_an_error_naming_the_topic(master):
+    talker = python(TALKER, "0.5", env=master)
+    said, _ = talker.communicate(timeout=90)
+    assert talker.returncode == 3
+    assert said.strip() == "error: nothing subscribed to /request within 0.5 s"
