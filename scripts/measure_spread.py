@@ -12,12 +12,15 @@ top-down camera could pick instead: the ends of the top-view outline's longest c
 spread to their true distance apart; with `--grasp vision`, the two adjacent corners the RGB-D
 estimator sees on the heap (the cell's camera, the arm out of the world), also spread to their
 true distance apart. Each pick's distance along the flat towel to the nearest true corner is
-recorded (`pick_to_corner_mm`). One JSON line per seed on stdout.
+recorded (`pick_to_corner_mm`). With `--arms 1`, what one gripper can do instead: hang the
+towel by one true corner (the corners in turn), at most 0.5 m up, still for 1 s, then lay it
+along its diagonal towards the near side. One JSON line per seed on stdout.
 
     .venv/bin/python scripts/measure_spread.py --seeds 0-19
     .venv/bin/python scripts/measure_spread.py --seeds 0-11 --grasp extremes
     .venv/bin/python scripts/measure_spread.py --seeds 0-19 --grasp vision
     .venv/bin/python scripts/measure_spread.py --seeds 0-19 --stretch 0.08
+    .venv/bin/python scripts/measure_spread.py --seeds 0-19 --arms 1
 """
 
 from __future__ import annotations
@@ -43,6 +46,8 @@ from per_seed import run_each_seed
 HANG_S = 1.0
 LAY_SPEED = 0.1
 LIFT_SPEED = 0.25
+MAX_HOLD = 0.5
+"""Highest a corner is held above the table with one gripper (m): SpreadConfig.max_hold_height."""
 CORNERS = ("corner_00", "corner_10", "corner_11", "corner_01")
 
 
@@ -83,7 +88,7 @@ def vision_corners(camera, v: np.ndarray) -> tuple[int, int]:
     return picks[0], picks[1]
 
 
-def measure(seed: int, grasp: str = "corners", stretch: float = 0.0) -> dict:
+def measure(seed: int, grasp: str = "corners", stretch: float = 0.0, arms: int = 2) -> dict:
     """One seed (runs in the calling process: the first simulation in it)."""
     import pybullet as p
 
@@ -97,7 +102,7 @@ def measure(seed: int, grasp: str = "corners", stretch: float = 0.0) -> dict:
     spec = next(e for e in load_suite("towel_crumpled").episodes if e.seed == seed)
     cfg = spec.to_config()
     flat = FlattenConfig()
-    out: dict = {"seed": seed, "grasp": grasp, "stretch": stretch, "coverage": []}
+    out: dict = {"seed": seed, "grasp": grasp, "stretch": stretch, "arms": arms, "coverage": []}
     wall = time.perf_counter()
     with SimWorld(cfg.sim) as world:
         parts = build_sim_cell(cfg, world)
@@ -116,6 +121,45 @@ def measure(seed: int, grasp: str = "corners", stretch: float = 0.0) -> dict:
             actions = 0
             while coverage < flat.target_coverage and actions < flat.max_actions:
                 v = oracle.cloth_vertices()
+                if arms == 1:  # hang the towel by one true corner and lay it along its diagonal
+                    a = corners[actions % 4]
+                    rest = mesh.vertices[:, :2]
+                    depth = float(np.linalg.norm(rest - rest[a], axis=1).max())
+                    lift = min(depth + 0.1, MAX_HOLD)
+                    now, top = v[a], [centre[0] + depth / 2, centre[1], table + lift]
+                    path = np.vstack(
+                        [
+                            _timed_path(
+                                np.array([now, [now[0], now[1], table + lift], top]),
+                                LIFT_SPEED,
+                                dt,
+                            ),
+                            np.repeat(np.array([top]), round(HANG_S / dt), axis=0),
+                            _timed_path(
+                                np.array(
+                                    [
+                                        top,
+                                        [top[0], top[1], table + min(depth, lift) * (1 + stretch)],
+                                        [centre[0] - depth / 2, centre[1], table + 0.02],
+                                    ]
+                                ),
+                                LAY_SPEED,
+                                dt,
+                            ),
+                        ]
+                    )
+                    tools[0].move_to(path[0], teleport=True)
+                    tools[0].hold(np.array([a]))
+                    for q in path:
+                        tools[0].move_to(q)
+                        world.step()
+                    tools[0].release()
+                    tools[0].move_to(np.array([0.0, 0.0, 2.0]), teleport=True)
+                    world.step(round((0.5 + flat.settle_time) / dt))
+                    actions += 1
+                    coverage = metrics.coverage(oracle.cloth_vertices(), mesh.faces, mesh.area)
+                    out["coverage"].append(round(coverage, 3))
+                    continue
                 if grasp == "corners":
                     a, b = corners[actions % 4], corners[(actions + 1) % 4]
                 elif grasp == "vision":
@@ -199,14 +243,20 @@ def main() -> int:
         "lay starts that much higher and ends that much further towards the near side "
         "(default 0; a towel hung by two corners hangs 6-8 %% longer)",
     )  # fmt: skip
+    ap.add_argument(
+        "--arms", type=int, choices=(1, 2), default=2,
+        help="2: the spread; 1: one gripper hangs the towel by one true corner (corners in "
+        "turn), at most 0.5 m up, and lays it along its diagonal towards the near side "
+        "(default 2)",
+    )  # fmt: skip
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)  # child process: one seed
     args = ap.parse_args()
     if not 0.0 <= args.stretch <= 0.5:
         ap.error(f"--stretch must be in [0, 0.5], got {args.stretch}")
     if args.one is not None:
-        print(json.dumps(measure(args.one, args.grasp, args.stretch)), flush=True)
+        print(json.dumps(measure(args.one, args.grasp, args.stretch, args.arms)), flush=True)
         return 0
-    extra = ["--grasp", args.grasp, "--stretch", str(args.stretch)]
+    extra = ["--grasp", args.grasp, "--stretch", str(args.stretch), "--arms", str(args.arms)]
     rows = run_each_seed(__file__, parse_seeds(args.seeds), extra)
     ok = [r for r in rows if "error" not in r]
     print(

@@ -142,9 +142,13 @@ def replay(
             if time.monotonic() > deadline:
                 raise FoldbotError("the perception node did not start")
             time.sleep(0.2)
-        time.sleep(1.0)
+        # Every input topic has the perception node as subscriber: rosbag plays once each one's
+        # connection is up, so no first frame is lost on a slow machine.
         play = subprocess.run(
-            ["rosbag", "play", "-q", "-r", str(rate), str(bag_path), "--topics", *INPUT_TOPICS],
+            [
+                *("rosbag", "play", "-q", "--wait-for-subscribers", "-r", str(rate)),
+                *(str(bag_path), "--topics", *INPUT_TOPICS),
+            ],
             env=env,
             stdout=log,
             stderr=subprocess.STDOUT,
