@@ -108,7 +108,17 @@ def test_replay_gives_the_live_keypoints(ros_run):
     assert "same keypoints as the live run" in proc.stdout
 
 
+ECHO_ONE = """
+import rospy
+from std_msgs.msg import String
+rospy.init_node("echo_one", anonymous=True)
+print(rospy.wait_for_message("/task/result", String, timeout=120).data, flush=True)
+"""
+
+
 def test_exported_bag_plays_back_in_ros(ros_run, tmp_path):
+    import rosgraph
+
     out, _bag = ros_run
     exported = tmp_path / "export.bag"
     proc = foldbot("export-bag", str(out), "--out", str(exported))
@@ -129,13 +139,16 @@ def test_exported_bag_plays_back_in_ros(ros_run, tmp_path):
             if probe.returncode == 0:
                 break
             time.sleep(0.3)
+        # A subscriber that knows the type (rostopic echo would subscribe only once the topic
+        # is advertised, racing the short playback): the bag plays once it is registered.
         echo = subprocess.Popen(
-            ["rostopic", "echo", "-n", "1", "/task/result"],
-            env=env,
-            stdout=subprocess.PIPE,
-            text=True,
+            [sys.executable, "-c", ECHO_ONE], env=env, stdout=subprocess.PIPE, text=True
         )
-        time.sleep(2.0)
+        master = rosgraph.Master("/test_export", master_uri=env["ROS_MASTER_URI"])
+        deadline = time.monotonic() + 60
+        while not any(t == "/task/result" for t, _ in master.getSystemState()[1]):
+            assert time.monotonic() < deadline, "the listener did not subscribe to /task/result"
+            time.sleep(0.2)
         subprocess.run(
             ["rosbag", "play", "-q", "-r", "20", str(exported)], env=env, check=True, timeout=120
         )
