@@ -10,6 +10,7 @@ import sys
 import numpy as np
 import pytest
 from cloth_states import LINE, state
+from layer_scene import TABLE_PLANE, box, observe
 
 from foldbot.loop import (
     MAX_CLOTH_CREASE_ROOM,
@@ -19,8 +20,10 @@ from foldbot.loop import (
     assign_arms,
     corner_to_grasp,
     nearest_arm,
+    relay_action,
     stage_crease_room,
 )
+from foldbot.perception.state import ClothState
 from foldbot.planning.actions import FoldAction
 
 
@@ -62,6 +65,51 @@ def test_the_crease_room_is_the_laid_layers_rise_seen_in_depth():
     # Set in the configuration, it wins.
     fixed = LoopConfig(recipe="thirds", layer_thickness=0.011, crease_room=0.0)
     assert stage_crease_room(fixed, 0.013) == 0.0
+
+
+# --- laying a laid corner again ---
+
+LAYER = 0.005
+SEEN = ClothState(detected=True, table_plane=TABLE_PLANE.copy())
+FLAT = observe(box(-0.1, 0.1, -0.1, 0.1, LAYER))  # a 20 cm towel, before its half fold
+# The far-left corner carried over the fold line x = 0 (pointing -y: x > 0 moves) onto its mirror.
+FAR_LEFT = FoldAction(
+    grasp=np.array([0.1, 0.1, LAYER]),
+    place=np.array([-0.1, 0.1, LAYER]),
+    fold_line=(0.0, 0.0, 0.0, -1.0),
+    label="far_left",
+)
+
+
+def relay_after(*laid_layer):
+    """relay_action for FAR_LEFT once the half fold left the given laid layer on the staying half."""
+    after = observe(box(-0.1, 0.0, -0.1, 0.1, LAYER), *laid_layer)
+    return relay_action(LoopConfig(), FAR_LEFT, (SEEN, FLAT), (SEEN, after))
+
+
+def test_a_laid_corner_that_sprang_back_along_its_side_is_laid_again():
+    action, why = relay_after(box(-0.07, 0.0, -0.1, 0.1, 2 * LAYER))  # 3 cm short of its place
+    assert action is not None and action.label == "relay_far_left"
+    assert np.linalg.norm(action.grasp[:2] - [-0.07, 0.1]) < 0.015  # just inside where it lies
+    assert action.grasp[2] == pytest.approx(2 * LAYER, abs=1e-4)  # on the laid layer's top
+    assert action.place == pytest.approx(FAR_LEFT.place)
+    assert re.fullmatch(r"laid (2\d|3\d) mm off its place, seen in depth", why)
+
+
+def test_a_corner_laid_on_its_place_is_left():
+    assert relay_after(box(-0.1, 0.0, -0.1, 0.1, 2 * LAYER)) == (None, "")
+
+
+def test_a_laid_layer_bunched_off_the_corners_side_is_left():
+    # The layer's corner nearest the place lies 6 cm along the fold line: a ridge, not the corner.
+    action, why = relay_after(box(-0.1, 0.0, -0.1, 0.04, 2 * LAYER))
+    assert action is None
+    assert re.search(r"lies \d+ mm off the side it should end on", why)
+
+
+def test_nothing_is_laid_again_without_a_cloth_seen():
+    lost = ClothState(detected=False, table_plane=TABLE_PLANE.copy())
+    assert relay_action(LoopConfig(), FAR_LEFT, (SEEN, FLAT), (lost, FLAT)) == (None, "")
 
 
 # --- two arms ------------------------------------------------------------------------------------

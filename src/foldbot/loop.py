@@ -34,7 +34,7 @@ from foldbot.grasp_points import (
     stack_grasp_point,
 )
 from foldbot.perception.keypoints import label_corners, max_area_quad
-from foldbot.perception.layers import deepest_gap, layer_cover
+from foldbot.perception.layers import deepest_gap, laid_corner, laid_layer_mask, layer_cover
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState, fold_check_iou
 from foldbot.planning.actions import FoldAction, FoldPlan
@@ -93,6 +93,22 @@ class LoopConfig:
     stage) leaves that edge, so the crease wraps it instead of pushing the layer back. None: the
     height the previous stage's laid layer rose, seen in depth (about one cloth thickness), or
     `layer_thickness` where depth told nothing and in the open loop."""
+    relay_corners: bool = True
+    """After the recipe's last stage, when its corners were carried one after another: each corner
+    laid before the stage's last carry (which drags it) on a corner of the outline the stage should
+    leave is looked for in depth, where the laid layer ends, and one found more than
+    `relay_tolerance` off its place is picked there, at the layer's top, and laid again, once
+    (relay_laid_corners; docs/experiments.md, Laying a laid corner again)."""
+    relay_tolerance: float = 0.008
+    """How far (m) a laid corner seen in depth may lie from its place before it is laid again."""
+    relay_reach: float = 0.2
+    """A laid-layer corner farther than this (m) from the place is not the corner laid there."""
+    relay_min_rise: float = 0.004
+    """A pixel whose surface rose at least this much (m) over a stage is cloth the stage laid."""
+    relay_side: float = 0.015
+    """A laid corner is laid again only when it lies within this (m) of the line through its place
+    across the fold line (the side it should end on): a corner that sprang back along its side.
+    Off that line the layer's corner is a ridge of bunched cloth, not the corner laid there."""
 
 
 @dataclass
@@ -354,7 +370,8 @@ def run_fold(
         if stage == 0:
             rec.initial_overlay = plan_overlay(obs, state, plan, cell.table_height)
         corner_places = outline_corners(np.asarray(predicted, dtype=float).reshape(-1, 3))
-        if cell.arms > 1 and len(plan.actions) == 2 and arms_apart(plan.actions):
+        together = cell.arms > 1 and len(plan.actions) == 2 and arms_apart(plan.actions)
+        if together:
             log(f"stage {stage + 1}: {' and '.join(a.label for a in plan.actions)} together")
             entries, latest = two_arm_actions(
                 cfg,
@@ -399,6 +416,13 @@ def run_fold(
             cell.park()
             cell.wait(settle_s)
             state, obs = cell.observe()
+        if cfg.relay_corners and stage == recipe_stages(cfg.recipe) - 1 and not together:
+            # The stage's later carries drag the corners laid before them (one at a time).
+            state, obs, relays = relay_laid_corners(
+                cfg, cell, plan.actions[:-1], corner_places, (stage_state, stage_obs),
+                (state, obs), log, settle_s,
+            )  # fmt: skip
+            rec.actions.extend(relays)
         cover = predicted_cover(cfg.recipe, stage, corners, cfg.crease_band, room)
         laid = (
             layer_cover(stage_obs, stage_state.table_plane, obs, state.table_plane, cover)
@@ -436,6 +460,96 @@ def run_fold(
             seen_gap = f"; in depth, the laid layer left a gap {depth_mm:.0f} mm deep"
         log(f"stage {stage + 1} done: mask IoU with the predicted shape {iou:.2f}{seen_gap}")
     return finish_fold(cell, rec)
+
+
+def relay_laid_corners(
+    cfg: LoopConfig,
+    cell: FoldCell,
+    actions: Sequence[FoldAction],
+    predicted_corners: np.ndarray,
+    before: tuple[ClothState, Observation],
+    after: tuple[ClothState, Observation],
+    log: Callable[[str], None] = print,
+    settle_s: float = 0.3,
+) -> tuple[ClothState, Observation, list[dict]]:
+    """After a stage (arm parked, cloth settled): each corner the stage laid on a corner of the
+    outline it should leave that relay_action finds off its place is picked where the laid layer
+    ends and laid on its place again, once, re-observing after each. Returns the newest state and
+    observation and the relays' result.json entries (kind "relay_corner"). `before`: the stage's
+    first observation; `after`: the newest, taken once the stage ended."""
+    state, obs = after
+    entries: list[dict] = []
+    for planned in actions:
+        if not place_is_corner(planned.place, predicted_corners):
+            continue
+        action, why = relay_action(cfg, planned, before, (state, obs))
+        if action is None:
+            if why:
+                log(f"  {planned.label}: {why}")
+            continue
+        log(f"  {planned.label}: {why}; laying it again")
+        cell.use_arm(cell.arm_for(action.grasp))
+        entry = execute_as_planned(cell, state, action)
+        entry.update(kind="relay_corner", reason=why)
+        if cell.arms > 1:
+            entry["arm"] = cell.active_arm
+        entries.append(entry)
+        cell.park()
+        cell.wait(settle_s)
+        state, obs = cell.observe()
+    return state, obs, entries
+
+
+def relay_action(
+    cfg: LoopConfig,
+    planned: FoldAction,
+    before: tuple[ClothState, Observation],
+    after: tuple[ClothState, Observation],
+) -> tuple[FoldAction | None, str]:
+    """Whether the corner `planned` laid must be laid again, from the stage's first and newest
+    observations: the layer the stage laid is the surface that rose over it, seen in depth (the
+    outline cannot show it: the layer beneath keeps the outline), and its corner nearest the place
+    is where the laid corner lies. The action picks it there, at the layer's top, and lays it on
+    the place, when it lies more than `cfg.relay_tolerance` off, along its side (within
+    `cfg.relay_side` of the line through the place across the fold line: a corner that sprang
+    back); off that side the layer's corner is a ridge of bunched cloth, and it is left. Returns
+    the action, or None, and why."""
+    (before_state, before_obs), (state, obs) = before, after
+    if not (state.detected and before_state.detected):
+        return None, ""
+    laid = laid_layer_mask(
+        before_obs, before_state.table_plane, obs, state.table_plane, cfg.relay_min_rise
+    )
+    seen = laid_corner(laid, obs, planned.place)
+    if seen is None:
+        return None, "no laid layer seen in depth"
+    corner = seen.corner
+    off = float(np.linalg.norm(corner[:2] - planned.place[:2]))
+    if off <= cfg.relay_tolerance:
+        return None, ""
+    if off > cfg.relay_reach:
+        return None, f"the laid layer's nearest corner is {off * 1000:.0f} mm away: not this one"
+    aside = side_offset(planned, corner)
+    if aside > cfg.relay_side:
+        return None, (
+            f"the laid layer's corner nearest its place lies {aside * 1000:.0f} mm off the side "
+            "it should end on (bunched cloth); left as it is"
+        )
+    action = FoldAction(
+        grasp=seen.grasp,
+        place=planned.place,
+        fold_line=planned.fold_line,
+        label=f"relay_{planned.label}",
+    )
+    return action, f"laid {off * 1000:.0f} mm off its place, seen in depth"
+
+
+def side_offset(planned: FoldAction, point: np.ndarray) -> float:
+    """How far (m, in the table plane) `point` lies from the line through `planned`'s place point
+    across its fold line: the side a corner laid there runs along toward the crease."""
+    dx, dy = planned.fold_line[2:]
+    along = np.array([dx, dy]) / np.hypot(dx, dy)
+    return float(abs(along @ (np.asarray(point)[:2] - np.asarray(planned.place)[:2])))
 
 
 def finish_fold(cell: FoldCell, rec: FoldRecord) -> FoldRecord:

@@ -11,6 +11,8 @@ from foldbot.errors import PerceptionError
 from foldbot.perception.layers import (
     deepest_gap,
     height_map,
+    laid_corner,
+    laid_layer_mask,
     layer_cover,
 )
 from foldbot.perception.overlay import draw_overlay
@@ -113,3 +115,47 @@ def test_the_stage_overlay_tints_what_the_laid_layer_left_uncovered() -> None:
     changed = (tinted != plain).any(axis=2)
     assert changed[cover.exposed].all()
     assert not changed[~cover.exposed & (np.arange(200)[:, None] > 30)].any()  # below the label
+
+
+# The half fold's far-left corner, at (0.1, 0.1), is laid on its mirror (-0.1, 0.1).
+PLACE = np.array([-0.1, 0.1, LAYER])
+
+
+def laid(after):
+    return laid_layer_mask(observe(FLAT), TABLE_PLANE, after, TABLE_PLANE, LAYER / 2)
+
+
+def test_the_laid_layer_is_the_surface_that_rose_over_the_stage() -> None:
+    after = folded()
+    mask = laid(after)
+    height = height_map(after, TABLE_PLANE)
+    assert mask[height > 1.5 * LAYER].mean() > 0.95  # the folded half, less its blurred border
+    assert not mask[height < 1.5 * LAYER].any()  # the staying layer, and the half that left
+
+
+def test_a_layer_laid_past_the_cloth_onto_bare_table_is_laid_too() -> None:
+    after = observe(box(-0.1, 0.0, -0.1, 0.1, 2 * LAYER), box(-0.13, -0.1, -0.1, 0.1, LAYER))
+    mask = laid(after)
+    x = (np.arange(240) - 120) / 300.0  # the synthetic camera's x at the table, per column
+    assert mask[:, (x > -0.125) & (x < -0.105)].any(axis=0).all()
+
+
+def test_the_laid_layer_needs_a_positive_rise() -> None:
+    with pytest.raises(PerceptionError, match="min_rise must be > 0 m, got 0.0"):
+        laid_layer_mask(observe(FLAT), TABLE_PLANE, folded(), TABLE_PLANE, 0.0)
+
+
+def test_a_laid_corner_that_sprang_back_is_seen_where_the_layer_ends() -> None:
+    # The laid layer ends 3 cm short of the near edge: the layer beneath still shows there.
+    after = observe(box(-0.1, 0.0, -0.1, 0.1, LAYER), box(-0.07, 0.0, -0.1, 0.1, 2 * LAYER))
+    seen = laid_corner(laid(after), after, PLACE)
+    assert seen is not None
+    assert np.linalg.norm(seen.corner[:2] - [-0.07, 0.1]) < 0.007  # two pixels
+    assert seen.corner[2] == pytest.approx(2 * LAYER, abs=1e-4)
+    # Picked just inside, on the laid layer's top.
+    assert seen.grasp[0] > seen.corner[0] and seen.grasp[1] < seen.corner[1]
+    assert seen.grasp[2] == pytest.approx(2 * LAYER, abs=1e-4)
+
+
+def test_no_laid_layer_has_no_corner() -> None:
+    assert laid_corner(laid(observe(FLAT)), observe(FLAT), PLACE) is None

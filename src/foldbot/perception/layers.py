@@ -14,7 +14,13 @@ import cv2
 import numpy as np
 
 from foldbot.errors import PerceptionError
-from foldbot.perception.geometry import backproject, backproject_pixel
+from foldbot.perception.geometry import (
+    backproject,
+    backproject_pixel,
+    project_points,
+    robust_depth,
+)
+from foldbot.perception.keypoints import max_area_quad
 from foldbot.perception.state import polygon_mask
 from foldbot.types import Observation
 
@@ -123,3 +129,73 @@ def deepest_gap(cover: LayerCover | None, after: Observation) -> CoverGap | None
     if not (np.all(np.isfinite(deepest)) and np.all(np.isfinite(edge))):
         return None
     return CoverGap(deepest=deepest, edge=edge, depth=float(np.linalg.norm(deepest[:2] - edge[:2])))
+
+
+def laid_layer_mask(
+    before: Observation,
+    before_plane: np.ndarray,
+    after: Observation,
+    after_plane: np.ndarray,
+    min_rise: float,
+) -> np.ndarray:
+    """Pixels (H×W bool) whose surface rose by at least `min_rise` (m) from `before` to `after`:
+    the cloth a stage laid there, on cloth or on bare table (the parked arm, higher than
+    MAX_CLOTH_HEIGHT, is left out); single stray pixels are opened away."""
+    if before.depth.shape != after.depth.shape:
+        raise PerceptionError(
+            f"frames differ in size: {before.depth.shape} before, {after.depth.shape} after"
+        )
+    if not min_rise > 0:
+        raise PerceptionError(f"min_rise must be > 0 m, got {min_rise!r}")
+    h0 = height_map(before, before_plane)
+    h1 = height_map(after, after_plane)
+    seen = np.isfinite(h0) & np.isfinite(h1) & (h0 < MAX_CLOTH_HEIGHT) & (h1 < MAX_CLOTH_HEIGHT)
+    rose = seen & (np.where(seen, h1 - h0, 0.0) >= min_rise)
+    opened = cv2.morphologyEx(rose.astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+    return opened.astype(bool)
+
+
+@dataclass(frozen=True)
+class LaidCorner:
+    """A corner of the layer a stage laid, seen in depth (world frame, m)."""
+
+    corner: np.ndarray
+    """(3,) the corner itself, on the layer's top surface."""
+    grasp: np.ndarray
+    """(3,) a point just inside it, on the layer's top surface: where the layer is picked."""
+
+
+def laid_corner(
+    laid: np.ndarray, after: Observation, place: np.ndarray, inset_px: int = 3
+) -> LaidCorner | None:
+    """The laid layer's corner nearest `place` (a world point: where a carried corner was laid),
+    or None when nothing was laid. `laid`: the laid layer's pixels (laid_layer_mask).
+
+    The corner is a vertex of the largest quadrilateral on the convex hull of the laid pixels'
+    largest connected piece (as the towel detector finds a towel's corners); the surface there
+    is read `inset_px` pixels toward the piece's centre, where depth sees the layer and not the
+    surface beyond its edge."""
+    n, labels, stats, centroids = cv2.connectedComponentsWithStats(laid.astype(np.uint8), 8)
+    if n < 2:
+        return None
+    k = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+    if stats[k, cv2.CC_STAT_AREA] < 20:
+        return None
+    contours, _ = cv2.findContours(
+        (labels == k).astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE
+    )
+    pts = np.vstack([c.reshape(-1, 2) for c in contours]).astype(np.float32)
+    hull = pts[cv2.convexHull(pts, returnPoints=False).reshape(-1)].astype(float)
+    quad = hull[max_area_quad(hull)]
+    uv, _z = project_points(
+        np.asarray(place, dtype=float).reshape(1, 3), after.intrinsics, after.T_world_camera
+    )
+    corner_px = quad[int(np.argmin(np.linalg.norm(quad - uv[0], axis=1)))]
+    inward = centroids[k] - corner_px
+    inside_px = corner_px + inward / max(float(np.linalg.norm(inward)), 1e-9) * inset_px
+    grasp = backproject_pixel(after, float(inside_px[0]), float(inside_px[1]), radius=1)
+    if not np.all(np.isfinite(grasp)):
+        return None
+    depth = robust_depth(after.depth, float(inside_px[0]), float(inside_px[1]), radius=1)
+    corner = backproject(corner_px[None], np.array([depth]), after.intrinsics, after.T_world_camera)
+    return LaidCorner(corner=corner[0], grasp=grasp)
