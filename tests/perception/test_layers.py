@@ -141,7 +141,7 @@ def test_a_layer_laid_past_the_cloth_onto_bare_table_is_laid_too() -> None:
 
 
 def test_the_laid_layer_needs_a_positive_rise() -> None:
-    with pytest.raises(PerceptionError, match="min_rise must be > 0 m, got 0.0"):
+    with pytest.raises(PerceptionError, match=r"min_rise must be > 0 m, got 0\.0"):
         laid_layer_mask(observe(FLAT), TABLE_PLANE, folded(), TABLE_PLANE, 0.0)
 
 
