@@ -50,6 +50,21 @@ def height_map(obs: Observation, table_plane: np.ndarray) -> np.ndarray:
     return np.where(valid, height, np.nan).reshape(h, w)
 
 
+def surface_rise(
+    before: Observation, before_plane: np.ndarray, after: Observation, after_plane: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """How much each pixel's surface rose from `before` to `after` (m, H×W; 0 where not seen), and
+    where it was seen in both frames as cloth or table (finite, under MAX_CLOTH_HEIGHT)."""
+    if before.depth.shape != after.depth.shape:
+        raise PerceptionError(
+            f"frames differ in size: {before.depth.shape} before, {after.depth.shape} after"
+        )
+    h0 = height_map(before, before_plane)
+    h1 = height_map(after, after_plane)
+    seen = np.isfinite(h0) & np.isfinite(h1) & (h0 < MAX_CLOTH_HEIGHT) & (h1 < MAX_CLOTH_HEIGHT)
+    return np.where(seen, h1 - h0, 0.0), seen
+
+
 @dataclass(frozen=True)
 class LayerCover:
     """How a stage's new layer lies over the region it should cover (image masks, H×W bool)."""
@@ -88,21 +103,15 @@ def layer_cover(
     None when the region is not seen or no layer rose at least `min_rise` (m) over it. A pixel is
     uncovered where its surface rose by less than half the region's median rise; `inset_px`
     pixels along the region's border are ignored (its edge blurs in depth)."""
-    if before.depth.shape != after.depth.shape:
-        raise PerceptionError(
-            f"frames differ in size: {before.depth.shape} before, {after.depth.shape} after"
-        )
+    rise, seen = surface_rise(before, before_plane, after, after_plane)
     region = polygon_mask(cover_polygon, after.intrinsics, after.T_world_camera)
     if inset_px > 0:
         region = cv2.erode(region.astype(np.uint8), np.ones((3, 3), np.uint8), iterations=inset_px)
         region = region.astype(bool)
-    h0 = height_map(before, before_plane)
-    h1 = height_map(after, after_plane)
-    seen = region & np.isfinite(h0) & np.isfinite(h1)
-    seen &= (h0 < MAX_CLOTH_HEIGHT) & (h1 < MAX_CLOTH_HEIGHT)
+    seen &= region
     if seen.sum() < 20:
         return None
-    rise = np.where(seen, h1 - h0, 0.0)
+    rise = np.where(seen, rise, 0.0)
     layer = float(np.median(rise[seen]))
     if layer < min_rise:
         return None
@@ -141,16 +150,10 @@ def laid_layer_mask(
     """Pixels (H×W bool) whose surface rose by at least `min_rise` (m) from `before` to `after`:
     the cloth a stage laid there, on cloth or on bare table (the parked arm, higher than
     MAX_CLOTH_HEIGHT, is left out); single stray pixels are opened away."""
-    if before.depth.shape != after.depth.shape:
-        raise PerceptionError(
-            f"frames differ in size: {before.depth.shape} before, {after.depth.shape} after"
-        )
     if not min_rise > 0:
         raise PerceptionError(f"min_rise must be > 0 m, got {min_rise!r}")
-    h0 = height_map(before, before_plane)
-    h1 = height_map(after, after_plane)
-    seen = np.isfinite(h0) & np.isfinite(h1) & (h0 < MAX_CLOTH_HEIGHT) & (h1 < MAX_CLOTH_HEIGHT)
-    rose = seen & (np.where(seen, h1 - h0, 0.0) >= min_rise)
+    rise, seen = surface_rise(before, before_plane, after, after_plane)
+    rose = seen & (rise >= min_rise)
     opened = cv2.morphologyEx(rose.astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
     return opened.astype(bool)
 
@@ -193,9 +196,11 @@ def laid_corner(
     corner_px = quad[int(np.argmin(np.linalg.norm(quad - uv[0], axis=1)))]
     inward = centroids[k] - corner_px
     inside_px = corner_px + inward / max(float(np.linalg.norm(inward)), 1e-9) * inset_px
-    grasp = backproject_pixel(after, float(inside_px[0]), float(inside_px[1]), radius=1)
-    if not np.all(np.isfinite(grasp)):
-        return None
     depth = robust_depth(after.depth, float(inside_px[0]), float(inside_px[1]), radius=1)
-    corner = backproject(corner_px[None], np.array([depth]), after.intrinsics, after.T_world_camera)
-    return LaidCorner(corner=corner[0], grasp=grasp)
+    if not np.isfinite(depth):
+        return None
+    corner, grasp = (
+        backproject(px[None], np.array([depth]), after.intrinsics, after.T_world_camera)[0]
+        for px in (corner_px, inside_px)
+    )
+    return LaidCorner(corner=corner, grasp=grasp)
