@@ -43,17 +43,6 @@ class Sample:
     """TCP height (m, world)."""
 
 
-def corner_vertices(initial: np.ndarray) -> list[int]:
-    """The mesh's four corner vertices: the extreme ones along the flat towel's two diagonals."""
-    xy = initial[:, :2] - initial[:, :2].mean(axis=0)
-    found: list[int] = []
-    for direction in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
-        i = int(np.argmax(xy @ np.asarray(direction, dtype=float)))
-        if i not in found:
-            found.append(i)
-    return found
-
-
 def corner_rows(
     initial: np.ndarray, goal: np.ndarray, ids: list[int], samples: list[Sample], table_z: float
 ) -> list[dict]:
@@ -128,7 +117,8 @@ def trace_episode(suite: str, recipe: str, seed: int, every: float) -> tuple[lis
         seen["label"] = action.label
         if "ids" not in seen:
             seen["initial"] = cloth.sim_vertices().copy()
-            seen["ids"] = corner_vertices(seen["initial"])
+            # The mesh names its corner vertices (sim_vertices is in mesh order).
+            seen["ids"] = [i for n, i in cloth.mesh.keypoints.items() if n.startswith("corner")]
             stride = max(1, round(every / cell.world.time_step))
 
             def sample(world) -> None:
