@@ -9,7 +9,9 @@ the carry arc at 0.25 m/s, the last 1 cm lowered at a third of that) onto the pl
 then lets go. With `--grippers 1` the actions run one after the other (what the one-arm cell
 does, without its arm, perception or missed grasps); with `--grippers 2` a stage's two actions
 run together, both grippers on the same clock. The fold is scored as the episodes are
-(metrics.score_episode). Each seed runs in its own process; one JSON line per seed on stdout.
+(metrics.score_episode), with the error per goal layer and the staying cloth's drift (the
+vertices no fold moves: how far they lie, in the table plane, from where they lay flat). Each
+seed runs in its own process; one JSON line per seed on stdout.
 
     .venv/bin/python scripts/measure_two_grippers.py --recipe half --grippers 2 --seeds 0-9
 """
@@ -156,6 +158,15 @@ def measure(seed: int, recipe: str, grippers: int, reach: float) -> dict:
                 size_cm=[round(100 * parts.spec.width, 1), round(100 * parts.spec.height, 1)],
                 sim_s=round(world.sim_time, 2),
             )
+            # Where the error lies: per goal layer, and the staying cloth's (layer 0) drift in
+            # the table plane from where it lay flat.
+            goal, layers = metrics.fold_goal(initial, lines, cloth.thickness)
+            err = np.linalg.norm(final - goal, axis=1) * 1000
+            staying = (final - initial)[layers == 0, :2]
+            out["staying_drift_mm"] = round(float(np.linalg.norm(staying, axis=1).mean() * 1000), 1)
+            out["layer_error_mm"] = {
+                int(n): round(float(err[layers == n].mean()), 1) for n in np.unique(layers)
+            }
     except Exception as exc:  # a diverged cloth is a result here, not a crash
         out["error"] = f"{type(exc).__name__}: {exc}"[:200]
     return out

@@ -1,13 +1,16 @@
-"""Trace where a multi-stage fold's layers get their error: after every pick-and-place, each
-stage's flap (the vertices that stage folds) measured against its goal, how far the action
-dragged the flaps laid before it, and the first fold's normalized performance (the success
-measure) as it stands. Ground truth, for diagnosis only: the fold itself runs exactly
+"""Trace where a multi-stage fold's layers get their error: after every pick-and-place (a pair's
+carry with two arms), each stage's flap (the vertices that stage folds) measured against its
+goal, how far the action dragged the flaps laid before it, how far the staying cloth (the
+vertices no fold so far moves) lies from where it lay flat, and the first fold's normalized
+performance (the success measure) as it stands; and the fold error and the staying cloth's
+drift after the last action against the episode's end, which differ only by what the cloth did
+with the arm gone (parking, the last look). Ground truth, for diagnosis only: the fold itself runs exactly
 as in the benchmark (vision, closed loop); the simulator is only read between actions.
 
 For each chosen episode of a suite (each in its own process: Bullet's soft body is deterministic
 only as the first simulation in a process) one JSON line goes to stdout; a summary per recipe
-goes to stderr: each flap's error when its stage ended and when the episode ended, and the
-drag that the later stages put on it.
+goes to stderr: each flap's error when its stage ended and when the episode ended, the drag that
+the later stages put on it, and the staying cloth's drift.
 
     .venv/bin/python scripts/trace_layers.py --suite towel_loop --recipe thirds --seeds 0-19
 """
@@ -44,6 +47,14 @@ def flap_masks(initial: np.ndarray, lines: list, thickness: float) -> list[np.nd
     return masks
 
 
+def staying_drift_mm(vertices: np.ndarray, initial: np.ndarray, staying: np.ndarray) -> float:
+    """Mean table-plane distance (mm) of the `staying` vertices (a mask: those no fold so far
+    moves, goal layer 0) from where they lay flat; 0 where none stays."""
+    if not staying.any():
+        return 0.0
+    return round(1000 * float(np.linalg.norm((vertices - initial)[staying, :2], axis=1).mean()), 1)
+
+
 def trace_episode(suite: str, recipe: str, seed: int) -> dict:
     """Run one episode with the action tracer (in the calling process); its rows and result."""
     import foldbot.loop as loop
@@ -58,20 +69,22 @@ def trace_episode(suite: str, recipe: str, seed: int) -> dict:
         return {"recipe": recipe, "seed": seed, "error": f"no {recipe} seed {seed} in {suite}"}
     rows: list[dict] = []
     state: dict = {"lines": []}
-    execute = loop.execute_action
+    execute, together = loop.execute_action, loop.execute_together
 
-    def traced(cell, action):
+    def record(cell, action, label: str, run):
+        """Run one action (`run()`: its outcome and how many vertices the jaws held), then
+        measure the cloth against the goal of the fold lines so far."""
         cloth = cell.executor.grasp.cloth
         before = cloth.sim_vertices()
         state.setdefault("initial", before.copy())
         line = tuple(float(v) for v in action.fold_line)
         if not state["lines"] or state["lines"][-1] != line:
             state["lines"].append(line)
-        outcome = execute(cell, action)
+        outcome, grasped = run()
         after = cloth.sim_vertices()
         initial, lines = state["initial"], [metrics.FoldLine(*ln) for ln in state["lines"]]
         thickness = cloth.thickness
-        goal = metrics.fold_goal(initial, lines, thickness)[0]
+        goal, layers = metrics.fold_goal(initial, lines, thickness)
         masks = flap_masks(initial, lines, thickness)
         moved = np.linalg.norm(after[:, :2] - before[:, :2], axis=1)
         err = np.linalg.norm(after[:, :2] - goal[:, :2], axis=1)
@@ -79,27 +92,57 @@ def trace_episode(suite: str, recipe: str, seed: int) -> dict:
         rows.append(
             {
                 "stage": len(lines) - 1,
-                "label": action.label,
-                "grasped": len(outcome["grasped_vertices"]),
+                "label": label,
+                "grasped": grasped,
                 "flap_error_mm": [round(1000 * float(err[m].mean()), 1) for m in masks],
                 "flap_moved_mm": [round(1000 * float(moved[m].mean()), 1) for m in masks],
                 "first_fold_normalized": round(float(first.normalized), 3),
+                "staying_drift_mm": staying_drift_mm(after, initial, layers == 0),
             }
         )
+        state["last"] = after
         return outcome
 
-    loop.execute_action = traced
+    def traced(cell, action):
+        def run():
+            outcome = execute(cell, action)
+            return outcome, len(outcome["grasped_vertices"])
+
+        return record(cell, action, action.label, run)
+
+    def traced_pair(cell, pairs):
+        # Two arms carrying a stage's pair at once: one row, the labels joined.
+        def run():
+            outcomes = together(cell, pairs)
+            return outcomes, sum(len(o["grasped_vertices"]) for o in outcomes)
+
+        label = "+".join(a.label for _, a in pairs)
+        return record(cell, pairs[0][1], label, run)
+
+    loop.execute_action, loop.execute_together = traced, traced_pair
     out = Path(tempfile.mkdtemp(prefix="trace_layers_")) / "episode"
     try:
         result = run_episode(spec.to_config(), out, log=lambda _msg: None)
     except Exception as exc:  # a diverged cloth is a result here, not a crash
         return {"recipe": recipe, "seed": seed, "actions": rows, "error": f"{exc}"[:200]}
+    cloth = np.load(out / "cloth.npz")
+    goal, layers = metrics.fold_goal(state["initial"], result["fold_lines"], cloth["thickness"])
+    staying = layers == 0
+
+    def standing(vertices: np.ndarray) -> dict:
+        return {
+            "fold_error_mm": round(metrics.fold_error_mm(vertices, goal), 1),
+            "staying_drift_mm": staying_drift_mm(vertices, state["initial"], staying),
+        }
+
     return {
         "recipe": recipe,
         "seed": seed,
         "fold_error_mm": round(result["fold_error_mm"], 1),
         "normalized_performance": round(result["normalized_performance"], 3),
         "actions": rows,
+        "after_last_action": standing(state["last"]),
+        "end": standing(cloth["final"]),
     }
 
 
@@ -151,6 +194,19 @@ def main() -> int:
             f"# stage {k + 1}'s flap: median error {np.median(pairs[:, 0]):.1f} mm when the stage "
             f"ended, {np.median(pairs[:, 1]):.1f} mm at the end "
             f"(grew in {int(np.sum(pairs[:, 1] > pairs[:, 0] + 2))} of {len(pairs)})",
+            file=sys.stderr,
+        )
+    done = [r for r in rows if "end" in r]
+    if done:
+        last, end = (
+            np.array([[r[k]["fold_error_mm"], r[k]["staying_drift_mm"]] for r in done])
+            for k in ("after_last_action", "end")
+        )
+        print(
+            f"# fold error: mean {last[:, 0].mean():.1f} mm after the last action, "
+            f"{end[:, 0].mean():.1f} at the end; the staying cloth's drift from where it lay flat: "
+            f"median {np.median(last[:, 1]):.1f} mm after the last action, "
+            f"{np.median(end[:, 1]):.1f} at the end",
             file=sys.stderr,
         )
     nps = [
