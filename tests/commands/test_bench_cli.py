@@ -110,7 +110,10 @@ def test_one_recipe_options_build_a_suite():
         "closed",
         (0.25, 0.45),
     )
-    assert e.towel_resolution == 16 and e.video_fps == 0.0
+    assert e.video_fps == 0.0
+    # The towel `foldbot fold` folds by default (17 × 17 vertices for a square one).
+    assert (e.towel_resolution, e.towel_odd_grid) == (17, True)
+    assert e.to_config().towel.grid_shape[0] == 17
 
 
 def test_help_mentions_suites(capsys):

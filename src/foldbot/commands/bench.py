@@ -5,7 +5,7 @@
 
 A suite (suites/NAME.toml, or a path to one) is the grid garment × recipe × perception × loop ×
 seed and states what the seed randomises; the second form is a one-recipe suite built from the
-options. Each episode runs in a fresh process and writes its own folder, DIR/episodes/<id>/;
+options, on the towel `foldbot fold` folds (odd vertex counts, 17 along the longer side). Each episode runs in a fresh process and writes its own folder, DIR/episodes/<id>/;
 finished episodes are not run again, so an interrupted run resumes. `--ray auto` (a running
 cluster), `--ray ADDRESS` or `--ray local` runs the episodes as Ray tasks instead (pip install
 'foldbot[ray]'). DIR/summary.json, DIR/summary.md and DIR/errors.png hold the summary: success
@@ -123,6 +123,8 @@ def suite_from_args(args: argparse.Namespace) -> Suite:
             "loop": ["closed"],
             "seeds": ",".join(map(str, parse_seeds(args.seeds or "0-9"))),
         },
+        # The towel `foldbot fold` folds by default: odd vertex counts, 17 along the longer side.
+        "towel": {"resolution": 17, "odd_grid": True},
         "episode": {"video_fps": args.video_fps or 0.0},
     }
     if args.size_range is not None:
