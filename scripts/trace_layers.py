@@ -4,8 +4,9 @@ goal, how far the action dragged the flaps laid before it, how far the staying c
 vertices no fold so far moves) lies from where it lay flat, and the first fold's normalized
 performance (the success measure) as it stands; and the fold error and the staying cloth's
 drift after the last action against the episode's end, which differ only by what the cloth did
-with the arm gone (parking, the last look). Ground truth, for diagnosis only: the fold itself runs exactly
-as in the benchmark (vision, closed loop); the simulator is only read between actions.
+after the arm let go (parking, the last look). Ground truth, for diagnosis only: the fold itself
+runs exactly as in the benchmark (vision, closed loop); the simulator is only read between
+actions.
 
 For each chosen episode of a suite (each in its own process: Bullet's soft body is deterministic
 only as the first simulation in a process) one JSON line goes to stdout; a summary per recipe
@@ -126,13 +127,13 @@ def trace_episode(suite: str, recipe: str, seed: int) -> dict:
     except Exception as exc:  # a diverged cloth is a result here, not a crash
         return {"recipe": recipe, "seed": seed, "actions": rows, "error": f"{exc}"[:200]}
     cloth = np.load(out / "cloth.npz")
-    goal, layers = metrics.fold_goal(state["initial"], result["fold_lines"], cloth["thickness"])
+    goal, layers = metrics.fold_goal(cloth["initial"], result["fold_lines"], cloth["thickness"])
     staying = layers == 0
 
     def standing(vertices: np.ndarray) -> dict:
         return {
             "fold_error_mm": round(metrics.fold_error_mm(vertices, goal), 1),
-            "staying_drift_mm": staying_drift_mm(vertices, state["initial"], staying),
+            "staying_drift_mm": staying_drift_mm(vertices, cloth["initial"], staying),
         }
 
     return {
@@ -141,7 +142,7 @@ def trace_episode(suite: str, recipe: str, seed: int) -> dict:
         "fold_error_mm": round(result["fold_error_mm"], 1),
         "normalized_performance": round(result["normalized_performance"], 3),
         "actions": rows,
-        "after_last_action": standing(state["last"]),
+        "after_last_action": standing(state["last"]) if "last" in state else None,
         "end": standing(cloth["final"]),
     }
 
@@ -196,7 +197,7 @@ def main() -> int:
             f"(grew in {int(np.sum(pairs[:, 1] > pairs[:, 0] + 2))} of {len(pairs)})",
             file=sys.stderr,
         )
-    done = [r for r in rows if "end" in r]
+    done = [r for r in rows if r.get("end") and r.get("after_last_action")]
     if done:
         last, end = (
             np.array([[r[k]["fold_error_mm"], r[k]["staying_drift_mm"]] for r in done])
