@@ -33,6 +33,7 @@ from foldbot.bench.suite import parse_seeds
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from per_seed import run_each_seed
+from trace_layers import staying_drift_mm
 
 SETTLE_AFTER_STAGE_S = 1.0
 
@@ -162,8 +163,7 @@ def measure(seed: int, recipe: str, grippers: int, reach: float) -> dict:
             # the table plane from where it lay flat.
             goal, layers = metrics.fold_goal(initial, lines, cloth.thickness)
             err = np.linalg.norm(final - goal, axis=1) * 1000
-            staying = (final - initial)[layers == 0, :2]
-            out["staying_drift_mm"] = round(float(np.linalg.norm(staying, axis=1).mean() * 1000), 1)
+            out["staying_drift_mm"] = staying_drift_mm(final, initial, layers == 0)
             out["layer_error_mm"] = {
                 int(n): round(float(err[layers == n].mean()), 1) for n in np.unique(layers)
             }

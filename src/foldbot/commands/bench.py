@@ -5,8 +5,9 @@
 
 A suite (suites/NAME.toml, or a path to one) is the grid garment × recipe × perception × loop ×
 seed and states what the seed randomises; the second form is a one-recipe suite built from the
-options, on the towel `foldbot fold` folds (odd vertex counts, 17 along the longer side). Each episode runs in a fresh process and writes its own folder, DIR/episodes/<id>/;
-finished episodes are not run again, so an interrupted run resumes. `--ray auto` (a running
+options, on the towel `foldbot fold` folds (odd vertex counts, 17 along the longer side). Each
+episode runs in a fresh process and writes its own folder, DIR/episodes/<id>/; finished episodes
+are not run again, so an interrupted run resumes. `--ray auto` (a running
 cluster), `--ray ADDRESS` or `--ray local` runs the episodes as Ray tasks instead (pip install
 'foldbot[ray]'). DIR/summary.json, DIR/summary.md and DIR/errors.png hold the summary: success
 rate, fold error, SoftGym normalized performance, coverage, actions and retries, simulated and
