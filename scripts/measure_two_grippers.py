@@ -13,7 +13,16 @@ run together, both grippers on the same clock. The fold is scored as the episode
 vertices no fold moves: how far they lie, in the table plane, from where they lay flat). Each
 seed runs in its own process; one JSON line per seed on stdout.
 
+`--grippers 2,1` sets the count stage by stage (the two-arm cell's quarter: its first stage
+carried together, its second one corner at a time). `--pin D` adds a still hand that holds the
+staying cloth D metres inside the fold line, halfway along it (every layer there, `--reach`
+round, or a strip `--pin-length` long), through the stage (`--pin-stages` picks which) or, with
+`--pin-release F`, for each carry afresh until F of its arc: a second arm pinning the stack
+while the first folds it.
+
     .venv/bin/python scripts/measure_two_grippers.py --recipe half --grippers 2 --seeds 0-9
+    .venv/bin/python scripts/measure_two_grippers.py --recipe quarter --grippers 2,1 \
+        --pin 0.04 --pin-stages 1 --seeds 0-19
 """
 
 from __future__ import annotations
@@ -86,7 +95,32 @@ class KinematicGripper:
         self.anchors.clear()
 
 
-def measure(seed: int, recipe: str, grippers: int, reach: float) -> dict:
+def pin_vertices(
+    vertices: np.ndarray, line, offset: float, reach: float, length: float = 0.0
+) -> np.ndarray:
+    """Vertices (all layers) within `reach` of a point `offset` inside the staying side of
+    `line`, halfway along the cloth's span of the line: where a second hand pins the stack.
+    With `length`, a strip that long along the line instead (jaws closing along it)."""
+    s = line.side(vertices)  # > 0 on the moving side
+    norm = float(np.hypot(line.dx, line.dy))
+    along = ((vertices[:, 0] - line.x) * line.dx + (vertices[:, 1] - line.y) * line.dy) / norm
+    staying = s < 0
+    mid = 0.5 * (along[staying].min() + along[staying].max())
+    dist = np.hypot(-s / norm - offset, np.maximum(np.abs(along - mid) - length / 2, 0.0))
+    pick = np.flatnonzero(staying & (dist <= reach))
+    return pick if pick.size else np.array([int(np.where(staying, dist, np.inf).argmin())])
+
+
+def measure(
+    seed: int,
+    recipe: str,
+    grippers: list[int],
+    reach: float,
+    pin: float = 0.0,
+    pin_stages: list[int] | None = None,
+    pin_length: float = 0.0,
+    pin_release: float | None = None,
+) -> dict:
     """One seed's fold with ideal grippers (runs in the calling process)."""
     from foldbot import metrics
     from foldbot.bench.suite import load_suite
@@ -107,11 +141,14 @@ def measure(seed: int, recipe: str, grippers: int, reach: float) -> dict:
             cloth, oracle = parts.cloth, parts.oracle
             settle(world, cloth)
             initial = oracle.cloth_vertices()
-            tools = [KinematicGripper(world.client, cloth) for _ in range(grippers)]
+            tools = [KinematicGripper(world.client, cloth) for _ in range(max(grippers))]
+            pinner = KinematicGripper(world.client, cloth) if pin > 0 else None
             dt = world.time_step
             lines, held = [], []
             up = np.array([0.0, 0.0, 1.0])
             for stage in range(recipe_stages(recipe)):
+                n_grip = grippers[min(stage, len(grippers) - 1)]
+                pins = pin > 0 and (pin_stages is None or stage in pin_stages)
                 corners = oracle.outline_corners() if stage else oracle.labelled_corners()
                 plan = plan_stage(recipe, stage, corners)
                 lines.append(plan.fold_lines[0])
@@ -123,10 +160,16 @@ def measure(seed: int, recipe: str, grippers: int, reach: float) -> dict:
                     grabs.append(grab if grab.size else np.array([int(d.argmin())]))
                     held.append(int(grabs[-1].size))
                 pairs = list(zip(plan.actions, grabs, strict=True))
-                for i in range(0, len(pairs), grippers):
+                line = metrics.FoldLine.coerce(plan.fold_lines[0])
+                if pins and pin_release is None:  # a second hand holds the staying cloth
+                    pinned = pin_vertices(v, line, pin, reach, pin_length)
+                    pinner.move_to(v[pinned].mean(axis=0), teleport=True)
+                    pinner.hold(pinned)
+                    out.setdefault("pinned", []).append(int(pinned.size))
+                for i in range(0, len(pairs), n_grip):
                     batch = []
                     v = oracle.cloth_vertices()
-                    for action, grab in pairs[i : i + grippers]:
+                    for action, grab in pairs[i : i + n_grip]:
                         start = v[grab].mean(axis=0)  # where the held cloth is now
                         end = action.place.copy()
                         end[2] += max(0.0, start[2] - action.grasp[2])
@@ -136,11 +179,22 @@ def measure(seed: int, recipe: str, grippers: int, reach: float) -> dict:
                             line_path(pre, end, 0.003), mcfg.cartesian_speed / 3, dt
                         )
                         batch.append((grab, np.vstack([carry, lower])))
+                        carry_steps = len(carry)
                     for tool, (grab, path) in zip(tools, batch, strict=False):
                         tool.move_to(path[0], teleport=True)
                         tool.hold(grab)
+                    let_go = -1  # the step at which a per-carry pin lets go
+                    if pins and pin_release is not None:  # pinned for this carry only
+                        pinned = pin_vertices(v, line, pin, reach, pin_length)
+                        pinner.move_to(v[pinned].mean(axis=0), teleport=True)
+                        pinner.hold(pinned)
+                        out.setdefault("pinned", []).append(int(pinned.size))
+                        let_go = int(pin_release * carry_steps)
                     n = max(len(path) for _, path in batch)
                     for k in range(n):
+                        if k == let_go:
+                            pinner.release()
+                            pinner.move_to(np.array([0.0, 0.0, 2.0]), teleport=True)
                         for tool, (_, path) in zip(tools, batch, strict=False):
                             tool.move_to(path[min(k, len(path) - 1)])
                         world.step()
@@ -148,6 +202,9 @@ def measure(seed: int, recipe: str, grippers: int, reach: float) -> dict:
                         tool.release()
                         tool.move_to(np.array([0.0, 0.0, 2.0]), teleport=True)
                     world.step(round(0.3 / dt))
+                if pins:
+                    pinner.release()
+                    pinner.move_to(np.array([0.0, 0.0, 2.0]), teleport=True)
                 world.step(round(SETTLE_AFTER_STAGE_S / dt))
             final = oracle.cloth_vertices()
             score = metrics.score_episode(initial, final, parts.mesh.faces, lines, cloth.thickness)
@@ -175,18 +232,53 @@ def measure(seed: int, recipe: str, grippers: int, reach: float) -> dict:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--recipe", default="half", help="a towel recipe (default half)")
-    ap.add_argument("--grippers", type=int, choices=(1, 2), default=2)
+    ap.add_argument(
+        "--grippers", default="2",
+        help="grippers carrying each stage, 1 or 2; a list ('2,1') gives stage by stage, the "
+        "last repeating (default 2)",
+    )  # fmt: skip
+    ap.add_argument(
+        "--pin-stages", help="stages (0-based, '1' or '0,1') the pin holds (default: all)"
+    )
     ap.add_argument("--seeds", default="0-9", help="seeds: '0-9', '0,3,5' or one seed")
     ap.add_argument(
         "--reach", type=float, default=0.012,
         help="hold every vertex within this distance (m, table plane) of a grasp point",
     )  # fmt: skip
+    ap.add_argument(
+        "--pin", type=float, default=0.0,
+        help="a third, still hand holds the staying cloth this far (m) inside each fold line "
+        "while the stage is carried (0: none)",
+    )  # fmt: skip
+    ap.add_argument(
+        "--pin-length", type=float, default=0.0,
+        help="the pin holds a strip this long (m) along the line (0: a spot, --reach round)",
+    )  # fmt: skip
+    ap.add_argument(
+        "--pin-release", type=float,
+        help="pin each carry afresh and let go this far (fraction, 0-1) along its arc "
+        "(default: held from the stage's start to its end)",
+    )  # fmt: skip
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)  # child process: one seed
     args = ap.parse_args()
     if args.one is not None:
-        print(json.dumps(measure(args.one, args.recipe, args.grippers, args.reach)), flush=True)
+        grippers = [int(g) for g in args.grippers.split(",")]
+        if not grippers or any(g not in (1, 2) for g in grippers):
+            ap.error(f"--grippers {args.grippers!r}: each value must be 1 or 2")
+        stages = None if args.pin_stages is None else [int(s) for s in args.pin_stages.split(",")]
+        row = measure(
+            args.one, args.recipe, grippers, args.reach, args.pin, stages, args.pin_length,
+            args.pin_release,
+        )  # fmt: skip
+        print(json.dumps(row), flush=True)
         return 0
     extra = ["--recipe", args.recipe, "--grippers", str(args.grippers), "--reach", str(args.reach)]
+    extra += ["--pin", str(args.pin)]
+    if args.pin_stages is not None:
+        extra += ["--pin-stages", args.pin_stages]
+    extra += ["--pin-length", str(args.pin_length)]
+    if args.pin_release is not None:
+        extra += ["--pin-release", str(args.pin_release)]
     rows = run_each_seed(__file__, parse_seeds(args.seeds), extra)
     ok = [r for r in rows if "error" not in r]
     if ok:
