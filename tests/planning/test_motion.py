@@ -1,3 +1,5 @@
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -37,3 +39,16 @@ def test_slide_placement_comes_down_short_and_slides_out_onto_the_place_point():
     assert np.ptp(segs[4].points[:, 2]) == pytest.approx(0.0)
     assert np.allclose(segs[4].points[:, 1], place_tcp[1])
     assert segs[5].points[0] == pytest.approx(place_tcp)
+
+
+def test_a_corner_carried_with_another_comes_straight_down_its_last_4_cm():
+    cfg = MotionConfig()
+    pair = cfg.for_pair()
+    assert pair.place_height == pytest.approx(0.04) and cfg.place_height == pytest.approx(0.01)
+    assert dataclasses.replace(pair, place_height=cfg.place_height) == cfg  # nothing else differs
+    segs = action_segments(ACTION, START, pair)
+    assert segs[2].points[-1] == pytest.approx(ACTION.place + [0, 0, 0.04])
+    lower = segs[3].points
+    assert lower[-1] == pytest.approx(ACTION.place + [0, 0, pair.grasp_depth])
+    assert np.allclose(lower[:, :2], ACTION.place[:2])  # straight down, over the place
+    assert segs[3].speed == pytest.approx(pair.cartesian_speed / 3)

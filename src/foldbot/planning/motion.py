@@ -3,6 +3,7 @@ lower, open, retreat. Pure geometry (world frame, metres); IK and timing happen 
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,6 +31,12 @@ class MotionConfig:
     """A carried point is released this high above the height it was grasped at (m)."""
     place_height: float = 0.01
     """Height above the place point at which the arc ends before the final lowering (m)."""
+    pair_place_height: float = 0.04
+    """`place_height` for a layer carried by two arms at once, by two of its corners (m): such a
+    layer sags between the jaws, and brought down along the arc its free edge touched down short
+    of its place, bowed back; coming straight down the last 4 cm lays it where it belongs. One
+    arm's carries keep `place_height` (their layer hangs from one corner; docs/experiments.md,
+    Coming straight down onto the place)."""
     place_slide: float = 0.0
     """Lower-then-slide placement: the carried point comes down this far short of its place point
     (back along the carry direction) and is then slid out onto it, pulling the laid layer taut
@@ -42,6 +49,11 @@ class MotionConfig:
     """Nominal TCP speed for moves without cloth (m/s)."""
     arc_points: int = 40
     """Waypoints along the carry arc."""
+
+    def for_pair(self) -> MotionConfig:
+        """This motion for one of two corners carried at once: the arc ends `pair_place_height`
+        above the place."""
+        return dataclasses.replace(self, place_height=self.pair_place_height)
 
 
 @dataclass(frozen=True)
