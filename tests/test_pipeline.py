@@ -164,6 +164,8 @@ def test_two_arms_carry_a_half_folds_corners_together(tmp_path):
     # One stage, its two far corners carried at once, each by the arm on its side.
     assert [(a["label"], a["arm"]) for a in actions] == [("far_left", 0), ("far_right", 1)]
     assert all(a["together"] and a["grasp_success"] for a in actions)
+    # Carried together, the corners came straight down the last 4 cm (LoopConfig.pair_descent).
+    assert [a["descent_m"] for a in actions] == [pytest.approx(0.04)] * 2
     assert result["success"] is True
     assert result["fold_error_mm"] <= 10.0
 
@@ -321,38 +323,6 @@ def test_two_arm_cell_hands_an_action_to_the_arm_that_can_do_it():
             cell.use_arm(0)
             with pytest.raises(UnreachableTargetError, match="no IK solution"):
                 cell.plan_action(beyond)
-            assert world.steps == 0
-        finally:
-            parts.model_world.close()
-
-
-def test_two_arms_bring_a_pair_straight_down_the_last_4_cm_and_one_arm_the_last_1_cm():
-    """A layer carried by two corners at once ends its arc MotionConfig.pair_place_height over
-    the places (it sags between the jaws); a single carry ends place_height over its place."""
-    from foldbot.pipeline import SimCell, build_sim_cell
-    from foldbot.planning.actions import FoldAction
-    from foldbot.sim.world import SimWorld
-
-    cfg = EpisodeConfig(arms=2, towel=TowelSpec(0.2, 0.2, 6), video_fps=0)
-    with SimWorld(cfg.sim) as world:
-        parts = build_sim_cell(cfg, world)
-        try:
-            cell = SimCell(
-                world, parts.robot, parts.executor, parts.camera, None, cfg.motion,
-                more_executors=parts.more_executors,
-            )  # fmt: skip
-            z = world.layout.table_height + 0.004
-            x0, x1 = 0.55, 0.40
-            pair = [
-                (arm, FoldAction(np.array([x0, y, z]), np.array([x1, y, z]), (0.475, 0, 0, 1)))
-                for arm, y in ((0, 0.1), (1, -0.1))
-            ]
-            for (_arm, action), steps in zip(pair, cell.plan_together(pair), strict=True):
-                assert [s.segment.name for s in steps][2:4] == ["carry", "lower"]
-                assert steps[2].points[-1] == pytest.approx(action.place + [0, 0, 0.04], abs=1e-6)
-            cell.use_arm(0)
-            single = cell.plan_action(pair[0][1])
-            assert single[2].points[-1] == pytest.approx(pair[0][1].place + [0, 0, 0.01], abs=1e-6)
             assert world.steps == 0
         finally:
             parts.model_world.close()

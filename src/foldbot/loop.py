@@ -109,6 +109,12 @@ class LoopConfig:
     """A laid corner is laid again only when it lies within this (m) of the line through its place
     across the fold line (the side it should end on): a corner that sprang back along its side.
     Off that line the layer's corner is a ridge of bunched cloth, not the corner laid there."""
+    pair_descent: float | None = 0.04
+    """Where two arms carry a stage's two corners at once (two_arm_actions), their arcs end this
+    high (m) over the places and the corners come straight down, slowly: a towel's layer held by
+    two corners sags between them, and brought down along the arc the middle of its edge touched
+    down short of its place (docs/experiments.md, Coming straight down onto the place). None: as
+    one arm carries (MotionConfig.place_height). Garment pairs keep the arc (pants fold worse)."""
 
 
 @dataclass
@@ -967,6 +973,8 @@ def two_arm_actions(
             )
             for i, plan_i in enumerate(planned)
         ]
+        if cfg.pair_descent is not None:
+            actions = [dataclasses.replace(a, descent=cfg.pair_descent) for a in actions]
         try:
             outcomes, arms = show_and_carry_pair(cell, state, arms, actions, log)
         except ArmsWouldCollideError as exc:
@@ -1000,6 +1008,7 @@ def two_arm_actions(
             "together": True,
             "grasp": [float(v) for v in actions[i].grasp],
             "place": [float(v) for v in actions[i].place],
+            "descent_m": actions[i].descent,
             "grasp_success": outcomes[i]["grasp_success"],
             "grasp_reason": outcomes[i]["grasp_reason"],
             "grasped_vertices": outcomes[i]["grasped_vertices"],

@@ -334,10 +334,9 @@ class SimCell(FoldCell):
     def plan_together(
         self, actions: list[tuple[int, FoldAction | SpreadAction]]
     ) -> list[list[PlannedSegment]]:
-        pair = self.motion.for_pair()  # a layer carried by two corners comes straight down
         plans = [
             self.executors[arm].plan(
-                motion_segments(action, self.executors[arm].robot.tcp_pose()[0], pair)
+                motion_segments(action, self.executors[arm].robot.tcp_pose()[0], self.motion)
             )
             for arm, action in actions
         ]

@@ -41,14 +41,21 @@ def test_slide_placement_comes_down_short_and_slides_out_onto_the_place_point():
     assert segs[5].points[0] == pytest.approx(place_tcp)
 
 
-def test_a_corner_carried_with_another_comes_straight_down_its_last_4_cm():
+def test_an_action_with_its_own_descent_comes_straight_down_that_far():
     cfg = MotionConfig()
-    pair = cfg.for_pair()
-    assert pair.place_height == pytest.approx(0.04) and cfg.place_height == pytest.approx(0.01)
-    assert dataclasses.replace(pair, place_height=cfg.place_height) == cfg  # nothing else differs
-    segs = action_segments(ACTION, START, pair)
+    action = dataclasses.replace(ACTION, descent=0.04)
+    segs = action_segments(action, START, cfg)
     assert segs[2].points[-1] == pytest.approx(ACTION.place + [0, 0, 0.04])
     lower = segs[3].points
-    assert lower[-1] == pytest.approx(ACTION.place + [0, 0, pair.grasp_depth])
+    assert lower[-1] == pytest.approx(ACTION.place + [0, 0, cfg.grasp_depth])
     assert np.allclose(lower[:, :2], ACTION.place[:2])  # straight down, over the place
-    assert segs[3].speed == pytest.approx(pair.cartesian_speed / 3)
+    assert segs[3].speed == pytest.approx(cfg.cartesian_speed / 3)
+    plain = action_segments(ACTION, START, cfg)  # no descent of its own: the motion's 1 cm
+    assert plain[2].points[-1] == pytest.approx(ACTION.place + [0, 0, cfg.place_height])
+
+
+def test_an_actions_descent_travels_with_it():
+    action = dataclasses.replace(ACTION, descent=0.04)
+    assert FoldAction.from_dict(action.as_dict()).descent == pytest.approx(0.04)
+    assert "descent" not in ACTION.as_dict()  # records of actions without one are as before
+    assert FoldAction.from_dict(ACTION.as_dict()).descent is None

@@ -20,15 +20,22 @@ class FoldAction:
     """Cloth layers stacked at the grasp point that the grasp must hold together (a corner of a
     folded stack): with more than one, the jaws close down at the table, under the whole stack,
     instead of just under the perceived top surface."""
+    descent: float | None = None
+    """Height (m) over the place at which the carry arc ends, the carried point then coming
+    straight down, slowly; None: the motion's `MotionConfig.place_height`. The towel loop sets it
+    on a stage's two corners carried at once (LoopConfig.pair_descent)."""
 
     def as_dict(self) -> dict:
-        return {
+        d = {
             "label": self.label,
             "layers": self.layers,
             "grasp": [float(v) for v in self.grasp],
             "place": [float(v) for v in self.place],
             "fold_line": [float(v) for v in self.fold_line],
         }
+        if self.descent is not None:
+            d["descent"] = float(self.descent)
+        return d
 
     @classmethod
     def from_dict(cls, d: dict) -> FoldAction:
@@ -39,6 +46,7 @@ class FoldAction:
             fold_line=tuple(float(v) for v in d["fold_line"]),
             label=d.get("label", ""),
             layers=int(d.get("layers", 1)),
+            descent=None if d.get("descent") is None else float(d["descent"]),
         )
 
 

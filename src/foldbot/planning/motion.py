@@ -3,7 +3,6 @@ lower, open, retreat. Pure geometry (world frame, metres); IK and timing happen 
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,13 +29,8 @@ class MotionConfig:
     place_lift: float = 0.004
     """A carried point is released this high above the height it was grasped at (m)."""
     place_height: float = 0.01
-    """Height above the place point at which the arc ends before the final lowering (m)."""
-    pair_place_height: float = 0.04
-    """`place_height` for a layer carried by two arms at once, by two of its corners (m): such a
-    layer sags between the jaws, and brought down along the arc its free edge touched down short
-    of its place, bowed back; coming straight down the last 4 cm lays it where it belongs. One
-    arm's carries keep `place_height` (their layer hangs from one corner; docs/experiments.md,
-    Coming straight down onto the place)."""
+    """Height above the place point at which the arc ends before the final lowering (m), unless
+    the action sets its own (`FoldAction.descent`)."""
     place_slide: float = 0.0
     """Lower-then-slide placement: the carried point comes down this far short of its place point
     (back along the carry direction) and is then slid out onto it, pulling the laid layer taut
@@ -49,11 +43,6 @@ class MotionConfig:
     """Nominal TCP speed for moves without cloth (m/s)."""
     arc_points: int = 40
     """Waypoints along the carry arc."""
-
-    def for_pair(self) -> MotionConfig:
-        """This motion for one of two corners carried at once: the arc ends `pair_place_height`
-        above the place."""
-        return dataclasses.replace(self, place_height=self.pair_place_height)
 
 
 @dataclass(frozen=True)
@@ -87,6 +76,7 @@ def carry_arc(start: np.ndarray, end: np.ndarray, cfg: MotionConfig) -> np.ndarr
 def action_segments(action: FoldAction, current: np.ndarray, cfg: MotionConfig) -> list[Segment]:
     """The segments that execute one fold action, starting from TCP position `current`."""
     up = np.array([0.0, 0.0, 1.0])
+    descent = cfg.place_height if action.descent is None else action.descent
     grasp_tcp = action.grasp + up * cfg.grasp_depth
     pre_grasp = action.grasp + up * cfg.approach_height
     place_tcp = action.place + up * cfg.grasp_depth
@@ -94,7 +84,7 @@ def action_segments(action: FoldAction, current: np.ndarray, cfg: MotionConfig) 
     dist = float(np.linalg.norm(carry))
     slide = min(cfg.place_slide, 0.5 * dist)
     touch_tcp = place_tcp - (carry / dist * slide if slide > 0 else 0.0)
-    pre_place = touch_tcp + up * (cfg.place_height - cfg.grasp_depth)
+    pre_place = touch_tcp + up * (descent - cfg.grasp_depth)
     segments = [
         Segment("approach", line_path(current, pre_grasp), cfg.free_speed),
         Segment("descend", line_path(pre_grasp, grasp_tcp, 0.005), cfg.free_speed / 3, "close"),

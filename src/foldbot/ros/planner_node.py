@@ -175,11 +175,10 @@ class MotionPlanner:
         qs = self._qs(req)
         if kind == "together":
             pairs = [(self._arm(p), FoldAction.from_dict(p["action"])) for p in req["pairs"]]
-            pair_motion = self.cfg.motion.for_pair()  # as SimCell.plan_together
             plans = [
                 self._plan(
                     arm,
-                    action_segments(action, self.robots[arm].fk_tcp(qs[arm])[0], pair_motion),
+                    action_segments(action, self.robots[arm].fk_tcp(qs[arm])[0], self.cfg.motion),
                     qs[arm],
                 )
                 for arm, action in pairs
