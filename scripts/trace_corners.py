@@ -110,11 +110,12 @@ def trace_episode(suite: str, recipe: str, seed: int, every: float) -> tuple[lis
         raise SystemExit(f"no {recipe} episode with seed {seed} in suite {suite}")
     samples: list[Sample] = []
     seen: dict = {}
-    execute = loop.execute_action
+    execute, together = loop.execute_action, loop.execute_together
 
-    def traced(cell, action):
+    def start(cell, label: str) -> None:
+        """Name the action under way; on the first, hook the sampler into the world."""
         cloth = cell.executor.grasp.cloth
-        seen["label"] = action.label
+        seen["label"] = label
         if "ids" not in seen:
             seen["initial"] = cloth.sim_vertices().copy()
             # The mesh names its corner vertices (sim_vertices is in mesh order).
@@ -124,14 +125,21 @@ def trace_episode(suite: str, recipe: str, seed: int, every: float) -> tuple[lis
             def sample(world) -> None:
                 if world.steps % stride == 0:
                     v = cloth.sim_vertices()
-                    tcp = float(cell.robot.tcp_pose()[0][2])
+                    tcp = float(cell.robot.tcp_pose()[0][2])  # the active arm's
                     samples.append(Sample(world.sim_time, seen["label"], v[seen["ids"]], tcp))
 
             cell.world.add_step_hook(sample)
             seen["table_z"] = cell.table_height
+
+    def traced(cell, action):
+        start(cell, action.label)
         return execute(cell, action)
 
-    loop.execute_action = traced
+    def traced_pair(cell, pairs):  # two arms carrying a pair at once: one label, joined
+        start(cell, "+".join(a.label for _, a in pairs))
+        return together(cell, pairs)
+
+    loop.execute_action, loop.execute_together = traced, traced_pair
     out = Path(tempfile.mkdtemp(prefix="trace_corners_")) / "episode"
     result = run_episode(spec.to_config(), out, log=lambda _msg: None)
     goal = metrics.fold_goal(seen["initial"], result["fold_lines"], 0.0)[0]
