@@ -3,6 +3,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from foldbot.errors import ConfigError
 from foldbot.planning.actions import FoldAction
 from foldbot.planning.motion import MotionConfig, action_segments
 
@@ -59,3 +60,9 @@ def test_an_actions_descent_travels_with_it():
     assert FoldAction.from_dict(action.as_dict()).descent == pytest.approx(0.04)
     assert "descent" not in ACTION.as_dict()  # records of actions without one are as before
     assert FoldAction.from_dict(ACTION.as_dict()).descent is None
+
+
+@pytest.mark.parametrize("descent", [float("nan"), -0.01, 0.001, 0.5])
+def test_a_descent_below_the_grasp_depth_or_above_the_approach_is_refused(descent):
+    with pytest.raises(ConfigError, match=r"descent .* must lie between the grasp depth"):
+        action_segments(dataclasses.replace(ACTION, descent=descent), START, MotionConfig())

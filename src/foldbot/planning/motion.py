@@ -3,10 +3,12 @@ lower, open, retreat. Pure geometry (world frame, metres); IK and timing happen 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from foldbot.errors import require
 from foldbot.planning.actions import FoldAction
 
 
@@ -77,6 +79,11 @@ def action_segments(action: FoldAction, current: np.ndarray, cfg: MotionConfig) 
     """The segments that execute one fold action, starting from TCP position `current`."""
     up = np.array([0.0, 0.0, 1.0])
     descent = cfg.place_height if action.descent is None else action.descent
+    require(
+        math.isfinite(descent) and cfg.grasp_depth <= descent <= cfg.approach_height,
+        f"action '{action.label}': descent {descent!r} m must lie between the grasp depth "
+        f"{cfg.grasp_depth} m and the approach height {cfg.approach_height} m",
+    )
     grasp_tcp = action.grasp + up * cfg.grasp_depth
     pre_grasp = action.grasp + up * cfg.approach_height
     place_tcp = action.place + up * cfg.grasp_depth
