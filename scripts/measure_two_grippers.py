@@ -85,14 +85,24 @@ class KinematicGripper:
             self.cid, jointChildPivot=pos.tolist(), maxForce=500.0, physicsClientId=self.client
         )
 
-    def hold(self, vertices: np.ndarray) -> None:
+    def hold(self, vertices: np.ndarray, at: np.ndarray) -> None:
+        """Jump to `at` and anchor `vertices` there."""
+        self.move_to(at, teleport=True)
         for v in vertices:
             self.anchors.append(self.cloth.anchor(int(v), self.body))
 
     def release(self) -> None:
+        """Let go of every anchored vertex and move out of the way, 2 m up."""
         for a in self.anchors:
             self.cloth.release(a)
         self.anchors.clear()
+        self.move_to(np.array([0.0, 0.0, 2.0]), teleport=True)
+
+    def pin(self, vertices: np.ndarray, line, offset: float, reach: float, length: float) -> int:
+        """Hold the staying cloth by `line` where it is now (pin_vertices); how many points."""
+        pinned = pin_vertices(vertices, line, offset, reach, length)
+        self.hold(pinned, vertices[pinned].mean(axis=0))
+        return int(pinned.size)
 
 
 def pin_vertices(
@@ -162,10 +172,7 @@ def measure(
                 pairs = list(zip(plan.actions, grabs, strict=True))
                 line = metrics.FoldLine.coerce(plan.fold_lines[0])
                 if pins and pin_release is None:  # a second hand holds the staying cloth
-                    pinned = pin_vertices(v, line, pin, reach, pin_length)
-                    pinner.move_to(v[pinned].mean(axis=0), teleport=True)
-                    pinner.hold(pinned)
-                    out.setdefault("pinned", []).append(int(pinned.size))
+                    out.setdefault("pinned", []).append(pinner.pin(v, line, pin, reach, pin_length))
                 for i in range(0, len(pairs), n_grip):
                     batch = []
                     v = oracle.cloth_vertices()
@@ -181,30 +188,25 @@ def measure(
                         batch.append((grab, np.vstack([carry, lower])))
                         carry_steps = len(carry)
                     for tool, (grab, path) in zip(tools, batch, strict=False):
-                        tool.move_to(path[0], teleport=True)
-                        tool.hold(grab)
+                        tool.hold(grab, path[0])
                     let_go = -1  # the step at which a per-carry pin lets go
                     if pins and pin_release is not None:  # pinned for this carry only
-                        pinned = pin_vertices(v, line, pin, reach, pin_length)
-                        pinner.move_to(v[pinned].mean(axis=0), teleport=True)
-                        pinner.hold(pinned)
-                        out.setdefault("pinned", []).append(int(pinned.size))
+                        out.setdefault("pinned", []).append(
+                            pinner.pin(v, line, pin, reach, pin_length)
+                        )
                         let_go = int(pin_release * carry_steps)
                     n = max(len(path) for _, path in batch)
                     for k in range(n):
                         if k == let_go:
                             pinner.release()
-                            pinner.move_to(np.array([0.0, 0.0, 2.0]), teleport=True)
                         for tool, (_, path) in zip(tools, batch, strict=False):
                             tool.move_to(path[min(k, len(path) - 1)])
                         world.step()
                     for tool, _ in zip(tools, batch, strict=False):
                         tool.release()
-                        tool.move_to(np.array([0.0, 0.0, 2.0]), teleport=True)
                     world.step(round(0.3 / dt))
                 if pins:
                     pinner.release()
-                    pinner.move_to(np.array([0.0, 0.0, 2.0]), teleport=True)
                 world.step(round(SETTLE_AFTER_STAGE_S / dt))
             final = oracle.cloth_vertices()
             score = metrics.score_episode(initial, final, parts.mesh.faces, lines, cloth.thickness)
