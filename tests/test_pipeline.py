@@ -207,6 +207,32 @@ def test_thirds_second_fold_leaves_the_laid_third_the_crease_room_seen_in_depth(
     assert np.isfinite(result["fold_error_mm"])
 
 
+def unit(v) -> np.ndarray:
+    """A 2-D vector, normalised."""
+    v = np.asarray(v, dtype=float)
+    return v / np.linalg.norm(v)
+
+
+@pytest.mark.slow
+def test_two_arms_fold_quarter_left_onto_right_first_and_carry_the_stack_together(tmp_path):
+    """A two-arm cell folds quarter as quarter_y, so the stack's two corners lie one on each
+    arm's side; a stack corner placed off is left where it lies, not laid again by one arm."""
+    cfg = EpisodeConfig(recipe="quarter", arms=2, towel=TowelSpec(0.3, 0.3, 11), video_fps=0)
+    result = run_episode(cfg, tmp_path / "ep", log=lambda *_: None)
+    assert result["recipe"] == "quarter" and result["planned_recipe"] == "quarter_y"
+    actions = result["actions"]
+    assert [a["label"] for a in actions] == ["far_left", "near_left", "far_left", "far_right"]
+    assert all(a["together"] and a["grasp_success"] for a in actions)
+    # Left onto right first (a near–far line), then across it (lines from perceived corners).
+    first, second = (unit(line[2:4]) for line in result["fold_lines"])
+    assert abs(first[0]) > abs(first[1]) and abs(float(first @ second)) < 0.1
+    # The stack's far_right corner lay 4–5 cm off its place and stayed there.
+    left = [a for a in actions[2:] if (a["placed_error_m"] or 0.0) > cfg.place_tolerance]
+    assert [a["label"] for a in left] == ["far_right"]
+    assert left[0]["re_place_skipped"] == "stack"
+    assert np.isfinite(result["fold_error_mm"])
+
+
 @pytest.mark.slow
 def test_same_seed_same_episode(tmp_path):
     args = ["fold", "--recipe", "diagonal", "--seed", "3", "--width", "0.24", "--height", "0.24"]

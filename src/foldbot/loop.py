@@ -40,6 +40,7 @@ from foldbot.perception.state import ClothState, fold_check_iou
 from foldbot.planning.actions import FoldAction, FoldPlan
 from foldbot.planning.garment_recipes import GarmentPlan, plan_garment
 from foldbot.planning.recipes import (
+    carries_stack,
     plan_stage,
     predicted_cover,
     predicted_outline,
@@ -387,6 +388,7 @@ def run_fold(
                 log,
                 inject_fault=cfg.fault_grasp_offset > 0 and not rec.actions,
                 predicted_corners=corner_places,
+                re_place=not carries_stack(cfg.recipe, stage),
             )
             rec.actions.extend(entries)
         else:
@@ -944,6 +946,7 @@ def two_arm_actions(
     log: Callable[[str], None] = print,
     inject_fault: bool = False,
     predicted_corners: np.ndarray | None = None,
+    re_place: bool = True,
 ) -> tuple[list[dict], ClothState]:
     """A stage's two corners carried at once, one arm each, so neither drags the other.
 
@@ -953,7 +956,9 @@ def two_arm_actions(
     re-observes and the pair is redone (the failed corner at the table, inside the corner seen,
     as closed_loop_action retries it), at most `cfg.retries` times. A pair that still fails is
     done one arm at a time (closed_loop_action). Afterwards each placement that should make a
-    corner is checked, and a corner placed off is re-placed by the arm on its side."""
+    corner is checked, and with `re_place` a corner placed off is re-placed by the arm on its side
+    (not for a folded stack: one arm laying a stack's corner again dragged the stack or blew it
+    up, docs/experiments.md)."""
     arms = assign_arms(cell.arm_for, planned)
     t_sim, t_wall = cell.sim_time, time.perf_counter()
     state, actions = latest, list(planned)
@@ -1039,6 +1044,10 @@ def two_arm_actions(
         error = float(np.linalg.norm(seen[:2] - actions[i].place[:2]))
         entries[i]["placed_error_m"] = error
         if error <= cfg.place_tolerance or cfg.retries < 1:
+            continue
+        if not re_place:
+            log(f"  {plan_i.label} placed {error * 1000:.0f} mm off; a folded stack: left there")
+            entries[i]["re_place_skipped"] = "stack"
             continue
         log(f"  {plan_i.label} placed {error * 1000:.0f} mm off; re-placing it with one arm")
         redo = dataclasses.replace(plan_i, grasp=seen)

@@ -48,7 +48,7 @@ from foldbot.perception.state import ClothState
 from foldbot.planning.actions import FoldAction
 from foldbot.planning.garment_recipes import GARMENT_RECIPES
 from foldbot.planning.motion import MotionConfig, Segment, action_segments, line_path
-from foldbot.planning.recipes import RECIPES
+from foldbot.planning.recipes import RECIPES, recipe_for_arms
 from foldbot.planning.spread import SpreadAction, motion_segments
 from foldbot.sim.camera import CameraConfig, RGBDCamera
 from foldbot.sim.cloth import ClothConfig, DivergenceMonitor, SoftCloth, settle
@@ -408,9 +408,10 @@ class SimCell(FoldCell):
 
 
 def loop_config(cfg: EpisodeConfig, layer_thickness: float = 0.0) -> LoopConfig:
-    """The closed loop's part of an episode configuration."""
+    """The closed loop's part of an episode configuration; a towel's recipe in the order its cell
+    folds it (recipe_for_arms: a two-arm cell's quarter is quarter_y)."""
     return LoopConfig(
-        recipe=cfg.recipe,
+        recipe=recipe_for_arms(cfg.recipe, cfg.arms) if cfg.garment == "towel" else cfg.recipe,
         retries=cfg.retries,
         place_tolerance=cfg.place_tolerance,
         regrasp_radius=cfg.regrasp_radius,
@@ -443,6 +444,10 @@ def episode_result(
         "stages": record.stages,
         "garment": cfg.garment,
         "recipe": cfg.recipe,
+        # The stage order the cell folded it in (a two-arm cell's quarter: quarter_y).
+        "planned_recipe": (
+            recipe_for_arms(cfg.recipe, cfg.arms) if cfg.garment == "towel" else cfg.recipe
+        ),
         "robot": cfg.robot,
         "arms": cfg.arms,
         "time_step": cfg.sim.time_step,

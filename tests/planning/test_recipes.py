@@ -12,11 +12,13 @@ from foldbot.planning.recipes import (
     CORNER_NAMES,
     RECIPE_HELP,
     RECIPES,
+    carries_stack,
     half_fold,
     plan_recipe,
     plan_stage,
     predicted_cover,
     predicted_outline,
+    recipe_for_arms,
     recipe_stages,
 )
 
@@ -35,6 +37,7 @@ STAGE_GRASPS = {
     "half_y": [("far_left", "near_left")],
     "half_long": "shape",  # half or half_y: the far-apart pair, by the towel's shape
     "quarter": [("far_left", "far_right"), ("far_left", "near_left")],
+    "quarter_y": [("far_left", "near_left"), ("far_left", "far_right")],
     "diagonal": None,  # one far corner, chosen by the pose and shape
     "diagonal_corners": None,  # one far corner, chosen by the pose
     "thirds": [("near_left", "near_right"), ("far_left", "far_right")],
@@ -171,6 +174,7 @@ def test_recipe_names_and_stage_counts():
         "half_y",
         "half_long",
         "quarter",
+        "quarter_y",
         "diagonal",
         "diagonal_corners",
         "thirds",
@@ -181,6 +185,7 @@ def test_recipe_names_and_stage_counts():
         "half_y": 1,
         "half_long": 1,
         "quarter": 2,
+        "quarter_y": 2,
         "diagonal": 1,
         "diagonal_corners": 1,
         "thirds": 2,
@@ -262,6 +267,46 @@ def test_quarter_second_line_is_perpendicular_through_the_folded_centre(pose, sh
     # The folded rectangle is the near half: the second stage grasps its stacked near corner.
     assert np.allclose(stage_corners[1]["near_left"], stage_corners[0]["near_left"])
     assert area(outlines[1]) == pytest.approx(quad_area(stage_corners[0]) / 4)
+
+
+@pytest.mark.parametrize("shape", SHAPES)
+@pytest.mark.parametrize("pose", POSES)
+def test_quarter_y_folds_quarters_lines_the_other_way_round(pose, shape):
+    """The same two folds as quarter, left onto right first; its second stage carries the stack's
+    far corners, one each side of the folded rectangle's centre line (one per arm)."""
+    cx, cy, yaw = pose
+    flat = towel(cx, cy, *shape, yaw=yaw)
+    plans, outlines, stage_corners = run_recipe("quarter_y", flat)
+    first, second = (FoldLine.coerce(p.fold_lines[0]) for p in plans)
+    assert abs(unit([first.dx, first.dy]) @ unit([second.dx, second.dy])) < 1e-9
+    assert on_line((flat["far_left"] + flat["far_right"]) / 2, first)
+    assert on_line(np.mean(list(stage_corners[1].values()), axis=0), second)
+    carried = [a.grasp for a in plans[1].actions]
+    assert [a.label for a in plans[1].actions] == ["far_left", "far_right"]
+    # Half the far edge apart: the folded rectangle's far edge.
+    far_edge = float(np.linalg.norm((flat["far_left"] - flat["far_right"])[:2]))
+    assert float(np.linalg.norm((carried[0] - carried[1])[:2])) == pytest.approx(far_edge / 2)
+    assert area(outlines[1]) == pytest.approx(quad_area(stage_corners[0]) / 4)
+    # Both orders end on the same quarter of the towel: the near-right one.
+    _, quarter_outlines, _ = run_recipe("quarter", flat)
+    centre = np.mean(np.asarray(outlines[1])[:, :2], axis=0)
+    assert centre == pytest.approx(
+        np.mean(np.asarray(quarter_outlines[1])[:, :2], axis=0), abs=1e-6
+    )
+
+
+def test_a_two_arm_cell_folds_quarter_as_quarter_y_and_only_quarters_second_stage_is_a_stack():
+    assert recipe_for_arms("quarter", 2) == "quarter_y"
+    assert recipe_for_arms("quarter", 1) == "quarter"
+    for recipe in RECIPES:
+        if recipe != "quarter":
+            assert recipe_for_arms(recipe, 2) == recipe_for_arms(recipe, 1) == recipe
+    stacks = {(r, k) for r in RECIPES for k in range(recipe_stages(r)) if carries_stack(r, k)}
+    assert stacks == {("quarter", 1), ("quarter_y", 1)}
+    with pytest.raises(ConfigError, match=r"'origami'.*allowed: half"):
+        recipe_for_arms("origami", 2)
+    with pytest.raises(ConfigError, match=r"1 or 2 arms, got 3"):
+        recipe_for_arms("quarter", 3)
 
 
 @pytest.mark.parametrize("shape", SHAPES)
@@ -395,6 +440,7 @@ EXPECTED_LAYERS = {
     "half_y": {0: 1 / 2, 1: 1 / 2},
     "half_long": {0: 1 / 2, 1: 1 / 2},
     "quarter": {0: 1 / 4, 1: 1 / 4, 2: 1 / 4, 3: 1 / 4},
+    "quarter_y": {0: 1 / 4, 1: 1 / 4, 2: 1 / 4, 3: 1 / 4},
     # metrics' rule 2·n_max + 1 − n puts the far third (layer 0 before) at index 3: three layers.
     "thirds": {0: 1 / 3, 1: 1 / 3, 3: 1 / 3},
     "diagonal": {0: 1 / 2, 1: 1 / 2},
@@ -405,6 +451,7 @@ EXPECTED_AREA = {
     "half_y": 1 / 2,
     "half_long": 1 / 2,
     "quarter": 1 / 4,
+    "quarter_y": 1 / 4,
     "thirds": 1 / 3,
     "diagonal": 1 / 2,
     "diagonal_corners": 1 / 2,
@@ -520,7 +567,7 @@ def test_bad_inputs_are_rejected_with_the_reason():
         plan_stage("half", 0, dict(good, far_right=np.array([0.5, 0.0])))
     with pytest.raises(
         ConfigError,
-        match=r"origami.*half, half_y, half_long, quarter, diagonal, diagonal_corners, thirds",
+        match=r"origami.*half, half_y, half_long, quarter, quarter_y, diagonal, diagonal_corners, thirds",
     ):
         plan_stage("origami", 0, good)
     with pytest.raises(ConfigError, match="origami"):

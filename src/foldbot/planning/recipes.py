@@ -19,6 +19,11 @@ Recipes (`RECIPES`; the CLI offers them as `--recipe`, so the half fold's axis i
              line runs along the longer side); "half" unless the depth exceeds the width by 10 %.
 - "quarter"  2 stages. Stage 1 is "half"; stage 2 is "half_y" on the folded rectangle's perceived
              corners, i.e. a line perpendicular to the first through the folded rectangle's centre.
+- "quarter_y" 2 stages: the same folds the other way round, "half_y" then "half" on the folded
+             rectangle. Its second stage carries the stack's far corners, which lie one on each side
+             of the cell, so a two-arm cell carries the stack with both arms at once; it folds
+             "quarter" this way (`recipe_for_arms`). With quarter's order both of that stage's
+             corners lie on the left, where the two arms would meet (docs/experiments.md).
 - "diagonal" 1 stage. The triangle fold: a far corner Q is laid on the side across from it, at the
              length of the shorter side it shares with a neighbouring corner P, so the line runs
              from P at 45° between P's two sides and the carried triangle lands on the cloth. On a
@@ -67,13 +72,25 @@ from foldbot.planning.actions import FoldAction, FoldPlan
 
 CORNER_NAMES = ("near_left", "near_right", "far_right", "far_left")
 """Corner labels in counter-clockwise order (seen from above, world frame)."""
-RECIPES = ("half", "half_y", "half_long", "quarter", "diagonal", "diagonal_corners", "thirds")
+RECIPES = (
+    "half",
+    "half_y",
+    "half_long",
+    "quarter",
+    "quarter_y",
+    "diagonal",
+    "diagonal_corners",
+    "thirds",
+)
 """Recipe names accepted by plan_stage / plan_recipe (and the CLI's --recipe)."""
 RECIPE_HELP = {
     "half": "far half onto the near half (1 stage)",
     "half_y": "left half onto the right half (1 stage)",
     "half_long": "in half across the longer side, the shorter carry (half or half_y; 1 stage)",
-    "quarter": "half, then the folded rectangle left onto right (2 stages)",
+    "quarter": "half, then the folded rectangle left onto right (2 stages; a two-arm cell "
+    "folds it as quarter_y)",
+    "quarter_y": "left half onto the right half, then the folded rectangle's far half onto its "
+    "near half (2 stages)",
     "diagonal": "a far corner onto the side across, at its shorter side's length: a triangle "
     "(on a square, onto the opposite corner; 1 stage)",
     "diagonal_corners": "a far corner across the line through its two neighbours (1 stage)",
@@ -270,6 +287,7 @@ _STAGES: dict[str, tuple[Callable[[dict[str, np.ndarray]], _Fold], ...]] = {
     "half_y": (_half_y,),
     "half_long": (_half_long,),
     "quarter": (_half_x, _half_y),
+    "quarter_y": (_half_y, _half_x),
     "diagonal": (_triangle,),
     "diagonal_corners": (_corner_diagonal,),
     "thirds": (_near_third, _far_third),
@@ -281,6 +299,29 @@ _CREASE_ROOM_STAGES = frozenset({("thirds", 1)})
 `crease_room` (other stages ignore it)."""
 MAX_CREASE_ROOM = 0.05
 """Largest accepted crease room (m): a few cloth thicknesses, far more than a crease needs."""
+
+
+_STACK_STAGES = frozenset({("quarter", 1), ("quarter_y", 1)})
+"""Stages that carry a stack an earlier stage folded (its corners are several layers)."""
+TWO_ARM_RECIPES = {"quarter": "quarter_y"}
+"""The order a two-arm cell folds a recipe in, where it differs: quarter's second stage, the
+stack, is carried by both arms only when its corners lie one on each arm's side."""
+
+
+def carries_stack(recipe: str, stage_index: int) -> bool:
+    """Whether a stage carries cloth an earlier stage folded (quarter's second stage): the
+    closed loop does not lay such a corner again with one arm (docs/experiments.md)."""
+    return (recipe, stage_index) in _STACK_STAGES
+
+
+def recipe_for_arms(recipe: str, arms: int) -> str:
+    """The recipe whose stages a cell with `arms` arms plans for `recipe`: the same folds, in the
+    order that lets two arms carry each stage's corners together where one exists."""
+    if recipe not in _STAGES:
+        raise ConfigError(f"unknown recipe {recipe!r}; allowed: {', '.join(RECIPES)}")
+    if isinstance(arms, bool) or arms not in (1, 2):
+        raise ConfigError(f"a cell has 1 or 2 arms, got {arms!r}")
+    return TWO_ARM_RECIPES.get(recipe, recipe) if arms == 2 else recipe
 
 
 def takes_crease_room(recipe: str, stage_index: int) -> bool:
