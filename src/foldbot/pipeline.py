@@ -407,11 +407,16 @@ class SimCell(FoldCell):
             self.recorder.overlay_args = overlay
 
 
+def planned_recipe(cfg: EpisodeConfig) -> str:
+    """The recipe whose stage order the episode's cell folds in: a towel's by its arm count
+    (recipe_for_arms: a two-arm cell's quarter is quarter_y); a garment's as given."""
+    return recipe_for_arms(cfg.recipe, cfg.arms) if cfg.garment == "towel" else cfg.recipe
+
+
 def loop_config(cfg: EpisodeConfig, layer_thickness: float = 0.0) -> LoopConfig:
-    """The closed loop's part of an episode configuration; a towel's recipe in the order its cell
-    folds it (recipe_for_arms: a two-arm cell's quarter is quarter_y)."""
+    """The closed loop's part of an episode configuration (its recipe: planned_recipe)."""
     return LoopConfig(
-        recipe=recipe_for_arms(cfg.recipe, cfg.arms) if cfg.garment == "towel" else cfg.recipe,
+        recipe=planned_recipe(cfg),
         retries=cfg.retries,
         place_tolerance=cfg.place_tolerance,
         regrasp_radius=cfg.regrasp_radius,
@@ -444,10 +449,7 @@ def episode_result(
         "stages": record.stages,
         "garment": cfg.garment,
         "recipe": cfg.recipe,
-        # The stage order the cell folded it in (a two-arm cell's quarter: quarter_y).
-        "planned_recipe": (
-            recipe_for_arms(cfg.recipe, cfg.arms) if cfg.garment == "towel" else cfg.recipe
-        ),
+        "planned_recipe": planned_recipe(cfg),
         "robot": cfg.robot,
         "arms": cfg.arms,
         "time_step": cfg.sim.time_step,
