@@ -105,6 +105,15 @@ def run(args: argparse.Namespace) -> int:
     require_over_ros(fold.config_from_args(args))
     if not (1 <= args.port <= 65535):
         raise ConfigError(f"--port must be in 1–65535, got {args.port}")
+    rate = args.video_fps if args.camera_rate is None else args.camera_rate
+    if not rate > 0 and args.camera_rate is None:
+        raise ConfigError(
+            f"--video-fps {args.video_fps!r} leaves the camera without a frame rate over ROS "
+            "(--camera-rate defaults to --video-fps); pass --camera-rate N, N > 0 frames per "
+            "simulated s (e.g. --video-fps 0 --camera-rate 2: no video)"
+        )
+    if not rate > 0:
+        raise ConfigError(f"--camera-rate must be > 0 frames per s, got {rate!r}")
     out = Path(args.out)
     if out.exists() and any(out.iterdir()) and not args.overwrite:
         raise OutputError(f"{out} already exists and is not empty; pass --overwrite to replace it")
@@ -117,9 +126,6 @@ def run(args: argparse.Namespace) -> int:
     missing = ros_missing()
     if missing:
         raise FoldbotError(missing)
-    rate = args.video_fps if args.camera_rate is None else args.camera_rate
-    if not rate > 0:
-        raise ConfigError(f"--camera-rate must be > 0 frames per s, got {rate!r}")
     cmd = [
         "roslaunch",
         "-p",
