@@ -18,7 +18,9 @@ carried together, its second one corner at a time). `--pin D` adds a still hand 
 staying cloth D metres inside the fold line, halfway along it (every layer there, `--reach`
 round, or a strip `--pin-length` long), through the stage (`--pin-stages` picks which) or, with
 `--pin-release F`, for each carry afresh until F of its arc: a second arm pinning the stack
-while the first folds it.
+while the first folds it. `--mid-stages` carries the listed stages with one gripper midway
+between their two grasps, onto the middle of their places (planning.actions.edge_middle: how
+the one-arm cell carries quarter's stack).
 
     .venv/bin/python scripts/measure_two_grippers.py --recipe half --grippers 2 --seeds 0-9
     .venv/bin/python scripts/measure_two_grippers.py --recipe quarter --grippers 2,1 \
@@ -130,11 +132,13 @@ def measure(
     pin_stages: list[int] | None = None,
     pin_length: float = 0.0,
     pin_release: float | None = None,
+    mid_stages: list[int] | None = None,
 ) -> dict:
     """One seed's fold with ideal grippers (runs in the calling process)."""
     from foldbot import metrics
     from foldbot.bench.suite import load_suite
     from foldbot.pipeline import build_sim_cell
+    from foldbot.planning.actions import edge_middle
     from foldbot.planning.motion import MotionConfig, carry_arc, line_path
     from foldbot.planning.recipes import plan_stage, recipe_stages
     from foldbot.sim.cloth import settle
@@ -162,14 +166,17 @@ def measure(
                 corners = oracle.outline_corners() if stage else oracle.labelled_corners()
                 plan = plan_stage(recipe, stage, corners)
                 lines.append(plan.fold_lines[0])
+                actions = plan.actions
+                if mid_stages and stage in mid_stages:  # one grasp midway along the carried edge
+                    actions = (edge_middle(actions),)
                 v = oracle.cloth_vertices()
                 grabs = []
-                for action in plan.actions:  # held vertices chosen on the stage's start
+                for action in actions:  # held vertices chosen on the stage's start
                     d = np.linalg.norm(v[:, :2] - action.grasp[:2], axis=1)
                     grab = np.flatnonzero(d <= reach)
                     grabs.append(grab if grab.size else np.array([int(d.argmin())]))
                     held.append(int(grabs[-1].size))
-                pairs = list(zip(plan.actions, grabs, strict=True))
+                pairs = list(zip(actions, grabs, strict=True))
                 line = metrics.FoldLine.coerce(plan.fold_lines[0])
                 if pins and pin_release is None:  # a second hand holds the staying cloth
                     out.setdefault("pinned", []).append(pinner.pin(v, line, pin, reach, pin_length))
@@ -261,6 +268,11 @@ def main() -> int:
         help="pin each carry afresh and let go this far (fraction, 0-1) along its arc "
         "(default: held from the stage's start to its end)",
     )  # fmt: skip
+    ap.add_argument(
+        "--mid-stages",
+        help="stages (0-based, '1' or '0,1') carried by one gripper midway between the stage's "
+        "grasps, onto the midpoint of its places (default: none)",
+    )
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)  # child process: one seed
     args = ap.parse_args()
     if args.one is not None:
@@ -268,9 +280,10 @@ def main() -> int:
         if not grippers or any(g not in (1, 2) for g in grippers):
             ap.error(f"--grippers {args.grippers!r}: each value must be 1 or 2")
         stages = None if args.pin_stages is None else [int(s) for s in args.pin_stages.split(",")]
+        mids = None if args.mid_stages is None else [int(s) for s in args.mid_stages.split(",")]
         row = measure(
             args.one, args.recipe, grippers, args.reach, args.pin, stages, args.pin_length,
-            args.pin_release,
+            args.pin_release, mids,
         )  # fmt: skip
         print(json.dumps(row), flush=True)
         return 0
@@ -281,6 +294,8 @@ def main() -> int:
     extra += ["--pin-length", str(args.pin_length)]
     if args.pin_release is not None:
         extra += ["--pin-release", str(args.pin_release)]
+    if args.mid_stages is not None:
+        extra += ["--mid-stages", args.mid_stages]
     rows = run_each_seed(__file__, parse_seeds(args.seeds), extra)
     ok = [r for r in rows if "error" not in r]
     if ok:

@@ -11,8 +11,7 @@ from scipy.spatial import cKDTree
 from foldbot.errors import ConfigError
 from foldbot.garments.towel import TowelSpec
 from foldbot.io.episode import REQUIRED_RESULT_KEYS, load_episode, rescore
-from foldbot.loop import LoopConfig
-from foldbot.metrics import fold_goal
+from foldbot.metrics import FoldLine, fold_goal
 from foldbot.pipeline import EpisodeConfig, run_episode
 from foldbot.sim.cloth import MAX_SLIDE_SPEED
 
@@ -215,25 +214,48 @@ def unit(v) -> np.ndarray:
 
 
 @pytest.mark.slow
-def test_two_arms_fold_quarter_left_onto_right_first_and_carry_the_stack_together(tmp_path):
-    """A two-arm cell folds quarter as quarter_y, so the stack's two corners lie one on each
-    arm's side; a stack corner placed off is left where it lies, not laid again by one arm.
-    In a fresh process: the stack's corner lies where it does only in the first simulation."""
+def test_two_arms_fold_quarter_left_onto_right_first_then_carry_the_stack_by_its_edge(tmp_path):
+    """A two-arm cell folds quarter as quarter_y: the first stage's corners carried together, then
+    the stack by the middle of its far edge, one arm (27.2 mm here). In a fresh process: Bullet's
+    soft body is reproducible only as the first simulation in its process."""
     args = ["fold", "--recipe", "quarter", "--arms", "2", "--width", "0.3", "--height", "0.3"]
     run_cli(*args, "--resolution", "11", "--video-fps", "0", "--out", str(tmp_path / "ep"))
     result = json.loads((tmp_path / "ep" / "result.json").read_text())
     assert result["recipe"] == "quarter" and result["planned_recipe"] == "quarter_y"
     actions = result["actions"]
-    assert [a["label"] for a in actions] == ["far_left", "near_left", "far_left", "far_right"]
-    assert all(a["together"] and a["grasp_success"] for a in actions)
+    labels = [a["label"] for a in actions]
+    assert labels == ["far_left", "near_left", "middle_far_left_far_right"]
+    assert all(a["together"] and a["grasp_success"] for a in actions[:2])
+    edge = actions[2]
+    assert "together" not in edge and edge["arm"] in (0, 1) and edge["grasp_success"]
     # Left onto right first (a near–far line), then across it (lines from perceived corners).
     first, second = (unit(line[2:4]) for line in result["fold_lines"])
     assert abs(first[0]) > abs(first[1]) and abs(float(first @ second)) < 0.1
-    # The stack's far_right corner lay 4–5 cm off its place and stayed there.
-    left = [a for a in actions[2:] if (a["placed_error_m"] or 0.0) > LoopConfig.place_tolerance]
-    assert [a["label"] for a in left] == ["far_right"]
-    assert left[0]["re_place_skipped"] == "stack"
-    assert np.isfinite(result["fold_error_mm"])
+    assert result["fold_error_mm"] < 60.0
+
+
+@pytest.mark.slow
+def test_one_arm_carries_quarters_stack_by_the_middle_of_its_edge(tmp_path):
+    """One arm folds quarter's stack in one carry, grasped midway along the stack's edge, at the
+    table under both layers (on this coarse mesh the first grasp closes between mesh points; the
+    retry holds), and laid across the line: 36.7 mm, where carried corner after corner this
+    towel ended 185.9 mm off, the stack dragged away under the second carry. In a fresh process,
+    as the two-arm quarter above."""
+    args = ["fold", "--recipe", "quarter", "--width", "0.3", "--height", "0.3"]
+    run_cli(*args, "--resolution", "11", "--video-fps", "0", "--out", str(tmp_path / "ep"))
+    result = json.loads((tmp_path / "ep" / "result.json").read_text())
+    actions = result["actions"]
+    labels = [a["label"] for a in actions]
+    assert labels == ["far_left", "far_right", "middle_far_left_near_left"]
+    edge = actions[-1]
+    assert edge["grasp_success"] and edge["placed_error_m"] is None  # no corner to check there
+    table = EpisodeConfig().sim.layout.table_height
+    assert all(a["grasp"][2] < table + 0.01 for a in edge["attempts"])  # under both layers
+    # Grasped on the moving side of the second fold line and laid across it.
+    line = FoldLine.coerce(result["fold_lines"][1])
+    sides = line.side(np.array([edge["grasp"][:2], edge["place"][:2]]))
+    assert sides[0] * sides[1] < 0
+    assert result["fold_error_mm"] < 60.0
 
 
 @pytest.mark.slow

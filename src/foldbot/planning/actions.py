@@ -50,6 +50,31 @@ class FoldAction:
         )
 
 
+def edge_middle(
+    actions: tuple[FoldAction, ...] | list[FoldAction], layers: int | None = None
+) -> FoldAction:
+    """One action for two corners of one edge carried over the same line: grasped midway between
+    their grasps and placed midway between their places (the mirror of that middle, as the
+    mirror is affine), holding `layers` (default: as many as its corners are grasped with). One
+    arm carries a folded stack so, by the middle of its edge, rather than corner after corner,
+    which drags the stack beneath along (docs/experiments.md)."""
+    if len(actions) != 2:
+        raise ValueError(f"edge_middle joins 2 actions, got {len(actions)}")
+    a, b = actions
+    if a.fold_line != b.fold_line:
+        raise ValueError(
+            f"edge_middle joins actions over one fold line, got {a.fold_line} and {b.fold_line}"
+        )
+    return FoldAction(
+        grasp=(np.asarray(a.grasp, dtype=float) + np.asarray(b.grasp, dtype=float)) / 2,
+        place=(np.asarray(a.place, dtype=float) + np.asarray(b.place, dtype=float)) / 2,
+        fold_line=a.fold_line,
+        label=f"middle_{a.label}_{b.label}",
+        layers=max(a.layers, b.layers) if layers is None else layers,
+        descent=a.descent,
+    )
+
+
 @dataclass(frozen=True)
 class FoldPlan:
     """A recipe instantiated on one cloth: its fold lines (in order) and the actions that do them."""
