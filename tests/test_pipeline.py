@@ -236,17 +236,18 @@ def test_two_arms_fold_quarter_left_onto_right_first_then_carry_the_stack_by_its
 
 @pytest.mark.slow
 def test_one_arm_carries_quarters_stack_by_the_middle_of_its_edge(tmp_path):
-    """One arm folds quarter's stack in one carry, grasped midway along the stack's edge, at the
-    table under both layers (on this coarse mesh the first grasp closes between mesh points; the
-    retry holds), and laid across the line: 36.7 mm, where carried corner after corner this
-    towel ended 185.9 mm off, the stack dragged away under the second carry. In a fresh process,
-    as the two-arm quarter above."""
+    """One arm folds quarter as quarter_y (left onto right, corner after corner), then the stack
+    in one carry, grasped midway along its far edge, at the table under both layers, and laid
+    across the line: 32.9 mm (in quarter's order, far onto near first, this towel on an 11-vertex
+    mesh ended 36.7 mm off; in quarter_y's order on that coarse mesh the stack slid toward the
+    robot, 64.6 mm). In a fresh process, as the two-arm quarter above."""
     args = ["fold", "--recipe", "quarter", "--width", "0.3", "--height", "0.3"]
-    run_cli(*args, "--resolution", "11", "--video-fps", "0", "--out", str(tmp_path / "ep"))
+    run_cli(*args, "--resolution", "13", "--video-fps", "0", "--out", str(tmp_path / "ep"))
     result = json.loads((tmp_path / "ep" / "result.json").read_text())
+    assert result["recipe"] == "quarter" and result["planned_recipe"] == "quarter_y"
     actions = result["actions"]
     labels = [a["label"] for a in actions]
-    assert labels == ["far_left", "far_right", "middle_far_left_near_left"]
+    assert labels == ["far_left", "near_left", "middle_far_left_far_right"]
     edge = actions[-1]
     assert edge["grasp_success"] and edge["placed_error_m"] is None  # no corner to check there
     table = EpisodeConfig().sim.layout.table_height

@@ -48,7 +48,7 @@ from foldbot.perception.state import ClothState
 from foldbot.planning.actions import FoldAction
 from foldbot.planning.garment_recipes import GARMENT_RECIPES
 from foldbot.planning.motion import MotionConfig, Segment, action_segments, line_path
-from foldbot.planning.recipes import RECIPES, recipe_for_arms
+from foldbot.planning.recipes import RECIPES, folded_as
 from foldbot.planning.spread import SpreadAction, motion_segments
 from foldbot.sim.camera import CameraConfig, RGBDCamera
 from foldbot.sim.cloth import ClothConfig, DivergenceMonitor, SoftCloth, settle
@@ -408,9 +408,9 @@ class SimCell(FoldCell):
 
 
 def planned_recipe(cfg: EpisodeConfig) -> str:
-    """The recipe whose stage order the episode's cell folds in: a towel's by its arm count
-    (recipe_for_arms: a two-arm cell's quarter is quarter_y); a garment's as given."""
-    return recipe_for_arms(cfg.recipe, cfg.arms) if cfg.garment == "towel" else cfg.recipe
+    """The recipe whose stage order the episode's cell folds in: a towel's as folded_as gives it
+    (quarter is folded as quarter_y, in either cell); a garment's as given."""
+    return folded_as(cfg.recipe) if cfg.garment == "towel" else cfg.recipe
 
 
 def loop_config(cfg: EpisodeConfig, layer_thickness: float = 0.0) -> LoopConfig:

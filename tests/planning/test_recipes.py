@@ -13,12 +13,12 @@ from foldbot.planning.recipes import (
     RECIPE_HELP,
     RECIPES,
     carries_stack,
+    folded_as,
     half_fold,
     plan_recipe,
     plan_stage,
     predicted_cover,
     predicted_outline,
-    recipe_for_arms,
     recipe_stages,
 )
 
@@ -295,18 +295,15 @@ def test_quarter_y_folds_quarters_lines_the_other_way_round(pose, shape):
     )
 
 
-def test_a_two_arm_cell_folds_quarter_as_quarter_y_and_only_quarters_second_stage_is_a_stack():
-    assert recipe_for_arms("quarter", 2) == "quarter_y"
-    assert recipe_for_arms("quarter", 1) == "quarter"
+def test_quarter_is_folded_as_quarter_y_and_only_quarters_second_stage_is_a_stack():
+    assert folded_as("quarter") == "quarter_y"
     for recipe in RECIPES:
         if recipe != "quarter":
-            assert recipe_for_arms(recipe, 2) == recipe_for_arms(recipe, 1) == recipe
+            assert folded_as(recipe) == recipe
     stacks = {(r, k) for r in RECIPES for k in range(recipe_stages(r)) if carries_stack(r, k)}
     assert stacks == {("quarter", 1), ("quarter_y", 1)}
     with pytest.raises(ConfigError, match=r"'origami'.*allowed: half"):
-        recipe_for_arms("origami", 2)
-    with pytest.raises(ConfigError, match=r"1 or 2 arms, got 3"):
-        recipe_for_arms("quarter", 3)
+        folded_as("origami")
 
 
 @pytest.mark.parametrize("shape", SHAPES)
