@@ -242,7 +242,8 @@ def test_one_arm_carries_quarters_stack_by_the_middle_of_its_edge(tmp_path):
     mesh ended 36.7 mm off; in quarter_y's order on that coarse mesh the stack slid toward the
     robot, 64.6 mm). In a fresh process, as the two-arm quarter above."""
     args = ["fold", "--recipe", "quarter", "--width", "0.3", "--height", "0.3"]
-    run_cli(*args, "--resolution", "13", "--video-fps", "0", "--out", str(tmp_path / "ep"))
+    proc = run_cli(*args, "--resolution", "13", "--video-fps", "0", "--out", str(tmp_path / "ep"))
+    assert "recipe quarter: folded in quarter_y's stage order" in proc.stdout + proc.stderr
     result = json.loads((tmp_path / "ep" / "result.json").read_text())
     assert result["recipe"] == "quarter" and result["planned_recipe"] == "quarter_y"
     actions = result["actions"]

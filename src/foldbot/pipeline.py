@@ -590,6 +590,8 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
             world.add_step_hook(recorder)
         log(f"settling the cloth ({mesh.vertices.shape[0]} vertices)…")
         settle(world, cloth)
+        if planned_recipe(cfg) != cfg.recipe:
+            log(f"recipe {cfg.recipe}: folded in {planned_recipe(cfg)}'s stage order")
         cell = SimCell(
             world,
             robot,
