@@ -11,6 +11,7 @@ from foldbot.garment_loop import (
     RETRY_INSET,
     corrected_grasp,
     garment_keypoints,
+    laid_layer,
     outline_distance,
     snap_to_cloth,
 )
@@ -89,3 +90,33 @@ def test_a_retried_tip_grasp_closes_farther_inside_the_cloth():
     # Placed at its mirror across the line, at the height the camera sees the cloth.
     assert again.place[0] == pytest.approx(0.45 - (again.grasp[0] - 0.45), abs=1e-6)
     assert again.grasp[2] == pytest.approx(Z, abs=1e-3)
+
+
+def test_a_stacks_top_layer_is_grasped_first_where_it_reaches_farthest():
+    """Pants' legs: the layer the previous stage laid ends at x = 0.52, short of the stack's tip
+    at 0.55; given its points, the first grasp takes that layer's end, at the surface seen there."""
+    s, obs = square_state(), overhead_view(Z)
+    line = (0.45, 0.0, 0.0, -1.0)
+    planned = FoldAction(np.array([0.55, 0.0, Z]), np.array([0.35, 0.0, Z]), line, "legs")
+    xs, ys = np.meshgrid(np.linspace(0.36, 0.52, 17), np.linspace(-0.05, 0.05, 11))
+    laid = np.c_[xs.ravel(), ys.ravel(), np.full(xs.size, Z)]
+    cfg = LoopConfig(recipe="leg_over_leg")
+    top = corrected_grasp(cfg, s, obs, planned, planned, True, top=laid)
+    assert top.grasp[:2] == pytest.approx([0.52 - GRASP_INSET, 0.0], abs=1e-6)
+    assert top.place[0] == pytest.approx(0.45 - (top.grasp[0] - 0.45), abs=1e-6)
+    assert top.grasp[2] == pytest.approx(Z, abs=1e-3) and top.layers == 1
+    # No laid layer past the line: the stack is carried from its tip, as without one.
+    stack = corrected_grasp(cfg, s, obs, planned, planned, True, top=laid[laid[:, 0] < 0.46])
+    assert stack.grasp[0] == pytest.approx(0.55 - GRASP_INSET, abs=1e-6)
+
+
+def test_no_laid_layer_is_looked_for_when_top_layer_first_is_off():
+    s = square_state()
+    s = ClothState(
+        detected=True, outline_world=s.outline_world, table_plane=np.r_[0, 0, 1.0, -0.75]
+    )
+    before, after = overhead_view(Z), overhead_view(Z + 0.005)
+    on = laid_layer(LoopConfig(recipe="leg_over_leg"), s, before, s, after)
+    assert on is not None and len(on) > 1000  # the whole view rose by a layer
+    off = LoopConfig(recipe="leg_over_leg", top_layer_first=False)
+    assert laid_layer(off, s, before, s, after) is None

@@ -16,6 +16,7 @@ from foldbot.grasp_points import (
     shifted_grasp,
     stack_grasp_point,
     tip_action,
+    top_layer_action,
 )
 from foldbot.metrics import FoldLine
 from foldbot.perception.state import ClothState
@@ -117,6 +118,29 @@ def test_tip_action_carries_the_cloth_left_past_the_line_and_nothing_less():
     assert extra.place[2] == planned.place[2]
     folded = state([(0.30, 0.15), (0.30, -0.15), (0.45 + MIN_LEFT / 2, -0.15)], {})
     assert tip_action(folded, planned) is None
+
+
+def test_the_top_layer_is_carried_from_where_it_reaches_farthest_past_the_line():
+    """Pants' legs: the left leg laid on the right ends short of its tip; the laid layer's
+    farthest point past the line x = 0.45 (moving side x > 0.45) is grasped, 1 cm back toward
+    the line, at its top, and placed at its mirror as one layer."""
+    planned = FoldAction(
+        grasp=np.array([0.6, 0.0, 0.757]),
+        place=np.array([0.3, 0.0, 0.761]),
+        fold_line=LINE,
+        label="legs",
+        layers=2,
+    )
+    xs, ys = np.meshgrid(np.linspace(0.40, 0.56, 17), np.linspace(-0.05, 0.05, 11))
+    laid = np.c_[xs.ravel(), ys.ravel(), np.full(xs.size, 0.77)]
+    lead = top_layer_action(laid, planned)
+    assert lead is not None
+    assert lead.grasp == pytest.approx([0.55, 0.0, 0.77])  # the nearest of the farthest, inset
+    assert lead.place[:2] == pytest.approx([0.35, 0.0]) and lead.place[2] == planned.place[2]
+    assert lead.layers == 1 and lead.label == "legs"
+    short = laid[laid[:, 0] <= 0.45 + MIN_LEFT / 2]
+    assert top_layer_action(short, planned) is None  # only the crease's bulge past the line
+    assert top_layer_action(np.zeros((0, 3)), planned) is None
 
 
 def test_a_shifted_grasp_still_lands_the_aimed_point_on_its_place():

@@ -63,6 +63,9 @@ def test_garment_fold_end_to_end(tmp_path, garment, recipe, stages):
     # well below the flat garment's (one fold alone halves it).
     first = [a for a in result["actions"] if a["fold_line"] == saved["fold_lines"][0]]
     assert first and all(a["grasp_success"] for a in first)
+    # In half, the leg laid on the other (found in depth) is carried first, on its own.
+    second = [a for a in result["actions"] if a["fold_line"] == saved["fold_lines"][1]]
+    assert second[0]["label"] == "legs" and second[0]["top_layer"]
     assert result["coverage"] < 0.75
     assert np.isfinite(result["fold_error_mm"])
 

@@ -20,7 +20,13 @@ import cv2
 import numpy as np
 
 from foldbot.errors import ArmsWouldCollideError, FoldbotError, PerceptionError
-from foldbot.grasp_points import GRASP_INSET, stack_grasp_point, surface_height, tip_action
+from foldbot.grasp_points import (
+    GRASP_INSET,
+    stack_grasp_point,
+    surface_height,
+    tip_action,
+    top_layer_action,
+)
 from foldbot.loop import (
     FoldCell,
     FoldRecord,
@@ -39,6 +45,7 @@ from foldbot.loop import (
     show_action,
     show_and_carry_pair,
 )
+from foldbot.perception.layers import laid_layer_mask, mask_points
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState, fold_check_iou, polygon_mask
 from foldbot.planning.actions import FoldAction
@@ -119,13 +126,17 @@ def corrected_grasp(
     action: FoldAction,
     from_tip: bool = False,
     retry: int = 0,
+    top: np.ndarray | None = None,
 ) -> FoldAction:
     """`action` with its grasp moved onto the cloth seen now: onto the perceived cloth in x, y
-    (or, `from_tip`, where the cloth left past the line reaches farthest, and on the `retry`-th
-    retry after a miss RETRY_INSET farther in each time) and onto the perceived surface height
-    there (a stack: at the table, under every layer)."""
+    (or, `from_tip`, where the cloth left past the line reaches farthest, or with `top`, the
+    points of the layer the previous stage laid, where that layer reaches farthest; on the
+    `retry`-th retry after a miss RETRY_INSET farther in each time) and onto the perceived surface
+    height there (a stack: at the table, under every layer)."""
     if from_tip:
-        action = tip_action(state, planned, GRASP_INSET + retry * RETRY_INSET) or action
+        inset = GRASP_INSET + retry * RETRY_INSET
+        lead = None if top is None else top_layer_action(top, planned, inset)
+        action = lead or tip_action(state, planned, inset) or action
     else:
         seen = snap_to_cloth(state, planned.grasp, cfg.regrasp_radius)
         if seen is not None:
@@ -160,11 +171,12 @@ def garment_action(
     latest_obs: Observation,
     log: Callable[[str], None] = print,
     from_tip: bool = False,
+    top: np.ndarray | None = None,
 ) -> tuple[dict, ClothState, Observation]:
     """One pick-and-place with the grasp corrected onto the cloth seen now (x, y onto the
-    perceived cloth, height onto the perceived surface there); a failed grasp is re-observed and
-    retried (at most `cfg.retries` times). Returns the log entry and the observation taken after
-    it (state and frame)."""
+    perceived cloth, height onto the perceived surface there; `top`: see corrected_grasp); a
+    failed grasp is re-observed and retried (at most `cfg.retries` times). Returns the log entry
+    and the observation taken after it (state and frame)."""
     t_sim, t_wall = cell.sim_time, time.perf_counter()
     action, retries, attempts, state, obs = planned, 0, [], latest, latest_obs
     carried = (
@@ -180,8 +192,16 @@ def garment_action(
         entry = open_loop_entry(planned, _SKIPPED, 0.0, time.perf_counter() - t_wall)
         entry.update(skipped=True)
         return entry, state, obs
+    lead = from_tip and top is not None and top_layer_action(top, planned) is not None
+    if lead:
+        log(f"  {planned.label}: the top layer first, from where it reaches farthest")
     while True:
-        action = corrected_grasp(cfg, state, obs, planned, action, from_tip, retries)
+        # A missed top-layer grasp is retried as the whole stack's tip carry: the miss has moved
+        # the layers, so the frame that showed the laid layer no longer shows it.
+        lead_now = lead and retries == 0
+        action = corrected_grasp(
+            cfg, state, obs, planned, action, from_tip, retries, top if lead_now else None
+        )
         cell.use_arm(cell.arm_for(action.grasp))
         show_action(cell, state, action)
         outcome = execute_action(cell, action)
@@ -204,7 +224,7 @@ def garment_action(
         log(f"  grasp failed ({outcome['grasp_reason']}); re-observed, retry {retries}")
     entry = open_loop_entry(action, outcome, cell.sim_time - t_sim, time.perf_counter() - t_wall)
     entry.update(label=planned.label, placed_error_m=attempts[-1]["placed_error_m"])
-    entry.update(retries=retries, attempts=attempts)
+    entry.update(retries=retries, attempts=attempts, top_layer=bool(lead))
     if cell.arms > 1:
         entry["arm"] = cell.active_arm
     return entry, state, obs
@@ -290,6 +310,27 @@ def together(cell: FoldCell, stage: GarmentStage) -> bool:
     )
 
 
+def laid_layer(
+    cfg: LoopConfig,
+    before_state: ClothState,
+    before_obs: Observation,
+    state: ClothState,
+    obs: Observation,
+) -> np.ndarray | None:
+    """The top surface (N×3 world points) of the layer a stage laid, seen as the surface that rose
+    by at least `cfg.relay_min_rise` between the frames before and after it; None when
+    `cfg.top_layer_first` is off, a frame shows no cloth, or depth tells nothing."""
+    if not (cfg.top_layer_first and before_state.detected and state.detected):
+        return None
+    try:
+        laid = laid_layer_mask(
+            before_obs, before_state.table_plane, obs, state.table_plane, cfg.relay_min_rise
+        )
+    except PerceptionError:
+        return None
+    return mask_points(laid, obs) if laid.any() else None
+
+
 def plan_overlay_all(
     obs: Observation, state: ClothState, plan: GarmentPlan, z: float
 ) -> np.ndarray:
@@ -327,8 +368,10 @@ def run_garment_fold(
     height = float(np.median(state.keypoint_array()[:, 2]))
     rec.initial_overlay = plan_overlay_all(obs, state, plan, cell.table_height)
     parts = [np.asarray(state.outline_world, dtype=float)[:, :2]]
+    top = None  # the layer the previous stage laid (N×3), for a stage whose top layer goes first
     for i, stage in enumerate(plan.stages):
         rec.fold_lines.append(stage.fold_line)
+        before_state, before_obs = state, obs
         if cfg.closed_loop and together(cell, stage):
             log(f"stage {i + 1}: {' and '.join(a.label for a in stage.actions)} together")
             entries, state, obs = garment_pair(cfg, cell, stage.actions, state, obs, log)
@@ -338,7 +381,14 @@ def run_garment_fold(
                 log(f"stage {i + 1}, action {j + 1}/{len(stage.actions)}: {planned.label} → place")
                 if cfg.closed_loop:
                     entry, state, obs = garment_action(
-                        cfg, cell, planned, state, obs, log, from_tip=stage.from_tip
+                        cfg,
+                        cell,
+                        planned,
+                        state,
+                        obs,
+                        log,
+                        from_tip=stage.from_tip,
+                        top=top if j == 0 and stage.top_first else None,
                     )
                 else:
                     cell.use_arm(cell.arm_for(planned.grasp))
@@ -366,4 +416,6 @@ def run_garment_fold(
         )
         rec.stage_overlays.append(draw_overlay(obs, state))
         log(f"stage {i + 1} done: mask IoU with the predicted shape {iou:.2f}")
+        if i + 1 < len(plan.stages) and plan.stages[i + 1].top_first:
+            top = laid_layer(cfg, before_state, before_obs, state, obs)
     return finish_fold(cell, rec)

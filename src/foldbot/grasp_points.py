@@ -146,6 +146,35 @@ def tip_action(
     return dataclasses.replace(planned, grasp=grasp, place=place)
 
 
+def top_layer_action(
+    laid: np.ndarray, planned: FoldAction, inset: float = GRASP_INSET
+) -> FoldAction | None:
+    """The action that carries, from its own tip, the top layer of a stack carried from its tip:
+    `laid` (N×3) are the points of the layer the previous stage laid (seen in depth,
+    perception.layers.mask_points); its point farthest past `planned`'s line (ties: nearest the
+    planned grasp), `inset` back toward the line, placed at its mirror. None when that layer
+    reaches less than MIN_LEFT past the line.
+
+    Folded over together, the stack's top layer is held by nothing where it ends short of the
+    bottom layer's tip, and slides off into the crease; carried first, it goes over on its own and
+    the bottom layer, carried next from its tip, folds over it, the order the goal wants."""
+    pts = np.asarray(laid, dtype=float).reshape(-1, 3)
+    if len(pts) == 0:
+        return None
+    line = FoldLine(*planned.fold_line)
+    norm = float(np.hypot(line.dx, line.dy))
+    past = line.side(pts) / norm
+    if past.max() < MIN_LEFT:
+        return None
+    cand = pts[past >= past.max() - TIP_BAND]
+    tip = cand[int(np.argmin(np.linalg.norm(cand[:, :2] - planned.grasp[:2], axis=1)))]
+    normal = np.array([-line.dy, line.dx]) / norm  # toward the moving side
+    grasp = np.array([*(tip[:2] - normal * inset), tip[2]])
+    place = line.reflect_xy(grasp)
+    place[2] = planned.place[2]
+    return dataclasses.replace(planned, grasp=grasp, place=place, layers=1)
+
+
 def finish_action(state: ClothState, obs: Observation, last: FoldAction) -> FoldAction | None:
     """After a stage's planned actions: the action that carries cloth still left past the stage's
     fold line over it, from its tip, grasped at the surface the camera sees there (one layer), or

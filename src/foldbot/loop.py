@@ -108,6 +108,11 @@ class LoopConfig:
     """How far (m) a laid corner seen in depth may lie from its place before it is laid again."""
     relay_reach: float = 0.2
     """A laid-layer corner farther than this (m) from the place is not the corner laid there."""
+    top_layer_first: bool = True
+    """A garment stage that asks for it (GarmentStage.top_first: pants' legs) has its stack's top
+    layer, the one the stage before laid, carried first from where that layer reaches farthest
+    past the line (seen in depth), then the rest from the tip: carried together, the unheld top
+    layer slid off into the crease (docs/experiments.md). False: the whole stack from its tip."""
     relay_min_rise: float = 0.004
     """A pixel whose surface rose at least this much (m) over a stage is cloth the stage laid."""
     relay_side: float = 0.015

@@ -14,6 +14,7 @@ from foldbot.perception.layers import (
     laid_corner,
     laid_layer_mask,
     layer_cover,
+    mask_points,
 )
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState
@@ -159,3 +160,16 @@ def test_a_laid_corner_that_sprang_back_is_seen_where_the_layer_ends() -> None:
 
 def test_no_laid_layer_has_no_corner() -> None:
     assert laid_corner(laid(observe(FLAT)), observe(FLAT), PLACE) is None
+
+
+def test_mask_points_are_the_laid_layers_top_surface() -> None:
+    after = folded()
+    pts = mask_points(laid(after), after)
+    assert len(pts) > 100
+    assert pts[:, 0].max() < 0.002 and pts[:, 0].min() > -0.102  # over the x < 0 half
+    assert pts[:, 2] == pytest.approx(np.full(len(pts), 2 * LAYER), abs=1e-4)
+
+
+def test_mask_points_refuse_a_mask_of_another_size() -> None:
+    with pytest.raises(PerceptionError, match=r"mask is \(3, 3\), the depth image \(200, 240\)"):
+        mask_points(np.zeros((3, 3), bool), folded())

@@ -73,6 +73,7 @@ def test_tshirt_retail_stages(yaw):
     assert not FoldLine(*s2.fold_line).moving_mask(s1.actions[1].place[None, :2])[0]
     # Hem up: the hems move, the shoulders stay; carried from the tip, planned mid-hem on top.
     assert [a.label for a in s3.actions] == ["hem", "hem_rest"] and s3.from_tip
+    assert not any(s.top_first for s in plan.stages)  # hem up from the tip: it folded better so
     hem_up = FoldLine(*s3.fold_line)
     assert hem_up.moving_mask(np.array([kp["left_hem"][:2], kp["right_hem"][:2]])).all()
     assert not hem_up.moving_mask(np.array([kp["left_shoulder"][:2]]))[0]
@@ -98,6 +99,7 @@ def test_pants_leg_over_leg():
     s1, s2 = plan.stages
     assert [a.label for a in s1.actions] == ["left_waist", "left_leg"]
     assert not s1.from_tip and s2.from_tip
+    assert s2.top_first and not s1.top_first  # the left leg, laid on the right one, goes first
     # Symmetric pants: the left waist corner lands on the right one.
     assert np.allclose(s1.actions[0].place[:2], kp["right_waist"][:2], atol=1e-9)
     line = FoldLine(*s1.fold_line)
@@ -154,12 +156,12 @@ def test_fold_outline_halves_a_square():
 @pytest.mark.parametrize(("recipe", "uv"), [("retail", TSHIRT_UV), ("leg_over_leg", PANTS_UV)])
 def test_plan_survives_its_json_form(recipe, uv):
     """The ROS planner node sends a garment plan as JSON: every stage, line and action field
-    (layers and from_tip included) comes back as it was."""
+    (layers, from_tip and top_first included) comes back as it was."""
     import json
 
     plan = plan_garment(recipe, placed(uv, math.pi / 2 + 0.1), place_lift=0.004, thickness=0.01)
     again = GarmentPlan.from_dict(json.loads(json.dumps(plan.as_dict())))
     assert again.recipe == plan.recipe and again.fold_lines == plan.fold_lines
     for a, b in zip(plan.stages, again.stages, strict=True):
-        assert a.from_tip == b.from_tip
+        assert a.from_tip == b.from_tip and a.top_first == b.top_first
         assert [x.as_dict() for x in a.actions] == [x.as_dict() for x in b.actions]

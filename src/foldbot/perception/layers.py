@@ -158,6 +158,17 @@ def laid_layer_mask(
     return opened.astype(bool)
 
 
+def mask_points(mask: np.ndarray, obs: Observation) -> np.ndarray:
+    """World points (N×3, m) of the surface `obs` sees at the pixels of `mask` (H×W bool) that
+    have depth: e.g. a laid layer's top surface."""
+    if mask.shape != obs.depth.shape:
+        raise PerceptionError(f"mask is {mask.shape}, the depth image {obs.depth.shape}")
+    v, u = np.nonzero(mask)
+    z = obs.depth[v, u].astype(float)
+    ok = np.isfinite(z) & (z > 0)
+    return backproject(np.c_[u[ok], v[ok]], z[ok], obs.intrinsics, obs.T_world_camera)
+
+
 @dataclass(frozen=True)
 class LaidCorner:
     """A corner of the layer a stage laid, seen in depth (world frame, m)."""

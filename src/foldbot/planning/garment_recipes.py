@@ -18,15 +18,19 @@ Recipes (`GARMENT_RECIPES`):
   1. the left leg onto the right one: the line is the garment's axis (through the midpoints of
      the waist and of the leg ends); grasps: left_waist, then the left leg's hem middle (the long
      leg placed last, so the waist's carry does not drag it off its place);
-  2. in half: the line across halfway between the leg ends and the waist, carried from the tip,
-     up to two actions (the stacked legs, one layer at a time if need be).
+  2. in half: the line across halfway between the leg ends and the waist, up to two actions: the
+     top leg (the one the first stage laid, found in depth) from its own end, then what is left
+     from the tip (`top_first`).
 
 A stage "carried from the tip" (`GarmentStage.from_tip`) folds a stack: the closed loop grasps the
 cloth left on the moving side where it reaches farthest from the line, places it at its mirror,
 and repeats while cloth is left there (at most the planned number of actions). That takes the
 layers in the order the fold's goal stacks them and never pinches two layers in one grasp (which
 the soft-body solver does not survive). The planned grasps (the stack's hem middle) say which end
-of the outline to take when several points tie.
+of the outline to take when several points tie. With `top_first`, the first action takes the
+stack's top layer from where it reaches farthest instead: the leg laid on the other ends a few
+centimetres short of the tip, so a tip grasp holds only the bottom layer and the top one, held by
+nothing, slides off it into the crease.
 
 Each fold line is [x, y, dx, dy] with the moving side on its left (metrics.md); its point lies on
 the garment's outline and its direction spans the garment, so [p, p + d] draws the crease.
@@ -111,6 +115,10 @@ class GarmentStage:
     """True: each action grasps the cloth left on the moving side where it reaches farthest from
     the line (as seen just before it), not its planned point; the planned grasps give the action
     budget and the end of the outline to take when several points tie."""
+    top_first: bool = False
+    """With `from_tip`: the first action carries the stack's top layer (the one the stage before
+    laid, seen in depth) from where that layer reaches farthest, the next ones the rest from the
+    tip (pants' legs; the T-shirt's hem stage folded worse so: docs/experiments.md)."""
 
 
 @dataclass(frozen=True)
@@ -133,6 +141,7 @@ class GarmentPlan:
                     "fold_line": [float(v) for v in s.fold_line],
                     "actions": [a.as_dict() for a in s.actions],
                     "from_tip": s.from_tip,
+                    "top_first": s.top_first,
                 }
                 for s in self.stages
             ],
@@ -148,6 +157,7 @@ class GarmentPlan:
                     tuple(float(v) for v in s["fold_line"]),
                     tuple(FoldAction.from_dict(a) for a in s["actions"]),
                     bool(s.get("from_tip", False)),
+                    bool(s.get("top_first", False)),
                 )
                 for s in d["stages"]
             ),
@@ -278,7 +288,7 @@ def _plan_pants(k: dict[str, np.ndarray], lift: float, thickness: float) -> Garm
     stack = right_end + inset
     stack[2] = right_end[2] + thickness
     legs = tuple(_action(stack, half, label, lift) for label in ("legs", "legs_rest"))
-    s2 = GarmentStage(half, legs, from_tip=True)
+    s2 = GarmentStage(half, legs, from_tip=True, top_first=True)
     return GarmentPlan("leg_over_leg", (s1, s2))
 
 
