@@ -319,15 +319,12 @@ def laid_layer(
 ) -> np.ndarray | None:
     """The top surface (N×3 world points) of the layer a stage laid, seen as the surface that rose
     by at least `cfg.relay_min_rise` between the frames before and after it; None when
-    `cfg.top_layer_first` is off, a frame shows no cloth, or depth tells nothing."""
+    `cfg.top_layer_first` is off, a frame shows no cloth, or nothing rose."""
     if not (cfg.top_layer_first and before_state.detected and state.detected):
         return None
-    try:
-        laid = laid_layer_mask(
-            before_obs, before_state.table_plane, obs, state.table_plane, cfg.relay_min_rise
-        )
-    except PerceptionError:
-        return None
+    laid = laid_layer_mask(
+        before_obs, before_state.table_plane, obs, state.table_plane, cfg.relay_min_rise
+    )
     return mask_points(laid, obs) if laid.any() else None
 
 

@@ -51,12 +51,20 @@ def moving_side_tip(
     outline = np.asarray(state.outline_world, dtype=float).reshape(-1, 3)
     if not state.detected or len(outline) < 3:
         return None
+    return farthest_past(outline, line, near, band)
+
+
+def farthest_past(
+    points: np.ndarray, line: tuple[float, float, float, float], near: np.ndarray, band: float
+) -> np.ndarray | None:
+    """Of `points` (N×3), the one on the moving side of `line` farthest from it (within `band`,
+    the one nearest `near`), or None when none lies more than `band` past it."""
     x, y, dx, dy = line
     normal = np.array([-dy, dx]) / max(float(np.hypot(dx, dy)), 1e-12)
-    s = (outline[:, :2] - [x, y]) @ normal
-    if s.max() <= band:
+    s = (points[:, :2] - [x, y]) @ normal
+    if len(s) == 0 or s.max() <= band:
         return None
-    cand = outline[s >= s.max() - band]
+    cand = points[s >= s.max() - band]
     k = int(np.argmin(np.linalg.norm(cand[:, :2] - near[:2], axis=1)))
     return cand[k]
 
@@ -139,8 +147,17 @@ def tip_action(
     tip = moving_side_tip(state, planned.fold_line, planned.grasp, band=TIP_BAND)
     if tip is None:
         return None
+    return carried_to_mirror(planned, tip, inset, planned.grasp[2])
+
+
+def carried_to_mirror(
+    planned: FoldAction, tip: np.ndarray, inset: float, height: float
+) -> FoldAction:
+    """`planned` grasping at `tip` moved `inset` (m) back toward its line, at `height`, and
+    placing at the grasp's mirror across the line (at the planned place's height)."""
+    line = FoldLine(*planned.fold_line)
     normal = np.array([-line.dy, line.dx]) / np.hypot(line.dx, line.dy)  # toward the moving side
-    grasp = np.array([*(tip[:2] - normal * inset), planned.grasp[2]])
+    grasp = np.array([*(tip[:2] - normal * inset), height])
     place = line.reflect_xy(grasp)
     place[2] = planned.place[2]
     return dataclasses.replace(planned, grasp=grasp, place=place)
@@ -159,20 +176,13 @@ def top_layer_action(
     bottom layer's tip, and slides off into the crease; carried first, it goes over on its own and
     the bottom layer, carried next from its tip, folds over it, the order the goal wants."""
     pts = np.asarray(laid, dtype=float).reshape(-1, 3)
-    if len(pts) == 0:
-        return None
     line = FoldLine(*planned.fold_line)
-    norm = float(np.hypot(line.dx, line.dy))
-    past = line.side(pts) / norm
-    if past.max() < MIN_LEFT:
+    if len(pts) == 0 or line.side(pts).max() < MIN_LEFT * np.hypot(line.dx, line.dy):
         return None
-    cand = pts[past >= past.max() - TIP_BAND]
-    tip = cand[int(np.argmin(np.linalg.norm(cand[:, :2] - planned.grasp[:2], axis=1)))]
-    normal = np.array([-line.dy, line.dx]) / norm  # toward the moving side
-    grasp = np.array([*(tip[:2] - normal * inset), tip[2]])
-    place = line.reflect_xy(grasp)
-    place[2] = planned.place[2]
-    return dataclasses.replace(planned, grasp=grasp, place=place, layers=1)
+    tip = farthest_past(pts, planned.fold_line, planned.grasp, TIP_BAND)
+    if tip is None:
+        return None
+    return dataclasses.replace(carried_to_mirror(planned, tip, inset, tip[2]), layers=1)
 
 
 def finish_action(state: ClothState, obs: Observation, last: FoldAction) -> FoldAction | None:
