@@ -261,6 +261,21 @@ def test_one_arm_carries_quarters_stack_by_the_middle_of_its_edge(tmp_path):
 
 
 @pytest.mark.slow
+def test_a_loop_option_switches_the_stack_carry_back_to_corner_after_corner(tmp_path):
+    """`--loop-option stack_edge_carry=false`: quarter's stack is carried by its two corners,
+    one after the other, as before the edge carry (the test above); result.json says so."""
+    args = ["fold", "--recipe", "quarter", "--width", "0.3", "--height", "0.3"]
+    args += ["--loop-option", "stack_edge_carry=false", "--resolution", "11"]
+    run_cli(*args, "--video-fps", "0", "--out", str(tmp_path / "ep"))
+    result = json.loads((tmp_path / "ep" / "result.json").read_text())
+    assert result["loop_options"] == {"stack_edge_carry": False}
+    labels = [a["label"] for a in result["actions"]]
+    assert labels[:2] == ["far_left", "near_left"]
+    assert labels[2:4] == ["far_left", "far_right"] or labels[2:4] == ["far_right", "far_left"]
+    assert not any(label.startswith("middle_") for label in labels)
+
+
+@pytest.mark.slow
 def test_same_seed_same_episode(tmp_path):
     args = ["fold", "--recipe", "diagonal", "--seed", "3", "--width", "0.24", "--height", "0.24"]
     args += ["--resolution", "8", "--video-fps", "0", "--out"]

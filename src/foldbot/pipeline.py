@@ -41,6 +41,7 @@ from foldbot.loop import (
     nearest_arm,
     run_fold,
 )
+from foldbot.loop_options import LoopOptionValue, apply_loop_options, check_loop_options
 from foldbot.metrics import score_episode
 from foldbot.perception.fallback import vision_estimator
 from foldbot.perception.overlay import draw_overlay
@@ -141,8 +142,12 @@ class EpisodeConfig:
     jaw_catch: str = "vertices"
     """What the closed jaws hold (sim.grasp.JAW_CATCHES): "vertices", the cloth's mesh points
     between the pads; "surface", also cloth that passes between the pads between mesh points."""
+    loop_options: dict[str, LoopOptionValue] = field(default_factory=dict)
+    """The closed loop's switches set by name (loop_options.LOOP_OPTIONS: top_layer_first,
+    stack_edge_carry, pair_descent, …); those not named keep LoopConfig's defaults."""
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "loop_options", check_loop_options(self.loop_options))
         require(
             self.garment in GARMENTS,
             f"unknown garment {self.garment!r}; allowed: {', '.join(GARMENTS)}",
@@ -414,8 +419,9 @@ def planned_recipe(cfg: EpisodeConfig) -> str:
 
 
 def loop_config(cfg: EpisodeConfig, layer_thickness: float = 0.0) -> LoopConfig:
-    """The closed loop's part of an episode configuration (its recipe: planned_recipe)."""
-    return LoopConfig(
+    """The closed loop's part of an episode configuration (its recipe: planned_recipe), with the
+    episode's loop options set."""
+    loop = LoopConfig(
         recipe=planned_recipe(cfg),
         retries=cfg.retries,
         place_tolerance=cfg.place_tolerance,
@@ -429,6 +435,7 @@ def loop_config(cfg: EpisodeConfig, layer_thickness: float = 0.0) -> LoopConfig:
         layer_thickness=layer_thickness,
         stack_grasp_height=cfg.motion.stack_grasp_height,
     )
+    return apply_loop_options(loop, cfg.loop_options)
 
 
 def episode_result(
@@ -454,6 +461,7 @@ def episode_result(
         "arms": cfg.arms,
         "time_step": cfg.sim.time_step,
         "jaw_catch": cfg.jaw_catch,
+        "loop_options": dict(cfg.loop_options),
         "seed": cfg.seed,
         "perception": cfg.perception,
         "closed_loop": cfg.closed_loop,

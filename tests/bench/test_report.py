@@ -59,3 +59,13 @@ def test_markdown_says_incomplete(tiny_suite_data):
     suite = suite_from_dict(tiny_suite_data(seeds="0-1"))
     md = markdown(summarise(suite, []))
     assert "0 of 2 (INCOMPLETE)" in md
+
+
+def test_markdown_names_the_loop_options_a_suite_sets(tiny_suite_data):
+    plain = markdown(summarise(suite_from_dict(tiny_suite_data()), []))
+    assert "Loop options" not in plain
+    data = tiny_suite_data()
+    data["loop_options"] = {"pair_descent": "none", "relay_corners": False}
+    summary = summarise(suite_from_dict(data), [])
+    assert summary["suite"]["loop_options"] == {"relay_corners": False, "pair_descent": None}
+    assert "Loop options set: relay_corners = false, pair_descent = none" in markdown(summary)

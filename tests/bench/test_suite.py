@@ -14,6 +14,7 @@ from foldbot.bench.suite import (
     suite_from_dict,
 )
 from foldbot.errors import ConfigError
+from foldbot.pipeline import loop_config
 
 
 def test_repository_suites_are_listed():
@@ -124,6 +125,22 @@ def test_jaw_catch_reaches_the_cell_and_is_left_out_of_specs_by_default(tiny_sui
     spec = load_one(data)
     assert spec.to_config().jaw_catch == "surface"
     assert EpisodeSpec.from_dict(spec.as_dict()) == spec
+
+
+def test_loop_options_reach_the_loop_and_are_left_out_of_specs_by_default(tiny_suite_data):
+    data = tiny_suite_data()
+    default = load_one(data)
+    assert default.to_config().loop_options == {}
+    assert "loop_options" not in default.as_dict()  # older runs keep resuming
+    assert suite_from_dict(data).loop_options == {}
+    data["loop_options"] = {"stack_edge_carry": False, "pair_descent": "none", "crease_band": 0}
+    spec = load_one(data)
+    expected = {"crease_band": 0.0, "pair_descent": None, "stack_edge_carry": False}
+    assert spec.to_config().loop_options == expected
+    assert loop_config(spec.to_config()).stack_edge_carry is False
+    assert spec.as_dict()["loop_options"] == expected
+    assert EpisodeSpec.from_dict(spec.as_dict()) == spec
+    assert suite_from_dict(data).loop_options == expected
 
 
 def test_garment_yaw_reaches_the_pose_and_is_left_out_of_specs_by_default(tiny_suite_data):
@@ -251,6 +268,18 @@ def test_unknown_suite_name_lists_the_available_ones():
             ["episode.jaw_catch", "glue", "vertices, surface"],
         ),
         (lambda d: d["episode"].update(time_step=0), ["episode.time_step", "0"]),
+        (
+            lambda d: d.update(loop_options={"top_layer_frist": False}),
+            ["'loop_options.top_layer_frist'", "top_layer_first"],
+        ),
+        (
+            lambda d: d.update(loop_options={"crease_band": 0.9}),
+            ["[loop_options]", "crease_band = 0.9", "a length in m"],
+        ),
+        (
+            lambda d: d.update(loop_options={"relay_corners": "no"}),
+            ["[loop_options]", "relay_corners = 'no'", "true or false"],
+        ),
         (lambda d: d.update(reference={"ravens_speed": "yes"}), ["ravens_speed", "bool"]),
         (lambda d: d.update(name=""), ["name"]),
     ],

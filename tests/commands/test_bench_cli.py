@@ -121,3 +121,30 @@ def test_help_mentions_suites(capsys):
         main(["bench", "--help"])
     out = capsys.readouterr().out
     assert "--suite" in out and "--ray" in out
+
+
+def test_loop_options_go_over_the_suites_own(tmp_path):
+    suite_file = tmp_path / "tiny.toml"
+    suite_file.write_text(
+        'name = "tiny"\n[axes]\nseeds = "0-1"\n[loop_options]\nrelay_corners = false\n'
+        "finish_actions = 2\n"
+    )
+    args = build_parser().parse_args(
+        ["bench", "--suite", str(suite_file), "--out", "x"]
+        + ["--loop-option", "finish_actions=0", "--loop-option", "pair_descent=none"]
+    )
+    suite = suite_from_args(args)
+    expected = {"finish_actions": 0, "relay_corners": False, "pair_descent": None}
+    assert [e.to_config().loop_options for e in suite.episodes] == [expected, expected]
+    assert suite.loop_options == expected
+
+
+def test_a_bad_loop_option_is_refused_before_anything_runs(tmp_path, capsys):
+    out = tmp_path / "b"
+    code = main(
+        ["bench", "--suite", "smoke", "--loop-option", "stack_edge_carry=1", "--out", str(out)]
+    )
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "stack_edge_carry = 1 must be true or false" in err and "Traceback" not in err
+    assert not out.exists()

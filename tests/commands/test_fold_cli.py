@@ -47,6 +47,10 @@ def test_subcommand_help(cmd, capsys):
         (["--resolution", "2"], "resolution"),
         (["--resolution", "99"], "resolution"),
         (["--garment-yaw", "0"], "turns a T-shirt or pants"),
+        (["--loop-option", "top_layer_first"], "NAME=VALUE"),
+        (["--loop-option", "stack_inset=-0.01"], "stack_inset = -0.01 must be a length in m"),
+        (["--loop-option", "grip=true"], "unknown loop option 'grip'"),
+        (["--loop-option", "relay_corners=false", "--loop-option", "relay_corners=true"], "twice"),
     ],
 )
 def test_bad_arguments_get_a_clear_error(tmp_path, capsys, args, needle):
@@ -76,6 +80,15 @@ def test_jaw_catch_reaches_the_episode():
     assert config_from_args(parser.parse_args(["--out", "x"])).jaw_catch == "vertices"
     cfg = config_from_args(parser.parse_args(["--out", "x", "--jaw-catch", "surface"]))
     assert cfg.jaw_catch == "surface"
+
+
+def test_loop_options_reach_the_episode():
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    assert config_from_args(parser.parse_args(["--out", "x"])).loop_options == {}
+    args = ["--out", "x", "--loop-option", "stack_edge_carry=false"]
+    cfg = config_from_args(parser.parse_args([*args, "--loop-option", "pair_descent=0.02"]))
+    assert cfg.loop_options == {"pair_descent": 0.02, "stack_edge_carry": False}
 
 
 def test_time_step_reaches_the_world():

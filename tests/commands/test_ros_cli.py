@@ -93,3 +93,12 @@ def test_the_nodes_refuse_a_two_arm_crumpled_start():
         parse_fold_args("--out e --start crumpled --arms 2")
     _args, cfg = parse_fold_args("--out e --start crumpled")
     assert cfg.start == "crumpled" and cfg.arms == 1
+
+
+def test_the_nodes_get_the_loop_options():
+    # The task node builds its loop from the same options (pipeline.loop_config).
+    from foldbot.pipeline import loop_config
+    from foldbot.ros.node_args import parse_fold_args
+
+    _args, cfg = parse_fold_args("--out e --garment pants --loop-option top_layer_first=false")
+    assert loop_config(cfg).top_layer_first is False

@@ -10,6 +10,7 @@ from typing import Any
 
 from foldbot.bench.summary import CAUSES
 from foldbot.io.episode import to_jsonable
+from foldbot.loop_options import shown_value
 
 
 def _atomic_write(path: Path, data: bytes) -> None:
@@ -50,6 +51,10 @@ def markdown(summary: dict) -> str:
         f"Episodes: {done} of {planned} ({state}). Randomised per seed: {s['randomised']['text']}.",
         "",
     ]
+    options = s.get("loop_options")
+    if options:
+        shown = ", ".join(f"{k} = {shown_value(v)}" for k, v in options.items())
+        lines += [f"Loop options set: {shown} (the others at LoopConfig's defaults).", ""]
     if summary.get("command"):
         lines += ["```bash", summary["command"], "```", ""]
     header = (

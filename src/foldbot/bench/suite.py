@@ -39,6 +39,9 @@ time_step = 0.0027778                   # s, physics step (optional; default Sim
 arms = 1                                # 2: two arms side by side carry a stage's corners together
 jaw_catch = "vertices"                  # "surface": closed jaws also hold cloth between mesh points
 
+[loop_options]                          # the closed loop's switches (foldbot.loop_options), e.g.
+top_layer_first = false                 # true/false, integers, metres; "none" where allowed
+
 [reference]
 ravens_speed = true                     # plain-PyBullet speed reference (ravens_reference.py)
 ```
@@ -58,6 +61,7 @@ from typing import Any
 
 from foldbot.errors import ConfigError
 from foldbot.garments.towel import MAX_RESOLUTION, MIN_RESOLUTION, TowelSpec
+from foldbot.loop_options import LOOP_OPTIONS, LoopOptionValue, check_loop_options
 from foldbot.pipeline import (
     ARM_COUNTS,
     GARMENTS,
@@ -80,11 +84,21 @@ LOOP_MODES = ("closed", "open")
 """closed: re-observe after every action (retries, regrasp, stage checks); open: plan once."""
 
 _SCHEMA: dict[str, set[str]] = {
-    "": {"name", "description", "axes", "towel", "randomise", "episode", "reference"},
+    "": {
+        "name",
+        "description",
+        "axes",
+        "towel",
+        "randomise",
+        "episode",
+        "loop_options",
+        "reference",
+    },
     "axes": {"garment", "recipe", "perception", "loop", "seeds"},
     "towel": {"resolution", "odd_grid", "width", "height"},
     "randomise": {"towel_side", "position_jitter", "yaw_deg", "garment_yaw_deg"},
     "episode": {"retries", "video_fps", "start", "park", "time_step", "arms", "jaw_catch"},
+    "loop_options": set(LOOP_OPTIONS),
     "reference": {"ravens_speed"},
 }
 
@@ -148,6 +162,8 @@ class EpisodeSpec:
     """Arms in the cell (EpisodeConfig.arms): 1, or 2 side by side."""
     jaw_catch: str = "vertices"
     """What the closed jaws hold (EpisodeConfig.jaw_catch): vertices, or surface."""
+    loop_options: tuple[tuple[str, LoopOptionValue], ...] = ()
+    """The closed loop's switches set by name (EpisodeConfig.loop_options), as (name, value)."""
 
     @property
     def id(self) -> str:
@@ -185,6 +201,7 @@ class EpisodeSpec:
             park=self.park,
             arms=self.arms,
             jaw_catch=self.jaw_catch,
+            loop_options=dict(self.loop_options),
             sim=SimConfig() if self.time_step is None else SimConfig(time_step=self.time_step),
         )
 
@@ -201,6 +218,10 @@ class EpisodeSpec:
             del d["jaw_catch"]  # likewise
         if d["garment_yaw_deg"] == 90.0:
             del d["garment_yaw_deg"]  # likewise
+        if d["loop_options"]:
+            d["loop_options"] = dict(self.loop_options)
+        else:
+            del d["loop_options"]  # likewise
         if d["towel_side_range"] is not None:
             d["towel_side_range"] = list(d["towel_side_range"])
         return d
@@ -211,6 +232,8 @@ class EpisodeSpec:
         d = dict(d)
         if d.get("towel_side_range") is not None:
             d["towel_side_range"] = tuple(d["towel_side_range"])
+        if "loop_options" in d:
+            d["loop_options"] = tuple(d["loop_options"].items())
         return cls(**d)
 
 
@@ -227,6 +250,11 @@ class Suite:
     ravens_speed: bool = True
     source: str = ""
     """The file it came from ('' for a suite built from command-line options)."""
+
+    @property
+    def loop_options(self) -> dict[str, LoopOptionValue]:
+        """The loop options its episodes set (one [loop_options] table for the whole suite)."""
+        return dict(self.episodes[0].loop_options) if self.episodes else {}
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-able description (written to DIR/suite.json; resuming checks it)."""
@@ -415,6 +443,15 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
     time_step = ep.get("time_step")
     if time_step is not None:
         time_step = _range(time_step, "episode.time_step", 1e-4, 0.02, where)
+    loop_table = data.get("loop_options", {})
+    try:
+        loop_options = tuple(
+            check_loop_options(
+                {k: None if v == "none" else v for k, v in loop_table.items()}
+            ).items()
+        )
+    except ConfigError as exc:
+        raise ConfigError(f"{where}: [loop_options] {exc}") from None
     ravens = _get(data, "reference", "ravens_speed", bool, True, where)
 
     specs = []
@@ -445,6 +482,7 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
                                 time_step=time_step,
                                 arms=arms,
                                 jaw_catch=jaw_catch,
+                                loop_options=loop_options,
                             )
                         )
     for spec in specs[:1]:

@@ -274,7 +274,10 @@ def summarise(suite: Suite, records: list[dict]) -> dict[str, Any]:
             }
         )
     return {
-        "suite": {k: v for k, v in suite.as_dict().items() if k != "episodes"},
+        "suite": {
+            **{k: v for k, v in suite.as_dict().items() if k != "episodes"},
+            **({"loop_options": suite.loop_options} if suite.loop_options else {}),
+        },
         "episodes_planned": len(suite.episodes),
         "episodes_finished": len(records),
         "complete": len(records) == len(suite.episodes),

@@ -1,6 +1,6 @@
 """`foldbot bench`: run a benchmark suite of fold episodes and summarise them.
 
-    foldbot bench --suite NAME --out DIR [--workers N] [--ray ADDRESS]
+    foldbot bench --suite NAME --out DIR [--workers N] [--ray ADDRESS] [--loop-option NAME=VALUE]
     foldbot bench --recipe R --seeds 0-19 [--perception P] [--size-range LO HI] --out DIR
 
 A suite (suites/NAME.toml, or a path to one) is the grid garment × recipe × perception × loop ×
@@ -18,6 +18,7 @@ closed/open-loop comparisons, and a plain-PyBullet speed reference at Deformable
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import shlex
 from pathlib import Path
@@ -27,6 +28,7 @@ from foldbot.bench.runner import DEFAULT_TIMEOUT_S, run_suite
 from foldbot.bench.suite import Suite, load_suite, parse_seeds, suite_from_dict
 from foldbot.bench.summary import summarise
 from foldbot.errors import ConfigError
+from foldbot.loop_options import check_loop_options, loop_options_from_args, loop_options_help
 from foldbot.pipeline import PERCEPTION_MODES
 from foldbot.planning.recipes import RECIPE_HELP, RECIPES
 
@@ -74,6 +76,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=DEFAULT_TIMEOUT_S,
         help=f"stop an episode after this many wall seconds (default {DEFAULT_TIMEOUT_S:g})",
     )
+    parser.add_argument(
+        "--loop-option",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="set one of the closed loop's switches in every episode, over the suite's "
+        "[loop_options] (repeatable; as `foldbot fold --loop-option`): " + loop_options_help(),
+    )
     one = parser.add_argument_group("one-recipe suite (instead of --suite)")
     one.add_argument(
         "--recipe",
@@ -103,7 +113,25 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def suite_from_args(args: argparse.Namespace) -> Suite:
-    """The suite named by --suite, or the one-recipe suite the other options describe."""
+    """The suite named by --suite, or the one-recipe suite the other options describe, with the
+    --loop-option settings over its own."""
+    return with_loop_options(_suite_from_args(args), loop_options_from_args(args.loop_option))
+
+
+def with_loop_options(suite: Suite, options: dict) -> Suite:
+    """The suite with `options` set in every episode, over (and beside) the suite's own."""
+    if not options:
+        return suite
+    episodes = tuple(
+        dataclasses.replace(
+            e, loop_options=tuple(check_loop_options({**dict(e.loop_options), **options}).items())
+        )
+        for e in suite.episodes
+    )
+    return dataclasses.replace(suite, episodes=episodes)
+
+
+def _suite_from_args(args: argparse.Namespace) -> Suite:
     given = [f"--{k.replace('_', '-')}" for k in _LEGACY if getattr(args, k) is not None]
     if args.suite is not None:
         if given:

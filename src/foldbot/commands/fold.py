@@ -8,6 +8,7 @@ import math
 from pathlib import Path
 
 from foldbot.garments.towel import TowelSpec
+from foldbot.loop_options import loop_options_from_args, loop_options_help
 from foldbot.pipeline import (
     ARM_COUNTS,
     GARMENT_YAW,
@@ -133,6 +134,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "[episode] jaw_catch)",
     )
     parser.add_argument(
+        "--loop-option",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="set one of the closed loop's switches (repeatable; a suite's [loop_options]); "
+        "VALUE is true/false, an integer, metres, or none: " + loop_options_help(),
+    )
+    parser.add_argument(
         "--video-fps", type=float, default=10.0, help="video frames per simulated second (0 = off)"
     )
     parser.add_argument("--out", type=Path, required=True, help="episode output folder")
@@ -167,6 +176,7 @@ def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
         cloth=cloth,
         sim=SimConfig(time_step=args.time_step, gui=args.gui),
         video_fps=args.video_fps,
+        loop_options=loop_options_from_args(args.loop_option),
     )
 
 

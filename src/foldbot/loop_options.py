@@ -1,0 +1,157 @@
+"""The closed loop's switches that a user may set by name: `foldbot fold --loop-option NAME=VALUE`,
+a suite's `[loop_options]` table, EpisodeConfig.loop_options.
+
+They are the LoopConfig fields that no other episode setting fixes (recipe, retries, tolerances
+and the like come from EpisodeConfig). Each was measured at its default (docs/experiments.md says
+where); setting one reproduces a trial from the command line instead of a patched copy of the code.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+
+from foldbot.errors import ConfigError
+from foldbot.loop import LoopConfig
+
+LoopOptionValue = bool | int | float | None
+"""What a loop option holds: a switch, a count, or a length in metres (None where allowed)."""
+
+LOOP_OPTION_KINDS: dict[str, str] = {
+    "finish_actions": "count",
+    "stack_inset": "length",
+    "crease_band": "length",
+    "crease_room": "length or none",
+    "relay_corners": "switch",
+    "relay_tolerance": "length",
+    "relay_reach": "length",
+    "relay_min_rise": "length",
+    "relay_side": "length",
+    "top_layer_first": "switch",
+    "pair_descent": "length or none",
+    "stack_edge_carry": "switch",
+}
+"""Option name → kind: switch (true/false), count (an integer in [0, MAX_COUNT]), length (m, in
+[0, MAX_LENGTH]), or length or none (None: the field's documented fallback)."""
+
+LOOP_OPTIONS = tuple(LOOP_OPTION_KINDS)
+"""The names allowed, in LoopConfig's order of meaning (see each field's docstring there)."""
+
+MAX_COUNT = 5
+"""A count option's upper bound (finish_actions: extra carries per stage)."""
+MAX_LENGTH = 0.5
+"""A length option's upper bound (m): every one of them is a few cm in a 1 m workspace."""
+
+
+def loop_option_default(name: str) -> LoopOptionValue:
+    """LoopConfig's default for an option (what an episode uses when the option is not set)."""
+    return {f.name: f.default for f in dataclasses.fields(LoopConfig)}[name]
+
+
+def _allowed(name: str) -> str:
+    kind = LOOP_OPTION_KINDS[name]
+    return {
+        "switch": "true or false",
+        "count": f"an integer in [0, {MAX_COUNT}]",
+        "length": f"a length in m in [0, {MAX_LENGTH:g}]",
+        "length or none": f"a length in m in [0, {MAX_LENGTH:g}], or none",
+    }[kind]
+
+
+def check_loop_option(name: str, value: object) -> LoopOptionValue:
+    """The option's value, checked (lengths as float); ConfigError naming the option, the value
+    and what is allowed otherwise."""
+    if name not in LOOP_OPTION_KINDS:
+        raise ConfigError(f"unknown loop option {name!r}; allowed: {', '.join(LOOP_OPTIONS)}")
+    kind = LOOP_OPTION_KINDS[name]
+    bad = ConfigError(f"loop option {name} = {value!r} must be {_allowed(name)}")
+    if kind == "switch":
+        if not isinstance(value, bool):
+            raise bad
+        return value
+    if value is None:
+        if kind != "length or none":
+            raise bad
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise bad
+    if kind == "count":
+        if not isinstance(value, int) or not 0 <= value <= MAX_COUNT:
+            raise bad
+        return value
+    if not (math.isfinite(value) and 0.0 <= value <= MAX_LENGTH):
+        raise bad
+    return float(value)
+
+
+def check_loop_options(options: Mapping[str, object]) -> dict[str, LoopOptionValue]:
+    """Every option checked (check_loop_option), as a plain dict in LOOP_OPTIONS' order."""
+    if not isinstance(options, Mapping):
+        raise ConfigError(f"loop options must be a table of name = value, got {options!r}")
+    checked = {name: check_loop_option(name, value) for name, value in options.items()}
+    return {name: checked[name] for name in LOOP_OPTIONS if name in checked}
+
+
+def parse_loop_option(text: str) -> tuple[str, LoopOptionValue]:
+    """'NAME=VALUE' from the command line → (name, checked value). VALUE is true/false, an
+    integer, a number of metres, or none."""
+    name, sep, raw = text.partition("=")
+    name, raw = name.strip(), raw.strip()
+    if not sep or not name or not raw:
+        raise ConfigError(
+            f"loop option {text!r} must look like NAME=VALUE, e.g. top_layer_first=false; "
+            f"names: {', '.join(LOOP_OPTIONS)}"
+        )
+    if name not in LOOP_OPTION_KINDS:
+        check_loop_option(name, None)  # raises: unknown name, with the allowed ones
+    low = raw.lower()
+    value: object
+    if low in ("true", "false"):
+        value = low == "true"
+    elif low == "none":
+        value = None
+    else:
+        try:
+            value = int(raw)
+        except ValueError:
+            try:
+                value = float(raw)
+            except ValueError:
+                raise ConfigError(
+                    f"loop option {name} = {raw!r} must be {_allowed(name)}"
+                ) from None
+    return name, check_loop_option(name, value)
+
+
+def loop_options_from_args(texts: list[str]) -> dict[str, LoopOptionValue]:
+    """Repeated --loop-option NAME=VALUE, each checked; naming an option twice is an error."""
+    options: dict[str, LoopOptionValue] = {}
+    for text in texts:
+        name, value = parse_loop_option(text)
+        if name in options:
+            raise ConfigError(
+                f"--loop-option {name} is given twice ({shown_value(options[name])}, {shown_value(value)})"
+            )
+        options[name] = value
+    return options
+
+
+def apply_loop_options(loop: LoopConfig, options: Mapping[str, object]) -> LoopConfig:
+    """`loop` with the options set (each checked first)."""
+    return dataclasses.replace(loop, **check_loop_options(options))
+
+
+def loop_options_help() -> str:
+    """One line per option for --help: name, what it takes, default."""
+    return "; ".join(
+        f"{name} ({LOOP_OPTION_KINDS[name]}, default {shown_value(loop_option_default(name))})"
+        for name in LOOP_OPTIONS
+    )
+
+
+def shown_value(value: LoopOptionValue) -> str:
+    """An option value as the command line writes it: true, false, none, or the number."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return "none" if value is None else f"{value:g}"
