@@ -42,6 +42,13 @@ def test_full_towel_suite_has_50_randomised_seeds_per_recipe():
     assert suite.randomised["towel_side_m"] == [0.25, 0.45]
 
 
+def test_the_full_suites_first_20_seeds_are_the_loop_acceptance_suites_episodes():
+    """towel_full is towel_loop over 50 seeds: the same cell, towels and draws."""
+    full, loop = load_suite("towel_full"), load_suite("towel_loop")
+    assert [e for e in full.episodes if e.seed < 20] == list(loop.episodes)
+    assert {e.seed for e in full.episodes} == set(range(50))
+
+
 def test_compare_suite_pairs_every_cell():
     suite = load_suite("towel_compare")
     cells = {(e.recipe, e.perception, e.loop) for e in suite.episodes}
