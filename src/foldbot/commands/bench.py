@@ -27,8 +27,9 @@ from foldbot.bench.report import write_report
 from foldbot.bench.runner import DEFAULT_TIMEOUT_S, run_suite
 from foldbot.bench.suite import Suite, load_suite, parse_seeds, suite_from_dict
 from foldbot.bench.summary import summarise
+from foldbot.commands.fold import add_loop_option
 from foldbot.errors import ConfigError
-from foldbot.loop_options import check_loop_options, loop_options_from_args, loop_options_help
+from foldbot.loop_options import check_loop_options, loop_options_from_args
 from foldbot.pipeline import PERCEPTION_MODES
 from foldbot.planning.recipes import RECIPE_HELP, RECIPES
 
@@ -76,14 +77,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=DEFAULT_TIMEOUT_S,
         help=f"stop an episode after this many wall seconds (default {DEFAULT_TIMEOUT_S:g})",
     )
-    parser.add_argument(
-        "--loop-option",
-        action="append",
-        default=[],
-        metavar="NAME=VALUE",
-        help="set one of the closed loop's switches in every episode, over the suite's "
-        "[loop_options] (repeatable; as `foldbot fold --loop-option`): " + loop_options_help(),
-    )
+    add_loop_option(parser, "in every episode, over the suite's [loop_options]")
     one = parser.add_argument_group("one-recipe suite (instead of --suite)")
     one.add_argument(
         "--recipe",

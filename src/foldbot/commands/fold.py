@@ -50,6 +50,19 @@ def add_recipe_and_perception(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def add_loop_option(parser: argparse.ArgumentParser, where: str) -> None:
+    """`--loop-option NAME=VALUE` (repeatable), shared by the commands that run episodes; `where`
+    says what it goes over."""
+    parser.add_argument(
+        "--loop-option",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help=f"set one of the closed loop's switches (repeatable; {where}); VALUE is true/false, "
+        "an integer, metres, or none: " + loop_options_help(),
+    )
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of `foldbot fold`."""
     parser.add_argument(
@@ -133,14 +146,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "also cloth that passes between the pads between mesh points (surface; a suite's "
         "[episode] jaw_catch)",
     )
-    parser.add_argument(
-        "--loop-option",
-        action="append",
-        default=[],
-        metavar="NAME=VALUE",
-        help="set one of the closed loop's switches (repeatable; a suite's [loop_options]); "
-        "VALUE is true/false, an integer, metres, or none: " + loop_options_help(),
-    )
+    add_loop_option(parser, "a suite's [loop_options]")
     parser.add_argument(
         "--video-fps", type=float, default=10.0, help="video frames per simulated second (0 = off)"
     )
