@@ -8,6 +8,7 @@ import pytest
 from foldbot.errors import ConfigError
 from foldbot.loop import LoopConfig
 from foldbot.loop_options import (
+    GARMENT_LOOP_OPTIONS,
     LOOP_OPTION_KINDS,
     LOOP_OPTIONS,
     apply_loop_options,
@@ -170,3 +171,22 @@ def test_the_episode_config_checks_its_options_and_the_loop_gets_them():
     )
     with pytest.raises(ConfigError, match=r"crease_band = 0\.9"):
         EpisodeConfig(loop_options={"crease_band": 0.9})
+
+
+def test_a_garment_takes_only_the_options_its_loop_reads():
+    """The garment loop reads top_layer_first and relay_min_rise; a towel option set for a
+    T-shirt or pants would be silently ignored, so it is refused, naming what is read."""
+    read = {"top_layer_first": False, "relay_min_rise": 0.01}
+    assert check_loop_options(read, "tshirt") == read
+    with pytest.raises(
+        ConfigError,
+        match=r"^loop options stack_inset, stack_edge_carry act on "
+        r"towel folds only; the pants loop reads top_layer_first, relay_min_rise$",
+    ):
+        check_loop_options({"stack_edge_carry": False, "stack_inset": 0.01, **read}, "pants")
+    with pytest.raises(ConfigError, match="finish_actions acts on towel folds only"):
+        EpisodeConfig(garment="tshirt", recipe="retail", loop_options={"finish_actions": 0})
+    assert set(GARMENT_LOOP_OPTIONS) <= set(LOOP_OPTIONS)
+    # A towel takes every option.
+    every = {name: loop_option_default(name) for name in LOOP_OPTIONS}
+    assert check_loop_options(every) == every

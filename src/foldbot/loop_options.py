@@ -38,6 +38,11 @@ LOOP_OPTION_KINDS: dict[str, str] = {
 LOOP_OPTIONS = tuple(LOOP_OPTION_KINDS)
 """The names allowed, in LoopConfig's order of meaning (see each field's docstring there)."""
 
+GARMENT_LOOP_OPTIONS = ("top_layer_first", "relay_min_rise")
+"""The options a garment's loop (foldbot.garment_loop) reads; the others act on towel folds only
+(their corners, stacks, relays and finishing carries), so setting one for a garment is refused
+rather than silently ignored."""
+
 MAX_COUNT = 5
 """A count option's upper bound (finish_actions: extra carries per stage)."""
 MAX_LENGTH = 0.5
@@ -85,11 +90,24 @@ def check_loop_option(name: str, value: object) -> LoopOptionValue:
     return float(value)
 
 
-def check_loop_options(options: Mapping[str, object]) -> dict[str, LoopOptionValue]:
-    """Every option checked (check_loop_option), as a plain dict in LOOP_OPTIONS' order."""
+def check_loop_options(
+    options: Mapping[str, object], garment: str = "towel"
+) -> dict[str, LoopOptionValue]:
+    """Every option checked (check_loop_option), as a plain dict in LOOP_OPTIONS' order; for a
+    garment other than a towel, only those its loop reads (GARMENT_LOOP_OPTIONS)."""
     if not isinstance(options, Mapping):
         raise ConfigError(f"loop options must be a table of name = value, got {options!r}")
     checked = {name: check_loop_option(name, value) for name, value in options.items()}
+    if garment != "towel":
+        unread = [
+            name for name in LOOP_OPTIONS if name in checked and name not in GARMENT_LOOP_OPTIONS
+        ]
+        if unread:
+            raise ConfigError(
+                f"loop option{'s' if len(unread) > 1 else ''} {', '.join(unread)} act"
+                f"{'' if len(unread) > 1 else 's'} on towel folds only; the {garment} loop reads "
+                f"{', '.join(GARMENT_LOOP_OPTIONS)}"
+            )
     return {name: checked[name] for name in LOOP_OPTIONS if name in checked}
 
 
@@ -143,10 +161,13 @@ def apply_loop_options(loop: LoopConfig, options: Mapping[str, object]) -> LoopC
 
 
 def loop_options_help() -> str:
-    """One line per option for --help: name, what it takes, default."""
-    return "; ".join(
-        f"{name} ({LOOP_OPTION_KINDS[name]}, default {shown_value(loop_option_default(name))})"
-        for name in LOOP_OPTIONS
+    """One line per option for --help: name, what it takes, default; which ones garments read."""
+    return (
+        "; ".join(
+            f"{name} ({LOOP_OPTION_KINDS[name]}, default {shown_value(loop_option_default(name))})"
+            for name in LOOP_OPTIONS
+        )
+        + f". A T-shirt's or pants' loop reads only {' and '.join(GARMENT_LOOP_OPTIONS)}"
     )
 
 

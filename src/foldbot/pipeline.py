@@ -147,7 +147,6 @@ class EpisodeConfig:
     stack_edge_carry, pair_descent, …); those not named keep LoopConfig's defaults."""
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "loop_options", check_loop_options(self.loop_options))
         require(
             self.garment in GARMENTS,
             f"unknown garment {self.garment!r}; allowed: {', '.join(GARMENTS)}",
@@ -156,6 +155,9 @@ class EpisodeConfig:
         require(
             self.recipe in recipes,
             f"unknown {self.garment} recipe {self.recipe!r}; allowed: {', '.join(recipes)}",
+        )
+        object.__setattr__(
+            self, "loop_options", check_loop_options(self.loop_options, self.garment)
         )
         require(
             self.robot in ROBOT_NAMES,

@@ -287,6 +287,13 @@ def test_unknown_suite_name_lists_the_available_ones():
             lambda d: d.update(loop_options={"relay_corners": "no"}),
             ["[loop_options]", "relay_corners = 'no'", "true or false"],
         ),
+        (
+            lambda d: (
+                d["axes"].update(garment=["pants"], recipe=["leg_over_leg"]),
+                d.update(loop_options={"stack_inset": 0.02, "top_layer_first": False}),
+            ),
+            ["[loop_options]", "stack_inset acts on towel folds only", "the pants loop reads"],
+        ),
         (lambda d: d.update(reference={"ravens_speed": "yes"}), ["ravens_speed", "bool"]),
         (lambda d: d.update(name=""), ["name"]),
     ],

@@ -51,6 +51,10 @@ def test_subcommand_help(cmd, capsys):
         (["--loop-option", "stack_inset=-0.01"], "stack_inset = -0.01 must be a length in m"),
         (["--loop-option", "grip=true"], "unknown loop option 'grip'"),
         (["--loop-option", "relay_corners=false", "--loop-option", "relay_corners=true"], "twice"),
+        (
+            ["--garment", "tshirt", "--loop-option", "crease_band=0.03"],
+            "crease_band acts on towel folds only; the tshirt loop reads top_layer_first",
+        ),
     ],
 )
 def test_bad_arguments_get_a_clear_error(tmp_path, capsys, args, needle):

@@ -37,6 +37,7 @@ STAGE_GRASPS = {
     "half_y": [("far_left", "near_left")],
     "half_long": "shape",  # half or half_y: the far-apart pair, by the towel's shape
     "quarter": [("far_left", "far_right"), ("far_left", "near_left")],
+    "quarter_x": [("far_left", "far_right"), ("far_left", "near_left")],
     "quarter_y": [("far_left", "near_left"), ("far_left", "far_right")],
     "diagonal": None,  # one far corner, chosen by the pose and shape
     "diagonal_corners": None,  # one far corner, chosen by the pose
@@ -174,6 +175,7 @@ def test_recipe_names_and_stage_counts():
         "half_y",
         "half_long",
         "quarter",
+        "quarter_x",
         "quarter_y",
         "diagonal",
         "diagonal_corners",
@@ -185,6 +187,7 @@ def test_recipe_names_and_stage_counts():
         "half_y": 1,
         "half_long": 1,
         "quarter": 2,
+        "quarter_x": 2,
         "quarter_y": 2,
         "diagonal": 1,
         "diagonal_corners": 1,
@@ -295,13 +298,31 @@ def test_quarter_y_folds_quarters_lines_the_other_way_round(pose, shape):
     )
 
 
-def test_quarter_is_folded_as_quarter_y_and_only_quarters_second_stage_is_a_stack():
+def test_quarter_is_folded_as_quarter_y_and_only_the_quarters_second_stages_are_stacks():
     assert folded_as("quarter") == "quarter_y"
     for recipe in RECIPES:
         if recipe != "quarter":
             assert folded_as(recipe) == recipe
     stacks = {(r, k) for r in RECIPES for k in range(recipe_stages(r)) if carries_stack(r, k)}
-    assert stacks == {("quarter", 1), ("quarter_y", 1)}
+    assert stacks == {("quarter", 1), ("quarter_x", 1), ("quarter_y", 1)}
+
+
+@pytest.mark.parametrize("shape", SHAPES)
+@pytest.mark.parametrize("pose", POSES)
+def test_quarter_x_is_quarters_own_order_planned_as_written(pose, shape):
+    """quarter_x, the order `folded_as` does not pick for quarter, plans quarter's stages as its
+    docstring states them: the same lines, grasps and places, stage by stage."""
+    cx, cy, yaw = pose
+    flat = towel(cx, cy, *shape, yaw=yaw)
+    plans_x, outlines_x, _ = run_recipe("quarter_x", flat)
+    plans_q, outlines_q, _ = run_recipe("quarter", flat)
+    for px, pq in zip(plans_x, plans_q, strict=True):
+        np.testing.assert_allclose(px.fold_lines, pq.fold_lines)
+        for ax, aq in zip(px.actions, pq.actions, strict=True):
+            assert ax.label == aq.label
+            np.testing.assert_allclose(ax.grasp, aq.grasp)
+            np.testing.assert_allclose(ax.place, aq.place)
+    np.testing.assert_allclose(outlines_x[1], outlines_q[1])
     with pytest.raises(ConfigError, match=r"'origami'.*allowed: half"):
         folded_as("origami")
 
@@ -437,6 +458,7 @@ EXPECTED_LAYERS = {
     "half_y": {0: 1 / 2, 1: 1 / 2},
     "half_long": {0: 1 / 2, 1: 1 / 2},
     "quarter": {0: 1 / 4, 1: 1 / 4, 2: 1 / 4, 3: 1 / 4},
+    "quarter_x": {0: 1 / 4, 1: 1 / 4, 2: 1 / 4, 3: 1 / 4},
     "quarter_y": {0: 1 / 4, 1: 1 / 4, 2: 1 / 4, 3: 1 / 4},
     # metrics' rule 2·n_max + 1 − n puts the far third (layer 0 before) at index 3: three layers.
     "thirds": {0: 1 / 3, 1: 1 / 3, 3: 1 / 3},
@@ -448,6 +470,7 @@ EXPECTED_AREA = {
     "half_y": 1 / 2,
     "half_long": 1 / 2,
     "quarter": 1 / 4,
+    "quarter_x": 1 / 4,
     "quarter_y": 1 / 4,
     "thirds": 1 / 3,
     "diagonal": 1 / 2,
@@ -564,7 +587,8 @@ def test_bad_inputs_are_rejected_with_the_reason():
         plan_stage("half", 0, dict(good, far_right=np.array([0.5, 0.0])))
     with pytest.raises(
         ConfigError,
-        match=r"origami.*half, half_y, half_long, quarter, quarter_y, diagonal, diagonal_corners, thirds",
+        match=r"origami.*half, half_y, half_long, quarter, quarter_x, quarter_y, diagonal, "
+        r"diagonal_corners, thirds",
     ):
         plan_stage("origami", 0, good)
     with pytest.raises(ConfigError, match="origami"):

@@ -450,6 +450,8 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
                 {k: None if v == "none" else v for k, v in loop_table.items()}
             ).items()
         )
+        for garment in garments:
+            check_loop_options(dict(loop_options), garment)
     except ConfigError as exc:
         raise ConfigError(f"{where}: [loop_options] {exc}") from None
     ravens = _get(data, "reference", "ravens_speed", bool, True, where)
@@ -485,7 +487,7 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
                                 loop_options=loop_options,
                             )
                         )
-    for spec in specs[:1]:
+    for spec in {spec.garment: spec for spec in specs}.values():
         spec.to_config()  # anything EpisodeConfig refuses is refused here, before any run
     randomised = {
         "towel_side_m": list(side_range) if side_range else None,

@@ -118,7 +118,10 @@ def with_loop_options(suite: Suite, options: dict) -> Suite:
         return suite
     episodes = tuple(
         dataclasses.replace(
-            e, loop_options=tuple(check_loop_options({**dict(e.loop_options), **options}).items())
+            e,
+            loop_options=tuple(
+                check_loop_options({**dict(e.loop_options), **options}, e.garment).items()
+            ),
         )
         for e in suite.episodes
     )

@@ -19,6 +19,9 @@ Recipes (`RECIPES`; the CLI offers them as `--recipe`, so the half fold's axis i
              line runs along the longer side); "half" unless the depth exceeds the width by 10 %.
 - "quarter"  2 stages. Stage 1 is "half"; stage 2 is "half_y" on the folded rectangle's perceived
              corners, i.e. a line perpendicular to the first through the folded rectangle's centre.
+             Both cells fold it in "quarter_y"'s order (`folded_as`); "quarter_x" asks for this one.
+- "quarter_x" quarter's own order, as written above, folded as given (`folded_as` maps only
+             "quarter"): far half onto near half first, then the stack's left half onto its right.
 - "quarter_y" 2 stages: the same folds the other way round, "half_y" then "half" on the folded
              rectangle. Both cells fold "quarter" this way (`folded_as`): one arm, carrying the
              stack by its edge's middle, diverged on 2 of 40 towels this way against 6 in
@@ -77,6 +80,7 @@ RECIPES = (
     "half_y",
     "half_long",
     "quarter",
+    "quarter_x",
     "quarter_y",
     "diagonal",
     "diagonal_corners",
@@ -88,6 +92,8 @@ RECIPE_HELP = {
     "half_y": "left half onto the right half (1 stage)",
     "half_long": "in half across the longer side, the shorter carry (half or half_y; 1 stage)",
     "quarter": "in quarters, two halves (2 stages), folded in quarter_y's order",
+    "quarter_x": "far half onto the near half, then the folded rectangle's left half onto its "
+    "right half (2 stages)",
     "quarter_y": "left half onto the right half, then the folded rectangle's far half onto its "
     "near half (2 stages)",
     "diagonal": "a far corner onto the side across, at its shorter side's length: a triangle "
@@ -286,6 +292,7 @@ _STAGES: dict[str, tuple[Callable[[dict[str, np.ndarray]], _Fold], ...]] = {
     "half_y": (_half_y,),
     "half_long": (_half_long,),
     "quarter": (_half_x, _half_y),
+    "quarter_x": (_half_x, _half_y),
     "quarter_y": (_half_y, _half_x),
     "diagonal": (_triangle,),
     "diagonal_corners": (_corner_diagonal,),
@@ -300,7 +307,7 @@ MAX_CREASE_ROOM = 0.05
 """Largest accepted crease room (m): a few cloth thicknesses, far more than a crease needs."""
 
 
-_STACK_STAGES = frozenset({("quarter", 1), ("quarter_y", 1)})
+_STACK_STAGES = frozenset({("quarter", 1), ("quarter_x", 1), ("quarter_y", 1)})
 """Stages that carry a stack an earlier stage folded (its corners are several layers)."""
 FOLD_ORDERS = {"quarter": "quarter_y"}
 """The order a cell folds a recipe in, where it differs from the recipe's own: quarter as
