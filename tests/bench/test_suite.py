@@ -54,8 +54,14 @@ def test_compare_suite_pairs_every_cell():
     cells = {(e.recipe, e.perception, e.loop) for e in suite.episodes}
     assert len(cells) == 2 * 2 * 2
     assert len(suite.episodes) == 8 * len(suite.axes["seeds"])
-    # Re-measured with vertex rows on the half folds' lines, as towel_loop.
+    # Re-measured with vertex rows on the half folds' lines, in towel_loop's cell.
     assert {(e.towel_resolution, e.towel_odd_grid) for e in suite.episodes} == {(17, True)}
+    assert {e.park for e in suite.episodes} == {"out_of_view"}
+    # Its towels are towel_loop's: the closed-loop vision episodes are the same specs.
+    loop = {(e.recipe, e.seed): e for e in load_suite("towel_loop").episodes}
+    for e in suite.episodes:
+        if (e.perception, e.loop) == ("vision", "closed"):
+            assert e == loop[(e.recipe, e.seed)]
 
 
 def test_ids_are_stable_unique_and_round_trip(tiny_suite_data):
