@@ -4,7 +4,15 @@ import numpy as np
 import pytest
 
 from foldbot.bench.suite import suite_from_dict
-from foldbot.bench.summary import comparisons, failure_cause, group_stats, summarise
+from foldbot.bench.summary import (
+    comparisons,
+    failure_cause,
+    group_stats,
+    mean_interval,
+    paired_difference,
+    success_interval,
+    summarise,
+)
 
 
 def result(success, error_mm, perf, *, sim=10.0, wall=20.0, retries=(0, 0), grasps=(True, True)):
@@ -54,6 +62,44 @@ def test_group_stats_by_hand():
         "e": "episodes/e.error.json",
     }
     assert group_stats(records)["failed_evidence"]["f"] == "episodes/f.failed"
+
+
+def test_success_interval_is_wilsons():
+    # Wilson, z = 1.96: 11 of 20 → 0.342–0.742; it stays inside [0, 1] at 0 % and 100 %.
+    lo, hi = success_interval(11, 20)
+    assert (lo, hi) == pytest.approx((0.3421, 0.7418), abs=1e-4)
+    lo, hi = success_interval(0, 20)
+    assert lo == 0.0 and hi == pytest.approx(0.1611, abs=1e-4)
+    lo, hi = success_interval(20, 20)
+    assert lo == pytest.approx(0.8389, abs=1e-4) and hi == 1.0
+    assert success_interval(0, 0) is None
+    with pytest.raises(ValueError, match="successes = 3"):
+        success_interval(3, 2)
+
+
+def test_mean_interval_is_students_t():
+    # 5, 7, 30, 20: mean 15.5, s = 11.73, t(0.975, 3) = 3.182 → ± 18.67.
+    lo, hi = mean_interval([5.0, 7.0, 30.0, 20.0, None, float("nan")])
+    assert (lo, hi) == pytest.approx((15.5 - 18.670, 15.5 + 18.670), abs=1e-3)
+    assert mean_interval([4.0]) is None and mean_interval([]) is None
+    assert mean_interval([3.0, 3.0]) == [3.0, 3.0]
+
+
+def test_paired_difference_over_towels_scored_both_ways():
+    a = [{"result": {"fold_error_mm": e}} for e in (10.0, 20.0, 30.0)] + [{"error": "x"}]
+    b = [{"result": {"fold_error_mm": e}} for e in (12.0, 26.0)] + [{"error": "y"}] * 2
+    d = paired_difference(a, b, "fold_error_mm")
+    assert d["pairs"] == 2 and d["mean"] == pytest.approx(4.0)
+    # Differences 2 and 6: s = 2.83, t(0.975, 1) = 12.71 → 4 ± 25.41.
+    assert d["mean_ci95"] == pytest.approx([4.0 - 25.412, 4.0 + 25.412], abs=1e-2)
+    assert paired_difference(a[3:], b[3:], "fold_error_mm") is None
+
+
+def test_group_stats_gives_the_intervals():
+    records = [{"id": str(i), "result": result(i < 3, 10.0 + i, 0.9)} for i in range(5)]
+    s = group_stats(records)
+    assert s["success_ci95"] == success_interval(3, 5)
+    assert s["fold_error_mm"]["mean_ci95"] == mean_interval([10.0, 11.0, 12.0, 13.0, 14.0])
 
 
 def test_group_stats_perfect_fold_error_over_records_that_have_it():

@@ -31,6 +31,26 @@ def _stat(s: dict | None, fmt: str = ".1f", keys: tuple[str, ...] = ("mean", "me
     return "–" if not s else " / ".join(format(s[k], fmt) for k in keys)
 
 
+def _interval(ci: list[float] | None, fmt: str = ".1f", scale: float = 1.0) -> str:
+    """A 95 % interval as 'lo–hi' (scaled: 100 for percentages), or – where there is none."""
+    if not ci:
+        return "–"
+    return f"{format(scale * ci[0], fmt)}–{format(scale * ci[1], fmt)}"
+
+
+def _rate(g: dict) -> str:
+    """A success rate with its 95 % interval: '55 % (34–74)'."""
+    ci = g.get("success_ci95")
+    return _pct(g["success_rate"]) + ("" if not ci else f" ({_interval(ci, '.0f', 100)})")
+
+
+def _difference(d: dict | None) -> str:
+    """A paired difference as '+4.2 (−1.0–9.4), 6', or – where no pair was scored both ways."""
+    if not d:
+        return "–"
+    return f"{d['mean']:+.1f} ({_interval(d.get('mean_ci95'))}), {d['pairs']}"
+
+
 def _failures(f: dict[str, int]) -> str:
     return ", ".join(f"{c} {n}" for c, n in f.items()) or "none"
 
@@ -58,16 +78,17 @@ def markdown(summary: dict) -> str:
     if summary.get("command"):
         lines += ["```bash", summary["command"], "```", ""]
     header = (
-        "| group | episodes | success | fold error mm: mean / median / p95 "
-        "| perfect fold mm: mean | normalized perf.: mean / median / p95 | coverage: mean | actions / retries per episode "
+        "| group | episodes | success (95 % CI) | fold error mm: mean / median / p95 "
+        "| fold error mm: mean's 95 % CI | perfect fold mm: mean | normalized perf.: mean / median / p95 | coverage: mean | actions / retries per episode "
         "| sim s per fold | wall s per episode | sim speed | failures by cause |"
     )
-    lines += [header, "|" + "---|" * 12]
+    lines += [header, "|" + "---|" * 13]
     rows = [("**all**", summary["overall"])] + [(_group_name(g), g) for g in summary["groups"]]
     for name, g in rows:
         lines.append(
-            f"| {name} | {g['episodes']} | {_pct(g['success_rate'])} "
-            f"| {_stat(g['fold_error_mm'])} | {_f((g.get('perfect_fold_error_mm') or {}).get('mean'))} "
+            f"| {name} | {g['episodes']} | {_rate(g)} "
+            f"| {_stat(g['fold_error_mm'])} | {_interval((g['fold_error_mm'] or {}).get('mean_ci95'))} "
+            f"| {_f((g.get('perfect_fold_error_mm') or {}).get('mean'))} "
             f"| {_stat(g['normalized_performance'], '.3f')} "
             f"| {_f((g['coverage'] or {}).get('mean'), '.2f')} "
             f"| {_f(g['actions_per_episode'])} / {_f(g['retries_per_episode'], '.2f')} "
@@ -80,6 +101,9 @@ def markdown(summary: dict) -> str:
         "in the table plane, lying flat on the cloth beneath it) under metrics.md's layer rule, "
         "which lifts a fold above every earlier layer even where none lies beneath "
         "(`foldbot.metrics.perfect_fold_error_mm`).",
+        "",
+        "*95 % CI*: the success rate's Wilson score interval, and the Student-t interval of the "
+        "mean fold error over the scored episodes: where a mean over many more towels may lie.",
     ]
     if summary["comparisons"]:
         lines += [
@@ -87,8 +111,9 @@ def markdown(summary: dict) -> str:
             "## Comparisons (paired episodes: same garment, recipe, seed and other axis)",
             "",
             "| compared | recipe | other axis | paired episodes | success | fold error mm: median "
+            "| fold error mm, second minus first: mean (95 % CI), pairs scored both ways "
             "| normalized perf.: mean | retries per episode |",
-            "|---|---|---|---|---|---|---|---|",
+            "|---|---|---|---|---|---|---|---|---|",
         ]
         for c in summary["comparisons"]:
             other = "loop" if c["axis"] == "perception" else "perception"
@@ -100,7 +125,8 @@ def markdown(summary: dict) -> str:
             lines.append(
                 f"| {pair} | {c['recipe']} | {other} {c[other]} | {c['paired_episodes']} "
                 f"| {' / '.join(_pct(x) for x in c['success_rate'])} "
-                f"| {two(c['fold_error_mm_median'])} | {two(c['normalized_performance_mean'], '.3f')} "
+                f"| {two(c['fold_error_mm_median'])} | {_difference(c.get('fold_error_mm_paired_difference'))} "
+                f"| {two(c['normalized_performance_mean'], '.3f')} "
                 f"| {two(c['retries_per_episode'], '.2f')} |"
             )
     flat_rows = [(n, g["flatten"]) for n, g in rows if g.get("flatten")]
@@ -109,13 +135,13 @@ def markdown(summary: dict) -> str:
             "",
             "## Flattening (crumpled starts; success = coverage ≥ 0.9 within the action budget)",
             "",
-            "| group | episodes | flattened | actions: mean / median / p95 "
+            "| group | episodes | flattened (95 % CI) | actions: mean / median / p95 "
             "| coverage before: mean | coverage after: mean / median / p95 |",
             "|---|---|---|---|---|---|",
         ]
         for name, f in flat_rows:
             lines.append(
-                f"| {name} | {f['episodes']} | {_pct(f['success_rate'])} "
+                f"| {name} | {f['episodes']} | {_rate(f)} "
                 f"| {_stat(f['actions'])} | {_f((f['coverage_start'] or {}).get('mean'), '.2f')} "
                 f"| {_stat(f['coverage_end'], '.2f')} |"
             )
