@@ -1,4 +1,53 @@
 """Loaded by pytest before any test module: `import foldbot` caps numpy's, OpenBLAS's and OpenCV's
 SIMD level before they load (foldbot.simd), so in-process tests compute as the commands do."""
 
+import json
+
+import pytest
+
 import foldbot  # noqa: F401
+
+
+def _spec(recipe, seed, **extra):
+    return {
+        "garment": "towel",
+        "recipe": recipe,
+        "perception": "vision",
+        "loop": "closed",
+        "seed": seed,
+        **extra,
+    }
+
+
+@pytest.fixture
+def write_run():
+    """Write a benchmark run folder (tests of `foldbot compare`): see _write_run."""
+    return _write_run
+
+
+def _write_run(folder, episodes, **spec_extra):
+    """A run folder as `foldbot bench` leaves it: suite.json, and per episode either a scored
+    folder (result.json and cloth.npz) or an error record. episodes: id → (recipe, seed, record)
+    with record a fold error in mm (success below 10 mm), or an error type."""
+    (folder / "episodes").mkdir(parents=True)
+    specs = {}
+    for eid, (recipe, seed, record) in episodes.items():
+        specs[eid] = _spec(recipe, seed, **spec_extra)
+        if isinstance(record, str):
+            (folder / "episodes" / f"{eid}.error.json").write_text(
+                json.dumps({"id": eid, "error_type": record, "error": "cloth simulation diverged"})
+            )
+        elif record is not None:
+            ep = folder / "episodes" / eid
+            ep.mkdir()
+            result = {
+                "success": record < 10,
+                "fold_error_mm": record,
+                "normalized_performance": 0.9,
+                "wall_seconds": 20.0 + seed,  # differs between runs; not part of "the same"
+                "actions": [{"grasp_success": True}],
+            }
+            (ep / "result.json").write_text(json.dumps(result))
+            (ep / "cloth.npz").write_bytes(b"")
+    (folder / "suite.json").write_text(json.dumps({"name": "t", "episodes": specs}))
+    return folder

@@ -14,6 +14,7 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every subcommand."""
     from foldbot.commands import (
         bench,
+        compare,
         eval_perception,
         export_bag,
         fold,
@@ -32,6 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
         "fold": (fold, "fold a garment once and write the episode folder"),
         "eval-perception": (eval_perception, "measure perception accuracy on randomised scenes"),
         "bench": (bench, "run fold episodes over many seeds and summarise them"),
+        "compare": (compare, "two benchmark runs of the same towels, episode by episode"),
         "score": (score, "recompute an episode's metrics from cloth.npz and result.json"),
         "ros-fold": (ros_fold, "fold over ROS 1 topics (roslaunch) and write the episode folder"),
         "ros-replay": (ros_replay, "replay a recorded bag through perception; compare keypoints"),

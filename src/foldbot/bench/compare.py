@@ -1,0 +1,205 @@
+"""Two benchmark runs side by side, episode by episode: what changed between them, and whether
+the change is larger than the towels' own scatter.
+
+Episodes are paired by id (garment, recipe, perception, loop, seed), so each pair is the same
+towel folded twice: by two versions of the code, or with two settings (`--loop-option`, a suite
+edit). Per group and overall: how many pairs came out the same to the last digit, the success
+rates with their Wilson intervals, and the fold error's paired difference (second minus first)
+with its Student-t interval; then every pair that changed. The simulation is deterministic, so a
+pair that differs differs because of the change (or a chaotic amplification of it: a quarter fold
+can move by tens of mm when a grasp moves by a millimetre, docs/experiments.md).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+from foldbot.bench.runner import EPISODES, SUITE_FILE
+from foldbot.bench.summary import failure_cause, mean_interval, success_interval
+from foldbot.errors import ConfigError
+from foldbot.io.episode import RESULT_FILE, is_episode_dir
+
+SPEC_AXES = ("garment", "recipe", "perception", "loop")
+"""The spec fields a group is made of (an episode's id adds its seed)."""
+
+
+def load_run(run: Path) -> tuple[dict[str, dict], dict[str, dict]]:
+    """A run folder's episode specs (suite.json) and the records of its finished episodes (scored:
+    {"id", "result"}; ended by an error: the error record), both by episode id."""
+    run = Path(run)
+    suite_file = run / SUITE_FILE
+    if not suite_file.is_file():
+        raise ConfigError(
+            f"{run} is not a benchmark run folder: it has no {SUITE_FILE} "
+            "(a folder written by `foldbot bench --out`)"
+        )
+    specs = json.loads(suite_file.read_text()).get("episodes", {})
+    records: dict[str, dict] = {}
+    for eid in specs:
+        ep = run / EPISODES / eid
+        err = run / EPISODES / f"{eid}.error.json"
+        if is_episode_dir(ep):
+            records[eid] = {"id": eid, "result": json.loads((ep / RESULT_FILE).read_text())}
+        elif err.is_file():
+            records[eid] = json.loads(err.read_text())
+    return specs, records
+
+
+def _fold_error(record: dict) -> float | None:
+    v = record.get("result", {}).get("fold_error_mm")
+    return float(v) if v is not None and math.isfinite(v) else None
+
+
+def _outcome(record: dict) -> str:
+    """'success', or the failure cause."""
+    return failure_cause(record) or "success"
+
+
+def _same(a: dict, b: dict) -> bool:
+    """Whether two records of one episode agree to the last digit in what the episode did: its
+    outcome, fold error and normalized performance (wall-clock figures always differ)."""
+    keys = ("fold_error_mm", "normalized_performance", "success")
+    ra, rb = a.get("result", {}), b.get("result", {})
+    return _outcome(a) == _outcome(b) and all(ra.get(k) == rb.get(k) for k in keys)
+
+
+def _group_figures(pairs: list[tuple[str, dict, dict]]) -> dict[str, Any]:
+    n = len(pairs)
+    sides = [[p[1] for p in pairs], [p[2] for p in pairs]]
+    wins = [sum(_outcome(r) == "success" for r in side) for side in sides]
+    both = [(_fold_error(a), _fold_error(b)) for _, a, b in pairs]
+    both = [(ea, eb) for ea, eb in both if ea is not None and eb is not None]
+    diffs = [eb - ea for ea, eb in both]
+    return {
+        "pairs": n,
+        "same": sum(_same(a, b) for _, a, b in pairs),
+        "success_rate": [w / n if n else None for w in wins],
+        "success_ci95": [success_interval(w, n) for w in wins],
+        "scored_both": len(both),
+        "fold_error_mm_mean": [
+            sum(e[k] for e in both) / len(both) if both else None for k in (0, 1)
+        ],
+        "difference_mm": {
+            "mean": sum(diffs) / len(diffs) if diffs else None,
+            "mean_ci95": mean_interval(diffs),
+            "closer": sum(d < 0 for d in diffs),
+            "further": sum(d > 0 for d in diffs),
+        },
+        "diverged": [sum(_outcome(r) == "diverged" for r in side) for side in sides],
+    }
+
+
+def compare_runs(first: Path, second: Path) -> dict[str, Any]:
+    """The comparison of two run folders (see the module docstring) as a dict."""
+    specs_a, rec_a = load_run(first)
+    specs_b, rec_b = load_run(second)
+    common = [eid for eid in specs_a if eid in specs_b and eid in rec_a and eid in rec_b]
+    if not common:
+        raise ConfigError(
+            f"{first} and {second} share no finished episode (episodes pair by id, e.g. "
+            "towel-half-vision-closed-s0003); compare runs of the same suite's towels"
+        )
+    differing_settings = sorted(
+        {
+            key
+            for eid in common
+            for key in set(specs_a[eid]) | set(specs_b[eid])
+            if specs_a[eid].get(key) != specs_b[eid].get(key)
+        }
+    )
+    groups: dict[tuple, list[tuple[str, dict, dict]]] = defaultdict(list)
+    for eid in common:
+        key = tuple(specs_a[eid].get(k) for k in SPEC_AXES)
+        groups[key].append((eid, rec_a[eid], rec_b[eid]))
+    every = [p for key in groups for p in groups[key]]
+    changed = []
+    for eid, a, b in every:
+        if _same(a, b):
+            continue
+        changed.append(
+            {
+                "id": eid,
+                "fold_error_mm": [_fold_error(a), _fold_error(b)],
+                "outcome": [_outcome(a), _outcome(b)],
+            }
+        )
+    return {
+        "runs": [str(first), str(second)],
+        "only_in_one": sorted(set(rec_a) ^ set(rec_b)),
+        "differing_settings": differing_settings,
+        "overall": _group_figures(every),
+        "groups": [
+            {**dict(zip(SPEC_AXES, key, strict=True)), **_group_figures(pairs)}
+            for key, pairs in groups.items()
+        ],
+        "changed": changed,
+    }
+
+
+def _mm(v: float | None, fmt: str = ".1f") -> str:
+    return "–" if v is None else format(v, fmt)
+
+
+def _rate(rate: float | None, ci: list[float] | None) -> str:
+    if rate is None:
+        return "–"
+    return f"{100 * rate:.0f} %" + ("" if not ci else f" ({100 * ci[0]:.0f}–{100 * ci[1]:.0f})")
+
+
+def _difference(d: dict) -> str:
+    if d["mean"] is None:
+        return "–"
+    ci = d["mean_ci95"]
+    shown = f"{d['mean']:+.1f}"
+    return shown + ("" if not ci else f" ({ci[0]:+.1f} to {ci[1]:+.1f})")
+
+
+def markdown(comparison: dict) -> str:
+    """The comparison as Markdown: a table per group and overall, then the changed pairs."""
+    first, second = comparison["runs"]
+    lines = [f"# `{second}` against `{first}`", ""]
+    if comparison["differing_settings"]:
+        lines += [
+            "Episode settings that differ between the runs: "
+            + ", ".join(f"`{k}`" for k in comparison["differing_settings"])
+            + ".",
+            "",
+        ]
+    if comparison["only_in_one"]:
+        lines += [f"Finished in one run only (left out): {len(comparison['only_in_one'])}.", ""]
+    lines += [
+        "| group | pairs | the same | success: first / second (95 % CI) "
+        "| fold error mm, mean over pairs scored both ways: first / second "
+        "| second minus first: mean (95 % CI) | closer / further | diverged: first / second |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    rows = [("**all**", comparison["overall"])] + [
+        (" ".join(str(g[k]) for k in SPEC_AXES), g) for g in comparison["groups"]
+    ]
+    for name, g in rows:
+        rates = " / ".join(
+            _rate(r, ci) for r, ci in zip(g["success_rate"], g["success_ci95"], strict=True)
+        )
+        means = " / ".join(_mm(v) for v in g["fold_error_mm_mean"])
+        d = g["difference_mm"]
+        lines.append(
+            f"| {name} | {g['pairs']} | {g['same']} | {rates} | {means} ({g['scored_both']}) "
+            f"| {_difference(d)} | {d['closer']} / {d['further']} "
+            f"| {g['diverged'][0]} / {g['diverged'][1]} |"
+        )
+    lines += [
+        "",
+        "*the same*: pairs whose records agree to the last digit. An interval clear of 0 is a "
+        "difference these towels show; one across 0 is not.",
+    ]
+    if comparison["changed"]:
+        lines += ["", "## Pairs that changed", "", "| episode | fold error mm | outcome |"]
+        lines += ["|---|---|---|"]
+        for c in comparison["changed"]:
+            (ea, eb), (oa, ob) = c["fold_error_mm"], c["outcome"]
+            lines.append(f"| {c['id']} | {_mm(ea)} → {_mm(eb)} | {oa} → {ob} |")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,90 @@
+"""Two run folders compared episode by episode: pairs, the same ones, the paired difference."""
+
+import pytest
+
+from foldbot.bench.compare import compare_runs, load_run, markdown
+from foldbot.errors import ConfigError
+
+
+@pytest.fixture
+def runs(tmp_path, write_run):
+    first = write_run(
+        tmp_path / "a",
+        {
+            "towel-half-vision-closed-s0000": ("half", 0, 8.0),
+            "towel-half-vision-closed-s0001": ("half", 1, 12.0),
+            "towel-half-vision-closed-s0002": ("half", 2, 9.0),
+            "towel-quarter-vision-closed-s0000": ("quarter", 0, 30.0),
+            "towel-quarter-vision-closed-s0001": ("quarter", 1, "SimulationDivergedError"),
+            "towel-quarter-vision-closed-s0002": ("quarter", 2, None),  # not finished
+        },
+    )
+    second = write_run(
+        tmp_path / "b",
+        {
+            "towel-half-vision-closed-s0000": ("half", 0, 8.0),
+            "towel-half-vision-closed-s0001": ("half", 1, 9.0),
+            "towel-half-vision-closed-s0002": ("half", 2, 11.0),
+            "towel-quarter-vision-closed-s0000": ("quarter", 0, 24.0),
+            "towel-quarter-vision-closed-s0001": ("quarter", 1, 40.0),
+            "towel-quarter-vision-closed-s0002": ("quarter", 2, 20.0),
+        },
+        loop_options={"stack_edge_carry": False},
+    )
+    return first, second
+
+
+def test_load_run_reads_scored_and_failed_episodes(runs):
+    specs, records = load_run(runs[0])
+    assert len(specs) == 6 and len(records) == 5
+    assert records["towel-half-vision-closed-s0000"]["result"]["fold_error_mm"] == 8.0
+    assert records["towel-quarter-vision-closed-s0001"]["error_type"] == "SimulationDivergedError"
+
+
+def test_pairs_by_id_and_measures_the_paired_difference(runs):
+    c = compare_runs(*runs)
+    assert c["differing_settings"] == ["loop_options"]
+    assert c["only_in_one"] == ["towel-quarter-vision-closed-s0002"]
+    overall = c["overall"]
+    assert overall["pairs"] == 5 and overall["same"] == 1  # half seed 0, despite its wall time
+    assert overall["success_rate"] == [pytest.approx(2 / 5), pytest.approx(2 / 5)]
+    assert overall["diverged"] == [1, 0]
+    # Scored both ways: half 0, 1, 2 and quarter 0: differences 0, −3, +2, −6.
+    assert overall["scored_both"] == 4
+    assert overall["difference_mm"]["mean"] == pytest.approx(-7 / 4)
+    lo, hi = overall["difference_mm"]["mean_ci95"]
+    assert lo < -7 / 4 < hi and lo < 0 < hi  # these four towels show no difference
+    assert (overall["difference_mm"]["closer"], overall["difference_mm"]["further"]) == (2, 1)
+    half = next(g for g in c["groups"] if g["recipe"] == "half")
+    assert half["pairs"] == 3 and half["fold_error_mm_mean"] == [
+        pytest.approx(29 / 3),
+        pytest.approx(28 / 3),
+    ]
+    changed = {x["id"]: x for x in c["changed"]}
+    assert set(changed) == {
+        "towel-half-vision-closed-s0001",
+        "towel-half-vision-closed-s0002",
+        "towel-quarter-vision-closed-s0000",
+        "towel-quarter-vision-closed-s0001",
+    }
+    assert changed["towel-quarter-vision-closed-s0001"]["outcome"] == [
+        "diverged",
+        "fold inaccurate",
+    ]
+    assert changed["towel-half-vision-closed-s0001"]["fold_error_mm"] == [12.0, 9.0]
+
+
+def test_markdown_names_the_changes(runs):
+    md = markdown(compare_runs(*runs))
+    assert "Episode settings that differ between the runs: `loop_options`." in md
+    assert "| **all** | 5 | 1 | 40 % (12–77) / 40 % (12–77) |" in md
+    assert "| towel-quarter-vision-closed-s0001 | – → 40.0 | diverged → fold inaccurate |" in md
+    assert "| towel-half-vision-closed-s0001 | 12.0 → 9.0 | fold inaccurate → success |" in md
+
+
+def test_folders_that_are_not_runs_or_share_nothing_are_refused(tmp_path, runs, write_run):
+    with pytest.raises(ConfigError, match=r"no suite\.json"):
+        compare_runs(tmp_path / "missing", runs[0])
+    other = write_run(tmp_path / "c", {"towel-thirds-vision-closed-s0009": ("thirds", 9, 5.0)})
+    with pytest.raises(ConfigError, match="share no finished episode"):
+        compare_runs(runs[0], other)
