@@ -88,3 +88,44 @@ def test_folders_that_are_not_runs_or_share_nothing_are_refused(tmp_path, runs, 
     other = write_run(tmp_path / "c", {"towel-thirds-vision-closed-s0009": ("thirds", 9, 5.0)})
     with pytest.raises(ConfigError, match="share no finished episode"):
         compare_runs(runs[0], other)
+
+
+def test_two_recipes_on_the_same_towels_pair_by_seed(tmp_path, write_run):
+    quarter = write_run(
+        tmp_path / "q",
+        {
+            f"towel-quarter-vision-closed-s000{k}": ("quarter", k, e)
+            for k, e in [(0, 40.0), (1, 30.0)]
+        },
+    )
+    quarter_y = write_run(
+        tmp_path / "qy",
+        {
+            f"towel-quarter_y-vision-closed-s000{k}": ("quarter_y", k, e)
+            for k, e in [(0, 35.0), (1, 31.0)]
+        },
+    )
+    with pytest.raises(ConfigError, match="share no finished episode"):
+        compare_runs(quarter, quarter_y)  # by id, nothing pairs
+    c = compare_runs(quarter, quarter_y, pair_by="seed")
+    assert c["differing_settings"] == ["recipe"] and c["overall"]["pairs"] == 2
+    assert c["overall"]["difference_mm"]["mean"] == pytest.approx(-2.0)
+    assert c["groups"][0]["recipe"] == "quarter / quarter_y"
+    assert (
+        c["changed"][0]["id"]
+        == "towel-quarter-vision-closed-s0000 / towel-quarter_y-vision-closed-s0000"
+    )
+    assert "paired by seed" in markdown(c)
+    two = write_run(
+        tmp_path / "two",
+        {
+            "towel-half-vision-closed-s0000": ("half", 0, 8.0),
+            "towel-quarter-vision-closed-s0000": ("quarter", 0, 30.0),
+        },
+    )
+    with pytest.raises(
+        ConfigError, match=r"one recipe per garment.*towel-half-vision-closed-s0000"
+    ):
+        compare_runs(two, quarter, pair_by="seed")
+    with pytest.raises(ConfigError, match="pair_by = 'recipe'"):
+        compare_runs(two, quarter, pair_by="recipe")

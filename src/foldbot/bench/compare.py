@@ -93,43 +93,77 @@ def _group_figures(pairs: list[tuple[str, dict, dict]]) -> dict[str, Any]:
     }
 
 
-def compare_runs(first: Path, second: Path) -> dict[str, Any]:
-    """The comparison of two run folders (see the module docstring) as a dict."""
+PAIRINGS = ("id", "seed")
+"""How episodes pair: by id (garment, recipe, perception, loop, seed), or by seed alone within
+garment, perception and loop (two recipes on the same towels: quarter against quarter_y)."""
+
+
+def _keyed(run: Path, specs: dict[str, dict], pair_by: str) -> dict[Any, str]:
+    """Episode id by pairing key; with pair_by 'seed', one recipe per garment, perception and loop."""
+    if pair_by == "id":
+        return {eid: eid for eid in specs}
+    keyed: dict[Any, str] = {}
+    for eid, spec in specs.items():
+        key = (spec.get("garment"), spec.get("perception"), spec.get("loop"), spec.get("seed"))
+        if key in keyed:
+            raise ConfigError(
+                f"--pair-by seed needs one recipe per garment, perception and loop in each run; "
+                f"{run} has {keyed[key]} and {eid}"
+            )
+        keyed[key] = eid
+    return keyed
+
+
+def compare_runs(first: Path, second: Path, pair_by: str = "id") -> dict[str, Any]:
+    """The comparison of two run folders (see the module docstring) as a dict; episodes paired
+    by `pair_by` (PAIRINGS)."""
+    if pair_by not in PAIRINGS:
+        raise ConfigError(f"pair_by = {pair_by!r} is unknown; allowed: {', '.join(PAIRINGS)}")
     specs_a, rec_a = load_run(first)
     specs_b, rec_b = load_run(second)
-    common = [eid for eid in specs_a if eid in specs_b and eid in rec_a and eid in rec_b]
+    keyed_a, keyed_b = _keyed(first, specs_a, pair_by), _keyed(second, specs_b, pair_by)
+    common = [
+        (keyed_a[k], keyed_b[k])
+        for k in keyed_a
+        if k in keyed_b and keyed_a[k] in rec_a and keyed_b[k] in rec_b
+    ]
     if not common:
         raise ConfigError(
-            f"{first} and {second} share no finished episode (episodes pair by id, e.g. "
+            f"{first} and {second} share no finished episode (episodes pair by {pair_by}, e.g. "
             "towel-half-vision-closed-s0003); compare runs of the same suite's towels"
         )
     differing_settings = sorted(
         {
             key
-            for eid in common
-            for key in set(specs_a[eid]) | set(specs_b[eid])
-            if specs_a[eid].get(key) != specs_b[eid].get(key)
+            for ia, ib in common
+            for key in set(specs_a[ia]) | set(specs_b[ib])
+            if specs_a[ia].get(key) != specs_b[ib].get(key)
         }
     )
     groups: dict[tuple, list[tuple[str, dict, dict]]] = defaultdict(list)
-    for eid in common:
-        key = tuple(specs_a[eid].get(k) for k in SPEC_AXES)
-        groups[key].append((eid, rec_a[eid], rec_b[eid]))
-    every = [p for key in groups for p in groups[key]]
-    changed = []
-    for eid, a, b in every:
-        if _same(a, b):
-            continue
-        changed.append(
-            {
-                "id": eid,
-                "fold_error_mm": [_fold_error(a), _fold_error(b)],
-                "outcome": [_outcome(a), _outcome(b)],
-            }
+    for ia, ib in common:
+        key = tuple(
+            specs_a[ia].get(k)
+            if specs_a[ia].get(k) == specs_b[ib].get(k)
+            else f"{specs_a[ia].get(k)} / {specs_b[ib].get(k)}"
+            for k in SPEC_AXES
         )
+        groups[key].append((ia if ia == ib else f"{ia} / {ib}", rec_a[ia], rec_b[ib]))
+    every = [p for key in groups for p in groups[key]]
+    changed = [
+        {
+            "id": eid,
+            "fold_error_mm": [_fold_error(a), _fold_error(b)],
+            "outcome": [_outcome(a), _outcome(b)],
+        }
+        for eid, a, b in every
+        if not _same(a, b)
+    ]
+    paired_a, paired_b = {ia for ia, _ in common}, {ib for _, ib in common}
     return {
         "runs": [str(first), str(second)],
-        "only_in_one": sorted(set(rec_a) ^ set(rec_b)),
+        "pair_by": pair_by,
+        "only_in_one": sorted((set(rec_a) - paired_a) | (set(rec_b) - paired_b)),
         "differing_settings": differing_settings,
         "overall": _group_figures(every),
         "groups": [
@@ -162,6 +196,8 @@ def markdown(comparison: dict) -> str:
     """The comparison as Markdown: a table per group and overall, then the changed pairs."""
     first, second = comparison["runs"]
     lines = [f"# `{second}` against `{first}`", ""]
+    if comparison.get("pair_by") == "seed":
+        lines += ["Episodes paired by seed within garment, perception and loop.", ""]
     if comparison["differing_settings"]:
         lines += [
             "Episode settings that differ between the runs: "

@@ -17,7 +17,7 @@ import argparse
 import json
 from pathlib import Path
 
-from foldbot.bench.compare import compare_runs, markdown
+from foldbot.bench.compare import PAIRINGS, compare_runs, markdown
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -25,13 +25,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("first", type=Path, help="a run folder (`foldbot bench --out`): before")
     parser.add_argument("second", type=Path, help="a run folder of the same towels: after")
     parser.add_argument(
+        "--pair-by",
+        choices=PAIRINGS,
+        default="id",
+        help="pair episodes by id (default), or by seed within garment, perception and loop: "
+        "two recipes on the same towels, e.g. a run of quarter against one of quarter_y",
+    )
+    parser.add_argument(
         "--json", action="store_true", help="print the comparison as JSON instead of Markdown"
     )
 
 
 def run(args: argparse.Namespace) -> int:
     """Print the comparison."""
-    comparison = compare_runs(args.first, args.second)
+    comparison = compare_runs(args.first, args.second, args.pair_by)
     print(json.dumps(comparison, indent=2) if args.json else markdown(comparison), end="")
     if args.json:
         print()
