@@ -47,7 +47,7 @@ def test_report_files(tmp_path, tiny_suite_data):
     # 3 of 6 successes: Wilson 95 % interval 19–81 %; errors 12, 13, 14, 5, 6: t interval 4.8–15.2.
     assert "| **all** | 6 | 50 % (19–81) | 10.0 / 12.0 / 13.8 | 4.8–15.2 |" in md
     # Oracle minus vision on the two towels scored both ways: 7 mm closer on each.
-    assert "| -7.0 (-7.0–-7.0), 2 |" in md
+    assert "| -7.0 (-7.0 to -7.0), 2 |" in md
     assert "| perfect fold mm: mean |" in md and "| 2.5 |" in md and "physically perfect fold" in md
     assert "towel half, oracle, closed loop" in md and "vision / oracle" in md
     assert "foldbot bench --suite tiny --out X" in md

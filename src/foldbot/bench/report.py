@@ -45,10 +45,12 @@ def _rate(g: dict) -> str:
 
 
 def _difference(d: dict | None) -> str:
-    """A paired difference as '+4.2 (−1.0–9.4), 6', or – where no pair was scored both ways."""
+    """A paired difference as '+4.2 (-1.0 to +9.4), 6', or – where no pair was scored both ways."""
     if not d:
         return "–"
-    return f"{d['mean']:+.1f} ({_interval(d.get('mean_ci95'))}), {d['pairs']}"
+    ci = d.get("mean_ci95")
+    shown = "no interval" if not ci else f"{ci[0]:+.1f} to {ci[1]:+.1f}"
+    return f"{d['mean']:+.1f} ({shown}), {d['pairs']}"
 
 
 def _failures(f: dict[str, int]) -> str:
