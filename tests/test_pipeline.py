@@ -396,6 +396,30 @@ def test_two_arm_cell_hands_an_action_to_the_arm_that_can_do_it():
             parts.model_world.close()
 
 
+def test_a_replicate_lays_the_seeds_cloth_a_tenth_of_a_millimetre_away():
+    from foldbot.pipeline import REPLICATE_NUDGE_M, seeded_garment, seeded_pose
+
+    centre = (0.45, 0.0)
+    for seed in range(5):
+        (x0, y0), yaw0 = seeded_pose(EpisodeConfig(seed=seed), centre)
+        assert seeded_pose(EpisodeConfig(seed=seed, replicate=0), centre) == ((x0, y0), yaw0)
+        directions = set()
+        for k in (1, 2, 3):
+            cfg = EpisodeConfig(seed=seed, replicate=k, towel_size_range=(0.25, 0.45))
+            (x, y), yaw = seeded_pose(cfg, centre)
+            assert yaw == yaw0 and np.hypot(x - x0, y - y0) == pytest.approx(REPLICATE_NUDGE_M)
+            assert seeded_pose(cfg, centre) == ((x, y), yaw)  # the same replicate, the same pose
+            # The same towel: its size and mesh do not depend on the replicate.
+            assert (
+                seeded_garment(cfg)[0] == seeded_garment(dataclasses.replace(cfg, replicate=0))[0]
+            )
+            directions.add((round(x - x0, 9), round(y - y0, 9)))
+        assert len(directions) == 3
+    for bad in (-1, 1000, 1.5, True):
+        with pytest.raises(ConfigError, match=r"replicate must be an integer in \[0, 999\]"):
+            EpisodeConfig(replicate=bad)
+
+
 def test_towel_size_is_drawn_from_the_seed_within_range():
     from foldbot.pipeline import seeded_pose, seeded_towel
 

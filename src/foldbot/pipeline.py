@@ -77,6 +77,12 @@ PARK_POSES = ("home", "out_of_view")
 """Where the arm waits while the camera looks: home (TCP 0.25 m over the workspace centre; from
 the camera it hides the near edge of a large cloth) or out_of_view (TCP near the robot base,
 outside the image; longer moves)."""
+REPLICATE_NUDGE_M = 1e-4
+"""How far (m) replicate k > 0 lays the seed's cloth from its drawn pose, in a direction drawn from
+(seed, k): a tenth of a millimetre, nothing a robot could tell apart, yet a folded stack's outcome
+changes with it (docs/experiments.md), so replicates measure what the seed's towel folds to."""
+MAX_REPLICATE = 999
+"""Largest replicate index."""
 
 
 @dataclass(frozen=True)
@@ -145,6 +151,9 @@ class EpisodeConfig:
     loop_options: dict[str, LoopOptionValue] = field(default_factory=dict)
     """The closed loop's switches set by name (loop_options.LOOP_OPTIONS: top_layer_first,
     stack_edge_carry, pair_descent, …); those not named keep LoopConfig's defaults."""
+    replicate: int = 0
+    """0: the cloth lies exactly where the seed puts it; k > 0: the same cloth laid
+    REPLICATE_NUDGE_M from there, in a direction the seed and k draw (seeded_pose)."""
 
     def __post_init__(self) -> None:
         require(
@@ -170,6 +179,12 @@ class EpisodeConfig:
         require(
             isinstance(self.seed, int) and self.seed >= 0,
             f"seed must be an integer ≥ 0, got {self.seed!r}",
+        )
+        require(
+            isinstance(self.replicate, int)
+            and not isinstance(self.replicate, bool)
+            and 0 <= self.replicate <= MAX_REPLICATE,
+            f"replicate must be an integer in [0, {MAX_REPLICATE}], got {self.replicate!r}",
         )
         if self.towel_size_range is not None:
             lo, hi = self.towel_size_range
@@ -276,12 +291,17 @@ def seeded_pose(
     cfg: EpisodeConfig, center: tuple[float, float]
 ) -> tuple[tuple[float, float], float]:
     """The cloth's centre (x, y) and yaw (rad) on the table for this episode's seed (a garment
-    other than the towel adds `cfg.garment_yaw`)."""
+    other than the towel adds `cfg.garment_yaw`); a replicate k > 0 moves the centre
+    REPLICATE_NUDGE_M in a direction drawn from (seed, k)."""
     rng = np.random.default_rng(cfg.seed)
     dx, dy = rng.uniform(-cfg.position_jitter, cfg.position_jitter, size=2)
     yaw = float(rng.uniform(-cfg.yaw_range, cfg.yaw_range))
     if cfg.garment != "towel":
         yaw += cfg.garment_yaw
+    if cfg.replicate > 0:
+        angle = np.random.default_rng([cfg.seed, cfg.replicate, 3]).uniform(0.0, 2 * math.pi)
+        dx += REPLICATE_NUDGE_M * math.cos(angle)
+        dy += REPLICATE_NUDGE_M * math.sin(angle)
     return (center[0] + float(dx), center[1] + float(dy)), yaw
 
 
@@ -465,6 +485,7 @@ def episode_result(
         "jaw_catch": cfg.jaw_catch,
         "loop_options": dict(cfg.loop_options),
         "seed": cfg.seed,
+        "replicate": cfg.replicate,
         "perception": cfg.perception,
         "closed_loop": cfg.closed_loop,
         "grasp_points_source": "oracle" if cfg.perception == "oracle" else "vision",

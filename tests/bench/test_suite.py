@@ -64,6 +64,25 @@ def test_compare_suite_pairs_every_cell():
             assert e == loop[(e.recipe, e.seed)]
 
 
+def test_replicates_fold_each_seeds_cloth_again_a_tenth_of_a_millimetre_away(tiny_suite_data):
+    suite = suite_from_dict(tiny_suite_data(seeds="3-4", replicates=3))
+    assert [e.id for e in suite.episodes] == [
+        "towel-half-oracle-closed-s0003",
+        "towel-half-oracle-closed-s0003-r1",
+        "towel-half-oracle-closed-s0003-r2",
+        "towel-half-oracle-closed-s0004",
+        "towel-half-oracle-closed-s0004-r1",
+        "towel-half-oracle-closed-s0004-r2",
+    ]
+    assert [e.to_config().replicate for e in suite.episodes] == [0, 1, 2, 0, 1, 2]
+    assert suite.axes["replicates"] == 3
+    # Replicate 0 is the seed's episode as before: its spec (and so a resumed run) is unchanged.
+    plain = suite_from_dict(tiny_suite_data(seeds="3-4"))
+    assert suite.episodes[0] == plain.episodes[0] and "replicate" not in plain.episodes[0].as_dict()
+    again = EpisodeSpec.from_dict(suite.episodes[1].as_dict())
+    assert again == suite.episodes[1] and again.as_dict()["replicate"] == 1
+
+
 def test_ids_are_stable_unique_and_round_trip(tiny_suite_data):
     suite = suite_from_dict(tiny_suite_data(perception=["vision", "oracle"], seeds="3-4"))
     ids = [e.id for e in suite.episodes]
@@ -264,6 +283,8 @@ def test_unknown_suite_name_lists_the_available_ones():
         (lambda d: d["axes"].update(recipe=[]), ["axes.recipe", "empty"]),
         (lambda d: d["axes"].update(recipe="half"), ["axes.recipe", "list"]),
         (lambda d: d["axes"].update(seeds="9-2"), ["seeds", "9-2"]),
+        (lambda d: d["axes"].update(replicates=0), ["axes.replicates = 0", "[1, 20]"]),
+        (lambda d: d["axes"].update(replicates="3"), ["axes.replicates = '3'", "int"]),
         (lambda d: d["axes"].pop("seeds"), ["axes.seeds", "required"]),
         (lambda d: d["towel"].update(resolution=99), ["towel.resolution", "99"]),
         (lambda d: d["towel"].update(width=2.0), ["towel.width", "2.0"]),

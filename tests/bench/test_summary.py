@@ -12,6 +12,7 @@ from foldbot.bench.summary import (
     paired_difference,
     success_interval,
     summarise,
+    towel_of,
 )
 
 
@@ -95,6 +96,30 @@ def test_paired_difference_over_towels_scored_both_ways():
     assert paired_difference(a[3:], b[3:], "fold_error_mm") is None
 
 
+def test_with_replicates_the_mean_interval_is_over_the_towels():
+    # Towel 0 folded three times (5, 7, 9 mm), towel 1 three times (20, 22, 24): the interval is
+    # over the two towel means, 7 and 22, not over six episodes.
+    errors = {"s0000": (5.0, 7.0, 9.0), "s0001": (20.0, 22.0, 24.0)}
+    records = [
+        {"id": f"towel-half-vision-closed-{towel}{'' if k == 0 else f'-r{k}'}",
+         "result": result(True, e, 0.9)}
+        for towel, es in errors.items()
+        for k, e in enumerate(es)
+    ]  # fmt: skip
+    s = group_stats(records)
+    assert s["towels"] == 2 and s["episodes"] == 6
+    assert s["fold_error_mm"]["mean"] == pytest.approx(14.5)
+    assert s["fold_error_mm"]["mean_ci95"] == pytest.approx(mean_interval([7.0, 22.0]))
+    assert towel_of("towel-half-vision-closed-s0001-r2") == "towel-half-vision-closed-s0001"
+    assert towel_of("towel-half-vision-closed-crumpled-s0001") == (
+        "towel-half-vision-closed-crumpled-s0001"
+    )
+    # Without replicates the interval is over the episodes, as before.
+    plain = group_stats(records[::3])
+    assert plain["towels"] == 2
+    assert plain["fold_error_mm"]["mean_ci95"] == pytest.approx(mean_interval([5.0, 20.0]))
+
+
 def test_group_stats_gives_the_intervals():
     records = [{"id": str(i), "result": result(i < 3, 10.0 + i, 0.9)} for i in range(5)]
     s = group_stats(records)
@@ -146,6 +171,21 @@ def test_empty_and_all_failed_groups():
 )
 def test_failure_causes(record, cause):
     assert failure_cause({"id": "x", **record}) == cause
+
+
+def test_comparisons_pair_each_replicate_with_its_own(tiny_suite_data):
+    suite = suite_from_dict(
+        tiny_suite_data(perception=["vision", "oracle"], seeds="0", replicates=2)
+    )
+    errors = {("vision", 0): 10.0, ("vision", 1): 30.0, ("oracle", 0): 11.0, ("oracle", 1): 33.0}
+    records = [
+        {"id": e.id, "result": result(True, errors[(e.perception, e.replicate)], 0.9)}
+        for e in suite.episodes
+    ]
+    (row,) = [c for c in comparisons(suite, records) if c["recipe"] == "half"]
+    assert row["paired_episodes"] == 2
+    # Oracle minus vision, replicate by replicate: +1 and +3 (not crossed: +23 and −19).
+    assert row["fold_error_mm_paired_difference"]["mean"] == pytest.approx(2.0)
 
 
 def test_groups_and_paired_comparisons(tiny_suite_data):

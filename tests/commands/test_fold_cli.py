@@ -47,6 +47,7 @@ def test_subcommand_help(cmd, capsys):
         (["--resolution", "2"], "resolution"),
         (["--resolution", "99"], "resolution"),
         (["--garment-yaw", "0"], "turns a T-shirt or pants"),
+        (["--replicate", "-1"], "replicate must be an integer in [0, 999]"),
         (["--loop-option", "top_layer_first"], "NAME=VALUE"),
         (["--loop-option", "stack_inset=-0.01"], "stack_inset = -0.01 must be a length in m"),
         (["--loop-option", "grip=true"], "unknown loop option 'grip'"),
@@ -76,6 +77,13 @@ def test_odd_grid_flag_reaches_the_towel():
     assert cfg.towel.odd_grid is True and cfg.towel.grid_shape == (17, 17)  # the CLI's default
     cfg = config_from_args(parser.parse_args(["--out", "x", "--no-odd-grid"]))
     assert cfg.towel.odd_grid is False and cfg.towel.grid_shape == (16, 16)
+
+
+def test_replicate_reaches_the_episode():
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    assert config_from_args(parser.parse_args(["--out", "x"])).replicate == 0
+    assert config_from_args(parser.parse_args(["--out", "x", "--replicate", "2"])).replicate == 2
 
 
 def test_jaw_catch_reaches_the_episode():

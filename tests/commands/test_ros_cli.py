@@ -102,3 +102,29 @@ def test_the_nodes_get_the_loop_options():
 
     _args, cfg = parse_fold_args("--out e --garment pants --loop-option top_layer_first=false")
     assert loop_config(cfg).top_layer_first is False
+
+
+def test_ros_fold_hands_the_nodes_every_option_that_shapes_the_episode(tmp_path):
+    """The nodes parse the options ros-fold passes them (fold_args_text): with every episode
+    option set away from its default, their EpisodeConfig is the one `foldbot fold` builds."""
+    import argparse
+
+    from foldbot.commands import fold, ros_fold
+    from foldbot.ros.node_args import parse_fold_args
+
+    parser = argparse.ArgumentParser()
+    ros_fold.add_arguments(parser)
+    args = parser.parse_args(
+        [
+            *("--out", str(tmp_path / "e"), "--garment", "towel", "--recipe", "quarter"),
+            *("--robot", "panda", "--start", "flat", "--park", "out_of_view", "--arms", "2"),
+            *("--seed", "7", "--replicate", "3", "--width", "0.33", "--height", "0.27"),
+            *("--resolution", "11", "--no-odd-grid", "--mass", "0.2", "--time-step", "0.002"),
+            *("--jaw-catch", "surface", "--video-fps", "0"),
+            *("--loop-option", "stack_edge_carry=false", "--loop-option", "pair_descent=0.02"),
+        ]
+    )
+    _node_args, node_cfg = parse_fold_args(ros_fold.fold_args_text(args))
+    assert node_cfg == fold.config_from_args(args)
+    assert node_cfg.replicate == 3 and node_cfg.jaw_catch == "surface"
+    assert node_cfg.loop_options == {"stack_edge_carry": False, "pair_descent": 0.02}

@@ -16,6 +16,8 @@ recipe = ["half", "diagonal"]           # towel: planning.recipes.RECIPES; tshir
 perception = ["vision", "oracle"]       # comparison axis: keypoints from RGB-D or ground truth
 loop = ["closed", "open"]               # comparison axis: re-observe after every action or not
 seeds = "0-1"                           # "0-49", "0,3,5" or a list of integers ≥ 0
+replicates = 1                          # runs of each seed's cloth (1–20): replicate k > 0 lays
+                                        # it 0.1 mm from the seed's pose (EpisodeConfig.replicate)
 
 [towel]                                 # the towel's fixed settings
 resolution = 16                         # vertices along the longer side (4–40)
@@ -53,6 +55,7 @@ ConfigError naming the file, the key, the value and what is allowed.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 import tomllib
 from dataclasses import dataclass
@@ -94,13 +97,17 @@ _SCHEMA: dict[str, set[str]] = {
         "loop_options",
         "reference",
     },
-    "axes": {"garment", "recipe", "perception", "loop", "seeds"},
+    "axes": {"garment", "recipe", "perception", "loop", "seeds", "replicates"},
     "towel": {"resolution", "odd_grid", "width", "height"},
     "randomise": {"towel_side", "position_jitter", "yaw_deg", "garment_yaw_deg"},
     "episode": {"retries", "video_fps", "start", "park", "time_step", "arms", "jaw_catch"},
     "loop_options": set(LOOP_OPTIONS),
     "reference": {"ravens_speed"},
 }
+
+
+MAX_REPLICATES = 20
+"""Most runs of one seed's cloth a suite may ask for (`[axes] replicates`)."""
 
 
 def parse_seeds(text: str | list[int]) -> list[int]:
@@ -164,13 +171,19 @@ class EpisodeSpec:
     """What the closed jaws hold (EpisodeConfig.jaw_catch): vertices, or surface."""
     loop_options: tuple[tuple[str, LoopOptionValue], ...] = ()
     """The closed loop's switches set by name (EpisodeConfig.loop_options), as (name, value)."""
+    replicate: int = 0
+    """EpisodeConfig.replicate: 0, the seed's pose; k > 0, the same cloth laid 0.1 mm from it."""
 
     @property
     def id(self) -> str:
         """Stable id and folder name, e.g. towel-half-vision-closed-s0007 (a crumpled start adds
-        -crumpled before the seed)."""
+        -crumpled before the seed, a replicate k > 0 -rk after it)."""
         start = "" if self.start == "flat" else f"-{self.start}"
-        return f"{self.garment}-{self.recipe}-{self.perception}-{self.loop}{start}-s{self.seed:04d}"
+        rep = f"-r{self.replicate}" if self.replicate else ""
+        return (
+            f"{self.garment}-{self.recipe}-{self.perception}-{self.loop}{start}"
+            f"-s{self.seed:04d}{rep}"
+        )
 
     @property
     def group(self) -> tuple[str, str, str, str]:
@@ -202,6 +215,7 @@ class EpisodeSpec:
             arms=self.arms,
             jaw_catch=self.jaw_catch,
             loop_options=dict(self.loop_options),
+            replicate=self.replicate,
             sim=SimConfig() if self.time_step is None else SimConfig(time_step=self.time_step),
         )
 
@@ -222,6 +236,8 @@ class EpisodeSpec:
             d["loop_options"] = dict(self.loop_options)
         else:
             del d["loop_options"]  # likewise
+        if d["replicate"] == 0:
+            del d["replicate"]  # likewise
         if d["towel_side_range"] is not None:
             d["towel_side_range"] = list(d["towel_side_range"])
         return d
@@ -382,6 +398,11 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
         seeds = parse_seeds([seeds_raw] if isinstance(seeds_raw, int) else seeds_raw)
     except ConfigError as exc:
         raise ConfigError(f"{where}: axes.{exc}") from None
+    replicates = _get(data, "axes", "replicates", int, 1, where)
+    if not 1 <= replicates <= MAX_REPLICATES:
+        raise ConfigError(
+            f"{where}: axes.replicates = {replicates!r} must be an integer in [1, {MAX_REPLICATES}]"
+        )
 
     towel = data.get("towel", {})
     resolution = _get(data, "towel", "resolution", int, 16, where)
@@ -456,37 +477,35 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
         raise ConfigError(f"{where}: [loop_options] {exc}") from None
     ravens = _get(data, "reference", "ravens_speed", bool, True, where)
 
-    specs = []
-    for garment in garments:
-        for recipe in recipes:
-            for perception in perceptions:
-                for loop in loops:
-                    for seed in seeds:
-                        specs.append(
-                            EpisodeSpec(
-                                garment=garment,
-                                recipe=recipe,
-                                perception=perception,
-                                loop=loop,
-                                seed=seed,
-                                towel_width=width,
-                                towel_height=height,
-                                towel_resolution=resolution,
-                                towel_odd_grid=odd_grid,
-                                towel_side_range=side_range,
-                                position_jitter=jitter,
-                                yaw_deg=yaw,
-                                garment_yaw_deg=garment_yaw,
-                                retries=retries,
-                                video_fps=video_fps,
-                                start=start,
-                                park=park,
-                                time_step=time_step,
-                                arms=arms,
-                                jaw_catch=jaw_catch,
-                                loop_options=loop_options,
-                            )
-                        )
+    specs = [
+        EpisodeSpec(
+            garment=garment,
+            recipe=recipe,
+            perception=perception,
+            loop=loop,
+            seed=seed,
+            towel_width=width,
+            towel_height=height,
+            towel_resolution=resolution,
+            towel_odd_grid=odd_grid,
+            towel_side_range=side_range,
+            position_jitter=jitter,
+            yaw_deg=yaw,
+            garment_yaw_deg=garment_yaw,
+            retries=retries,
+            video_fps=video_fps,
+            start=start,
+            park=park,
+            time_step=time_step,
+            arms=arms,
+            jaw_catch=jaw_catch,
+            loop_options=loop_options,
+            replicate=replicate,
+        )
+        for garment, recipe, perception, loop, seed, replicate in itertools.product(
+            garments, recipes, perceptions, loops, seeds, range(replicates)
+        )
+    ]
     for spec in {spec.garment: spec for spec in specs}.values():
         spec.to_config()  # anything EpisodeConfig refuses is refused here, before any run
     randomised = {
@@ -541,6 +560,7 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
             "perception": perceptions,
             "loop": loops,
             "seeds": seeds,
+            "replicates": replicates,
         },
         randomised=randomised,
         ravens_speed=ravens,

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import re
 from collections import defaultdict
 from typing import Any
 
@@ -150,8 +151,28 @@ def _mean(values: list[Any]) -> float | None:
     return float(a.mean()) if a.size else None
 
 
+_REPLICATE_SUFFIX = re.compile(r"-r\d+$")
+
+
+def towel_of(episode_id: str) -> str:
+    """An episode id without its replicate suffix (EpisodeSpec.id): the seed's cloth it folded."""
+    return _REPLICATE_SUFFIX.sub("", episode_id)
+
+
+def towel_mean_interval(records: list[dict], key: str) -> list[float] | None:
+    """The mean's interval over the towels rather than the episodes: each seed's cloth counts
+    once, with the mean of its replicates (replicates of one towel are not independent draws)."""
+    by_towel: dict[str, list[float]] = defaultdict(list)
+    for r in records:
+        v = r.get("result", {}).get(key)
+        if v is not None and math.isfinite(v):
+            by_towel[towel_of(r.get("id", ""))].append(float(v))
+    return mean_interval([float(np.mean(v)) for v in by_towel.values()])
+
+
 def group_stats(records: list[dict]) -> dict[str, Any]:
-    """Every summary figure over a list of records."""
+    """Every summary figure over a list of records. Where some towel was folded more than once
+    (suite replicates), the fold error's mean interval is taken over the towels."""
     scored = [r["result"] for r in records if "result" in r]
     n = len(records)
     successes = sum(bool(r.get("success")) for r in scored)
@@ -166,13 +187,18 @@ def group_stats(records: list[dict]) -> dict[str, Any]:
             evidence[rec["id"]] = evidence_path(rec)
     order = {c: i for i, c in enumerate(CAUSES)}
     failures = dict(sorted(causes.items(), key=lambda kv: (order.get(kv[0], len(order)), kv[0])))
+    fold_error = stats([r.get("fold_error_mm") for r in scored])
+    towels = {towel_of(r.get("id", "")) for r in records}
+    if fold_error is not None and len(towels) < n:
+        fold_error["mean_ci95"] = towel_mean_interval(records, "fold_error_mm")
     return {
         "episodes": n,
         "scored": len(scored),
         "successes": successes,
         "success_rate": successes / n if n else None,
         "success_ci95": success_interval(successes, n),
-        "fold_error_mm": stats([r.get("fold_error_mm") for r in scored]),
+        "towels": len(towels),
+        "fold_error_mm": fold_error,
         "perfect_fold_error_mm": stats([r.get("perfect_fold_error_mm") for r in scored]),
         "normalized_performance": stats([r.get("normalized_performance") for r in scored]),
         "coverage": stats([r.get("coverage") for r in scored]),
@@ -225,7 +251,7 @@ def comparisons(suite: Suite, records: list[dict]) -> list[dict]:
     for rec in records:
         s = specs.get(rec["id"])
         if s is not None:
-            by_cell[(s.garment, s.recipe, s.perception, s.loop, s.seed)] = rec
+            by_cell[(s.garment, s.recipe, s.perception, s.loop, s.seed, s.replicate)] = rec
     rows = []
     for axis, a, b in COMPARISONS:
         if not {a, b} <= set(suite.axes[axis]):
@@ -238,14 +264,15 @@ def comparisons(suite: Suite, records: list[dict]) -> list[dict]:
                 if recipe == "all":
                     sides = pooled
                 else:
-                    for seed in suite.axes["seeds"]:
+                    replicates = range(suite.axes.get("replicates", 1))
+                    for seed, replicate in itertools.product(suite.axes["seeds"], replicates):
                         cells = {}
                         for value in (a, b):
                             key = {"perception": value, "loop": other_value}
                             if axis == "loop":
                                 key = {"perception": other_value, "loop": value}
                             cells[value] = by_cell.get(
-                                (garment, recipe, key["perception"], key["loop"], seed)
+                                (garment, recipe, key["perception"], key["loop"], seed, replicate)
                             )
                         if cells[a] is not None and cells[b] is not None:
                             for value in (a, b):

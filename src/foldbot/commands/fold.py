@@ -97,6 +97,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "together and flatten a crumpled towel by lifting, spreading and laying it",
     )
     parser.add_argument("--seed", type=int, default=0, help="randomisation seed (default 0)")
+    parser.add_argument(
+        "--replicate",
+        type=int,
+        default=0,
+        metavar="K",
+        help="0 (default): the cloth where the seed puts it; K > 0: the same cloth laid 0.1 mm "
+        "from there, as a suite's replicate K (its episode id ends in -rK)",
+    )
     parser.add_argument("--width", type=float, default=0.30, help="towel width in m (0.05–1.0)")
     parser.add_argument("--height", type=float, default=0.30, help="towel height in m (0.05–1.0)")
     parser.add_argument(
@@ -167,6 +175,7 @@ def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
         robot=args.robot,
         perception=args.perception,
         seed=args.seed,
+        replicate=args.replicate,
         start=args.start,
         park=args.park,
         arms=args.arms,

@@ -71,11 +71,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def fold_args_text(args: argparse.Namespace) -> str:
-    """The episode's `foldbot fold` options as one shell-quoted string (the nodes parse it)."""
+    """The episode's `foldbot fold` options as one shell-quoted string (the nodes parse it): every
+    option that shapes the episode, so the nodes' EpisodeConfig is the command's."""
     words = [
         *("--garment", args.garment, "--recipe", args.recipe or fold.DEFAULT_RECIPES[args.garment]),
         *("--robot", args.robot, "--arms", str(args.arms)),
         *("--perception", args.perception, "--seed", str(args.seed), "--park", args.park),
+        *("--replicate", str(args.replicate), "--jaw-catch", args.jaw_catch),
         *("--start", args.start),
         *("--width", repr(args.width), "--height", repr(args.height)),
         *("--resolution", str(args.resolution), "--video-fps", repr(args.video_fps)),
@@ -83,6 +85,9 @@ def fold_args_text(args: argparse.Namespace) -> str:
     ]
     if args.mass is not None:
         words += ["--mass", repr(args.mass)]
+    words += ["--time-step", repr(args.time_step)]
+    for option in args.loop_option or ():
+        words += ["--loop-option", option]
     if args.garment_edge_length is not None:
         words += ["--garment-edge-length", repr(args.garment_edge_length)]
     words += ["--garment-yaw", repr(args.garment_yaw)]
