@@ -6,8 +6,9 @@ towel folded twice: by two versions of the code, or with two settings (`--loop-o
 edit). Per group and overall: how many pairs came out the same to the last digit, the success
 rates with their Wilson intervals, and the fold error's paired difference (second minus first)
 with its Student-t interval; then every pair that changed. The simulation is deterministic, so a
-pair that differs differs because of the change (or a chaotic amplification of it: a quarter fold
-can move by tens of mm when a grasp moves by a millimetre, docs/experiments.md).
+pair that differs differs because of the change, or a chaotic amplification of it: a quarter
+fold's error moved from 43.6 to 152.7 mm when its stack grasp moved by a tenth of a millimetre
+(docs/experiments.md), which is why the interval, not the sign of the mean, decides.
 """
 
 from __future__ import annotations
