@@ -19,6 +19,7 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
+from foldbot.bench.report import _f, _interval, _pct
 from foldbot.bench.runner import EPISODES, SUITE_FILE
 from foldbot.bench.summary import failure_cause, mean_interval, success_interval
 from foldbot.errors import ConfigError
@@ -175,14 +176,9 @@ def compare_runs(first: Path, second: Path, pair_by: str = "id") -> dict[str, An
     }
 
 
-def _mm(v: float | None, fmt: str = ".1f") -> str:
-    return "–" if v is None else format(v, fmt)
-
-
 def _rate(rate: float | None, ci: list[float] | None) -> str:
-    if rate is None:
-        return "–"
-    return f"{100 * rate:.0f} %" + ("" if not ci else f" ({100 * ci[0]:.0f}–{100 * ci[1]:.0f})")
+    """A success rate with its interval, as the bench summary writes it: '55 % (34–74)'."""
+    return _pct(rate) + ("" if rate is None or not ci else f" ({_interval(ci, '.0f', 100)})")
 
 
 def _difference(d: dict) -> str:
@@ -221,7 +217,7 @@ def markdown(comparison: dict) -> str:
         rates = " / ".join(
             _rate(r, ci) for r, ci in zip(g["success_rate"], g["success_ci95"], strict=True)
         )
-        means = " / ".join(_mm(v) for v in g["fold_error_mm_mean"])
+        means = " / ".join(_f(v) for v in g["fold_error_mm_mean"])
         d = g["difference_mm"]
         lines.append(
             f"| {name} | {g['pairs']} | {g['same']} | {rates} | {means} ({g['scored_both']}) "
@@ -238,5 +234,5 @@ def markdown(comparison: dict) -> str:
         lines += ["|---|---|---|"]
         for c in comparison["changed"]:
             (ea, eb), (oa, ob) = c["fold_error_mm"], c["outcome"]
-            lines.append(f"| {c['id']} | {_mm(ea)} → {_mm(eb)} | {oa} → {ob} |")
+            lines.append(f"| {c['id']} | {_f(ea)} → {_f(eb)} | {oa} → {ob} |")
     return "\n".join(lines) + "\n"
