@@ -3,6 +3,7 @@
 import pytest
 
 from foldbot.bench.compare import compare_runs, load_run, markdown
+from foldbot.bench.summary import mean_interval, success_interval
 from foldbot.errors import ConfigError
 
 
@@ -129,3 +130,27 @@ def test_two_recipes_on_the_same_towels_pair_by_seed(tmp_path, write_run):
         compare_runs(two, quarter, pair_by="seed")
     with pytest.raises(ConfigError, match="pair_by = 'recipe'"):
         compare_runs(two, quarter, pair_by="recipe")
+
+
+def test_replicates_count_as_their_towels(tmp_path, write_run):
+    # Two towels, each folded three times in both runs: towel 0 always succeeds and folds
+    # 1 mm closer in the second run, towel 1 never succeeds and folds 5 mm further.
+    def episodes(shift0, shift1):
+        return {
+            f"towel-half-vision-closed-s000{t}{'' if k == 0 else f'-r{k}'}": (
+                "half",
+                t,
+                (5.0 + k + shift0) if t == 0 else (20.0 + k + shift1),
+            )
+            for t in range(2)
+            for k in range(3)
+        }
+
+    first = write_run(tmp_path / "a", episodes(0.0, 0.0))
+    second = write_run(tmp_path / "b", episodes(-1.0, 5.0))
+    overall = compare_runs(first, second)["overall"]
+    assert overall["pairs"] == 6 and overall["difference_mm"]["mean"] == pytest.approx(2.0)
+    # Over the two towels' mean differences (−1, +5), not the six pairs.
+    assert overall["difference_mm"]["mean_ci95"] == pytest.approx(mean_interval([-1.0, 5.0]))
+    # Three of six succeed, always the same towel: the interval is 1 of 2 towels'.
+    assert overall["success_ci95"][0] == pytest.approx(success_interval(1, 2))

@@ -5,6 +5,7 @@ import pytest
 
 from foldbot.bench.suite import suite_from_dict
 from foldbot.bench.summary import (
+    clustered_success_interval,
     comparisons,
     failure_cause,
     group_stats,
@@ -118,6 +119,51 @@ def test_with_replicates_the_mean_interval_is_over_the_towels():
     plain = group_stats(records[::3])
     assert plain["towels"] == 2
     assert plain["fold_error_mm"]["mean_ci95"] == pytest.approx(mean_interval([5.0, 20.0]))
+
+
+def test_clustered_success_interval_counts_what_replicates_are_worth():
+    # Each towel folded once: Wilson's interval over the episodes.
+    assert clustered_success_interval([[True], [False], [True]]) == success_interval(2, 3)
+    # Five towels folded three times, each either always or never succeeding: the replicates
+    # add nothing, so the interval is over the five towels (deff held at n / towels = 3).
+    always = [[True] * 3] * 3 + [[False] * 3] * 2
+    assert clustered_success_interval(always) == pytest.approx(success_interval(3, 5))
+    # Four towels each succeeding two times in three: the towels scatter no more than
+    # independent episodes would (deff held at 1), so all twelve episodes count.
+    mixed = [[True, True, False]] * 4
+    assert clustered_success_interval(mixed) == pytest.approx(success_interval(8, 12))
+    # In between, the interval lies between the two.
+    some = [[True, True, True], [True, True, False], [False, False, False], [True, False, False]]
+    lo, hi = clustered_success_interval(some)
+    lo_ep, hi_ep = success_interval(6, 12)
+    lo_t, hi_t = success_interval(2, 4)  # 50 % over four draws
+    assert lo_t < lo < lo_ep and hi_ep < hi < hi_t
+    # Nothing succeeded (or everything did): nothing measures the correlation; each towel once.
+    assert clustered_success_interval([[False] * 3] * 20) == pytest.approx(success_interval(0, 20))
+    assert clustered_success_interval([]) is None
+
+
+def test_with_replicates_the_success_interval_is_over_the_towels():
+    ids = [f"towel-half-vision-closed-s000{t}{'' if k == 0 else f'-r{k}'}" for t in range(4)
+           for k in range(3)]  # fmt: skip
+    records = [{"id": i, "result": result("s0000" in i or "s0001" in i, 5.0, 0.9)}
+               for i in ids]  # fmt: skip
+    s = group_stats(records)
+    assert s["successes"] == 6 and s["episodes"] == 12 and s["towels"] == 4
+    assert s["success_ci95"] == pytest.approx(success_interval(2, 4))
+
+
+def test_with_replicates_the_paired_difference_is_over_the_towels():
+    # Towel 0's three pairs differ by 1, 2, 3 mm; towel 1's by 10, 11, 12: the interval is over
+    # the two towels' mean differences (2 and 11), the mean over the six pairs.
+    ids = [f"towel-half-vision-closed-s000{t}{'' if k == 0 else f'-r{k}'}" for t in range(2)
+           for k in range(3)]  # fmt: skip
+    a = [{"id": i, "result": {"fold_error_mm": 10.0}} for i in ids]
+    b = [{"id": i, "result": {"fold_error_mm": 10.0 + d}} for i, d in
+         zip(ids, (1.0, 2.0, 3.0, 10.0, 11.0, 12.0), strict=True)]  # fmt: skip
+    d = paired_difference(a, b, "fold_error_mm")
+    assert d["pairs"] == 6 and d["mean"] == pytest.approx(6.5)
+    assert d["mean_ci95"] == pytest.approx(mean_interval([2.0, 11.0]))
 
 
 def test_group_stats_gives_the_intervals():

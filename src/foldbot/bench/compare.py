@@ -5,7 +5,8 @@ Episodes are paired by id (garment, recipe, perception, loop, seed), so each pai
 towel folded twice: by two versions of the code, or with two settings (`--loop-option`, a suite
 edit). Per group and overall: how many pairs came out the same to the last digit, the success
 rates with their Wilson intervals, and the fold error's paired difference (second minus first)
-with its Student-t interval; then every pair that changed. The simulation is deterministic, so a
+with its Student-t interval (both over the towels where a towel was folded several times:
+replicates); then every pair that changed. The simulation is deterministic, so a
 pair that differs differs because of the change, or a chaotic amplification of it: a quarter
 fold's error moved from 43.6 to 152.7 mm when its stack grasp moved by a tenth of a millimetre
 (docs/experiments.md), which is why the interval, not the sign of the mean, decides.
@@ -21,7 +22,12 @@ from typing import Any
 
 from foldbot.bench.report import _f, _interval, _pct
 from foldbot.bench.runner import EPISODES, SUITE_FILE
-from foldbot.bench.summary import failure_cause, mean_interval, success_interval
+from foldbot.bench.summary import (
+    by_towel,
+    clustered_success_interval,
+    difference_interval,
+    failure_cause,
+)
 from foldbot.errors import ConfigError
 from foldbot.io.episode import RESULT_FILE, is_episode_dir
 
@@ -73,21 +79,24 @@ def _group_figures(pairs: list[tuple[str, dict, dict]]) -> dict[str, Any]:
     n = len(pairs)
     sides = [[p[1] for p in pairs], [p[2] for p in pairs]]
     wins = [sum(_outcome(r) == "success" for r in side) for side in sides]
-    both = [(_fold_error(a), _fold_error(b)) for _, a, b in pairs]
-    both = [(ea, eb) for ea, eb in both if ea is not None and eb is not None]
-    diffs = [eb - ea for ea, eb in both]
+    both = [(a.get("id", eid), _fold_error(a), _fold_error(b)) for eid, a, b in pairs]
+    both = [(eid, ea, eb) for eid, ea, eb in both if ea is not None and eb is not None]
+    diffs = [eb - ea for _, ea, eb in both]
     return {
         "pairs": n,
         "same": sum(_same(a, b) for _, a, b in pairs),
         "success_rate": [w / n if n else None for w in wins],
-        "success_ci95": [success_interval(w, n) for w in wins],
+        "success_ci95": [
+            clustered_success_interval(by_towel(side, lambda r: _outcome(r) == "success"))
+            for side in sides
+        ],
         "scored_both": len(both),
         "fold_error_mm_mean": [
-            sum(e[k] for e in both) / len(both) if both else None for k in (0, 1)
+            sum(e[k] for e in both) / len(both) if both else None for k in (1, 2)
         ],
         "difference_mm": {
             "mean": sum(diffs) / len(diffs) if diffs else None,
-            "mean_ci95": mean_interval(diffs),
+            "mean_ci95": difference_interval([(eid, eb - ea) for eid, ea, eb in both]),
             "closer": sum(d < 0 for d in diffs),
             "further": sum(d > 0 for d in diffs),
         },

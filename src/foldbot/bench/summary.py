@@ -4,6 +4,8 @@ overall, and side by side for the comparison axes (vision vs oracle, closed vs o
 Every figure comes from the episodes' records (result.json, or the error that ended an episode):
 - success rate: successes / all episodes; an episode that ended in an error counts as a failure.
   With its 95 % Wilson score interval (`success_interval`): over 20 towels, 55 % is 34–74 %.
+  Where towels were folded several times (replicates), at the effective number of episodes
+  (`clustered_success_interval`): folds of one towel are not independent draws.
 - the mean of each figure with its 95 % Student-t interval (`mean_interval`); a comparison adds
   the paired difference of the fold error (same towel both ways), with its interval.
 - fold error (mm), SoftGym normalized performance (first fold) and coverage: over scored episodes.
@@ -19,6 +21,7 @@ import itertools
 import math
 import re
 from collections import defaultdict
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -111,8 +114,36 @@ def success_interval(successes: int, n: int) -> list[float] | None:
         return None
     if not 0 <= successes <= n:
         raise ValueError(f"successes = {successes} must lie in [0, n = {n}]")
+    return _wilson(successes / n, float(n))
+
+
+def clustered_success_interval(outcomes_by_towel: list[list[bool]]) -> list[float] | None:
+    """Wilson's interval for a success rate over towels each folded one or more times (suite
+    replicates), whose folds of one towel are not independent draws: the interval is taken at
+    the effective number of episodes, n / deff (Kish), the design effect deff estimated from how
+    much the towels' success counts scatter beyond what independent episodes would, and held
+    between 1 (as independent as separate towels) and n / towels (each towel one draw). Where
+    every episode succeeded, or none did, nothing tells the two apart and each towel counts
+    once. Equals `success_interval` when every towel was folded once; None without episodes."""
+    sizes = np.array([len(o) for o in outcomes_by_towel if o], dtype=float)
+    wins = np.array([sum(bool(x) for x in o) for o in outcomes_by_towel if o], dtype=float)
+    n, k = float(sizes.sum()), sizes.size
+    if k == 0:
+        return None
+    p = float(wins.sum()) / n
+    most = n / k
+    if k < 2 or p in (0.0, 1.0):
+        deff = most
+    else:
+        between = k / (k - 1) * float(np.sum((wins - p * sizes) ** 2)) / (n * n)
+        deff = min(max(between / (p * (1.0 - p) / n), 1.0), most)
+    return _wilson(p, n / deff)
+
+
+def _wilson(p: float, n: float) -> list[float]:
+    """Wilson's score interval (CONFIDENCE) of a proportion p observed over n (maybe effective,
+    so not an integer) draws."""
     z = float(scipy_stats.norm.ppf(0.5 + CONFIDENCE / 2))
-    p = successes / n
     denom = 1.0 + z * z / n
     centre = (p + z * z / (2 * n)) / denom
     half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denom
@@ -159,6 +190,14 @@ def towel_of(episode_id: str) -> str:
     return _REPLICATE_SUFFIX.sub("", episode_id)
 
 
+def by_towel(records: list[dict], outcome: Callable[[dict], bool]) -> list[list[bool]]:
+    """Each towel's outcomes (`towel_of` the record's id), in the order the towels first appear."""
+    grouped: dict[str, list[bool]] = defaultdict(list)
+    for r in records:
+        grouped[towel_of(r.get("id", ""))].append(outcome(r))
+    return list(grouped.values())
+
+
 def towel_mean_interval(records: list[dict], key: str) -> list[float] | None:
     """The mean's interval over the towels rather than the episodes: each seed's cloth counts
     once, with the mean of its replicates (replicates of one towel are not independent draws)."""
@@ -196,7 +235,9 @@ def group_stats(records: list[dict]) -> dict[str, Any]:
         "scored": len(scored),
         "successes": successes,
         "success_rate": successes / n if n else None,
-        "success_ci95": success_interval(successes, n),
+        "success_ci95": clustered_success_interval(
+            by_towel(records, lambda r: bool(r.get("result", {}).get("success")))
+        ),
         "towels": len(towels),
         "fold_error_mm": fold_error,
         "perfect_fold_error_mm": stats([r.get("perfect_fold_error_mm") for r in scored]),
@@ -229,7 +270,11 @@ def flatten_stats(records: list[dict]) -> dict[str, Any] | None:
         "episodes": len(crumpled),
         "successes": wins,
         "success_rate": wins / len(crumpled),
-        "success_ci95": success_interval(wins, len(crumpled)),
+        "success_ci95": clustered_success_interval(
+            by_towel(
+                crumpled, lambda r: bool(r.get("result", {}).get("flatten", {}).get("success"))
+            )
+        ),
         "actions": stats([f.get("actions") for f in flat]),
         "coverage_start": stats([f.get("coverage_start") for f in flat]),
         "coverage_end": stats([f.get("coverage_end") for f in flat]),
@@ -318,15 +363,32 @@ def comparisons(suite: Suite, records: list[dict]) -> list[dict]:
 def paired_difference(a: list[dict], b: list[dict], key: str) -> dict[str, Any] | None:
     """`key` of b minus a over the pairs (a[i], b[i]) scored both ways: the number of pairs, the
     mean difference and its 95 % interval (an interval clear of 0 is a difference these towels
-    show; one across 0 is not). None when no pair was scored both ways."""
-    diffs = []
-    for ra, rb in zip(a, b, strict=True):
+    show; one across 0 is not), taken over the towels' mean differences where a towel was folded
+    more than once (`difference_interval`). None when no pair was scored both ways."""
+    diffs: list[tuple[str, float]] = []
+    for i, (ra, rb) in enumerate(zip(a, b, strict=True)):
         va, vb = ra.get("result", {}).get(key), rb.get("result", {}).get(key)
         if va is not None and vb is not None and math.isfinite(va) and math.isfinite(vb):
-            diffs.append(float(vb) - float(va))
+            diffs.append((ra.get("id", f"#{i}"), float(vb) - float(va)))
     if not diffs:
         return None
-    return {"pairs": len(diffs), "mean": float(np.mean(diffs)), "mean_ci95": mean_interval(diffs)}
+    return {
+        "pairs": len(diffs),
+        "mean": float(np.mean([d for _, d in diffs])),
+        "mean_ci95": difference_interval(diffs),
+    }
+
+
+def difference_interval(diffs: list[tuple[str, float]]) -> list[float] | None:
+    """The mean paired difference's interval from (episode id, difference) pairs: over the
+    pairs, or over the towels' mean differences where some towel was folded more than once
+    (replicates of one towel are not independent draws)."""
+    grouped: dict[str, list[float]] = defaultdict(list)
+    for eid, d in diffs:
+        grouped[towel_of(eid)].append(d)
+    if len(grouped) == len(diffs):
+        return mean_interval([d for _, d in diffs])
+    return mean_interval([float(np.mean(v)) for v in grouped.values()])
 
 
 def summarise(suite: Suite, records: list[dict]) -> dict[str, Any]:
