@@ -224,9 +224,11 @@ def test_a_fold_ending_in_an_error_keeps_the_pictures_of_its_stages(tmp_path):
     assert len(done) == 1 and done[0].startswith("stage 1 done")  # ended in the second stage
     failed = tmp_path / "ep.failed"
     assert not out.exists()
-    # The first stage's pictures, taken before the error; none of a stage or an end not reached.
+    # The first stage's pictures and the second's plan, made before the error; none of a stage
+    # or an end not reached.
     assert sorted(p.name for p in failed.iterdir()) == [
         "error.json",
         "overlay_initial.png",
+        "overlay_plan2.png",
         "overlay_stage1.png",
     ]

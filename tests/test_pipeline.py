@@ -4,6 +4,7 @@ import os
 import subprocess
 import sys
 
+import imageio.v3 as iio
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
@@ -12,6 +13,7 @@ from foldbot.errors import ConfigError
 from foldbot.garments.towel import TowelSpec
 from foldbot.io.episode import REQUIRED_RESULT_KEYS, load_episode, rescore
 from foldbot.metrics import FoldLine, fold_goal
+from foldbot.perception.overlay import GRASP_RGB, PLACE_RGB
 from foldbot.pipeline import EpisodeConfig, run_episode
 from foldbot.sim.cloth import MAX_SLIDE_SPEED
 
@@ -95,10 +97,6 @@ def _marked_pixels(frame: np.ndarray, rgb: tuple[int, int, int], tol: int = 60) 
 
 @pytest.mark.slow
 def test_video_shows_planned_marks_during_actions_and_none_after_parking(half_fold_episode):
-    import imageio.v3 as iio
-
-    from foldbot.perception.overlay import GRASP_RGB, PLACE_RGB
-
     out, _result = half_fold_episode
     frames = iio.imread(out / "video.mp4")
     marked = [_marked_pixels(f, GRASP_RGB) + _marked_pixels(f, PLACE_RGB) for f in frames]
@@ -258,6 +256,13 @@ def test_one_arm_carries_quarters_stack_by_the_middle_of_its_edge(tmp_path):
     sides = line.side(np.array([edge["grasp"][:2], edge["place"][:2]]))
     assert sides[0] * sides[1] < 0
     assert result["fold_error_mm"] < 60.0
+    # The second stage's plan is pictured over the view it was planned from: stage 1's closing
+    # view, with the edge's grasp, its place and the fold line drawn on it.
+    ep = tmp_path / "ep"
+    plan2, stage1 = (iio.imread(ep / f) for f in ("overlay_plan2.png", "overlay_stage1.png"))
+    assert plan2.shape == stage1.shape
+    for rgb in (GRASP_RGB, PLACE_RGB):
+        assert _marked_pixels(plan2, rgb, tol=0) > 20 and _marked_pixels(stage1, rgb, tol=0) == 0
 
 
 @pytest.mark.slow

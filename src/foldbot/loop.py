@@ -277,6 +277,10 @@ class FoldRecord:
     initial_overlay: np.ndarray | None = None
     stage_overlays: list[np.ndarray] = field(default_factory=list)
     """The perception overlay of each closed-loop stage's closing observation."""
+    plan_overlays: list[np.ndarray] = field(default_factory=list)
+    """From the second closed-loop stage on, each stage's plan (the grasps and places carried, the
+    fold line) over the state it was planned from: with the oracle that state has the folded
+    outline's corners, not the closing observation's mesh corners (`FoldCell.start_stage`)."""
     final_state: ClothState | None = None
     final_obs: Observation | None = None
 
@@ -284,12 +288,15 @@ class FoldRecord:
 def write_fold_overlays(
     record: FoldRecord, write_image: Callable[[str, np.ndarray], object]
 ) -> None:
-    """Write the record's pictures: overlay_initial.png, overlay_stageK.png per stage done, and
-    overlay_final.png once the fold has finished (after an error, those made up to it)."""
+    """Write the record's pictures: overlay_initial.png (with stage 1's plan), overlay_stageK.png
+    per stage done, overlay_planK.png per stage K ≥ 2 planned, and overlay_final.png once the
+    fold has finished (after an error, those made up to it)."""
     if record.initial_overlay is not None:
         write_image("overlay_initial.png", record.initial_overlay)
     for k, image in enumerate(record.stage_overlays, start=1):
         write_image(f"overlay_stage{k}.png", image)
+    for k, image in enumerate(record.plan_overlays, start=2):
+        write_image(f"overlay_plan{k}.png", image)
     if record.final_obs is not None and record.final_state is not None:
         write_image("overlay_final.png", draw_overlay(record.final_obs, record.final_state))
 
@@ -327,14 +334,21 @@ def corners_of(state: ClothState) -> dict[str, np.ndarray]:
 
 
 def plan_overlay(
-    obs: Observation, state: ClothState, plan: FoldPlan, table_height: float
+    obs: Observation,
+    state: ClothState,
+    plan: FoldPlan,
+    table_height: float,
+    actions: Sequence[FoldAction] | None = None,
 ) -> np.ndarray:
-    """The perception overlay with a stage plan's grasp and place points and its fold line."""
+    """The perception overlay with a stage plan's grasp and place points (of `actions`, the ones
+    carried, where they are not the plan's: a stack carried by its edge's middle) and its fold
+    line."""
+    shown = plan.actions if actions is None else actions
     return draw_overlay(
         obs,
         state,
-        grasp_points=[a.grasp for a in plan.actions],
-        place_points=[a.place for a in plan.actions],
+        grasp_points=[a.grasp for a in shown],
+        place_points=[a.place for a in shown],
         fold_line=line_points(plan.fold_lines[0], table_height),
     )
 
@@ -402,6 +416,8 @@ def run_fold(
             and arms_apart(plan.actions)
         )
         carried = plan.actions if edge_of is None else (edge_middle(edge_of, STACK_EDGE_LAYERS),)
+        if stage > 0:
+            rec.plan_overlays.append(plan_overlay(obs, state, plan, cell.table_height, carried))
         if together:
             log(f"stage {stage + 1}: {' and '.join(a.label for a in plan.actions)} together")
             entries, latest = two_arm_actions(
