@@ -163,12 +163,14 @@ def test_exported_bag_plays_back_in_ros(ros_run, tmp_path):
 
 @pytest.fixture(scope="module")
 def ros_pants(tmp_path_factory):
-    """Pants (a coarse 3 cm mesh) folded leg over leg, then in half, over topics, recorded."""
+    """Pants (a coarse 3 cm mesh) folded leg over leg, then in half, over topics, recorded; the
+    seed's second replicate (laid 0.1 mm off), which the command must hand to the nodes."""
     tmp = tmp_path_factory.mktemp("ros_pants")
     out, bag = tmp / "episode", tmp / "run.bag"
     proc = foldbot(
         "ros-fold", "--garment", "pants", "--garment-edge-length", "0.03", "--seed", "1",
-        "--video-fps", "2", "--out", str(out), "--record", str(bag), "--port", str(free_port()),
+        "--replicate", "1", "--video-fps", "2", "--out", str(out), "--record", str(bag),
+        "--port", str(free_port()),
     )  # fmt: skip
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     return out, bag
@@ -179,6 +181,7 @@ def test_pants_fold_over_topics(ros_pants):
     result = json.loads((out / "result.json").read_text())
     assert result["transport"] == "ros" and result["garment"] == "pants"
     assert result["recipe"] == "leg_over_leg" and "garment_spec" in result
+    assert result["replicate"] == 1  # the nodes fold the replicate the command names
     assert rescore(out).fold_error_mm == pytest.approx(result["fold_error_mm"])
     # Planned by the planner node from the perceived keypoints: two folds, the stages verified.
     assert len(result["fold_lines"]) == 2 and [s["stage"] for s in result["stages"]] == [0, 1]
