@@ -72,3 +72,20 @@ def test_markdown_names_the_loop_options_a_suite_sets(tiny_suite_data):
     summary = summarise(suite_from_dict(data), [])
     assert summary["suite"]["loop_options"] == {"relay_corners": False, "pair_descent": None}
     assert "Loop options set: relay_corners = false, pair_descent = none" in markdown(summary)
+
+
+def test_markdown_shows_how_replicates_repeat(tiny_suite_data):
+    from foldbot.pipeline import REPLICATE_NUDGE_M
+
+    suite = suite_from_dict(tiny_suite_data(seeds="0-1", replicates=2))
+    errors = iter((5.0, 7.0, 20.0, 40.0))
+    records = [
+        {"id": e.id, "result": {"success": e.seed == 0, "fold_error_mm": next(errors)}}
+        for e in suite.episodes
+    ]
+    md = markdown(summarise(suite, records))
+    assert f"laid {REPLICATE_NUDGE_M * 1000:g} mm apart" in md
+    # Towel 0 (5, 7) always succeeds, towel 1 (20, 40) never: SD within √((2 + 200) / 2) = 10.0,
+    # of the means (6, 30) 17.0.
+    assert "| towel half, oracle, closed loop | 2 × 2 | 1 / 0 / 1 | 10.0 / 17.0 |" in md
+    assert "## Replicates" not in markdown(summarise(suite_from_dict(tiny_suite_data()), []))

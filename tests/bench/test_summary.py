@@ -11,6 +11,7 @@ from foldbot.bench.summary import (
     group_stats,
     mean_interval,
     paired_difference,
+    replicate_stats,
     success_interval,
     summarise,
     towel_of,
@@ -164,6 +165,29 @@ def test_with_replicates_the_paired_difference_is_over_the_towels():
     d = paired_difference(a, b, "fold_error_mm")
     assert d["pairs"] == 6 and d["mean"] == pytest.approx(6.5)
     assert d["mean_ci95"] == pytest.approx(mean_interval([2.0, 11.0]))
+
+
+def test_replicate_stats_compare_the_spread_within_a_towel_with_that_between_towels():
+    # Towel 0: 5, 7, 9 mm, all successes; towel 1: 20, 22 and a divergence, never; towel 2:
+    # 8 and 12 mm, one success. Within: pooled over (3 − 1) + (2 − 1) + (2 − 1) = 4 degrees of
+    # freedom, (8 + 2 + 8) / 4 = 4.5 → SD 2.121; the towels' means 7, 21, 10: SD 7.371.
+    def rid(t, k):
+        return f"towel-half-vision-closed-s000{t}{'' if k == 0 else f'-r{k}'}"
+
+    records = [{"id": rid(0, k), "result": result(True, e, 0.9)} for k, e in enumerate((5, 7, 9))]
+    records += [{"id": rid(1, k), "result": result(False, e, 0.9)} for k, e in enumerate((20, 22))]
+    records += [{"id": rid(1, 2), "error_type": "SimulationDivergedError", "error": "diverged"}]
+    records += [{"id": rid(2, 0), "result": result(True, 8.0, 0.9)}]
+    records += [{"id": rid(2, 1), "result": result(False, 12.0, 0.9)}]
+    r = replicate_stats(records)
+    assert (r["towels"], r["folds_per_towel"]) == (3, 3)
+    assert (r["towels_always_succeeding"], r["towels_never_succeeding"]) == (1, 1)
+    assert r["fold_error_mm_sd_within_towel"] == pytest.approx(4.5**0.5)
+    assert r["fold_error_mm_sd_of_towel_means"] == pytest.approx(np.std([7, 21, 10], ddof=1))
+    assert group_stats(records)["replicates"] == r
+    # Every towel folded once: nothing to say.
+    assert replicate_stats(records[::3]) is None
+    assert group_stats(records[::3])["replicates"] is None
 
 
 def test_group_stats_gives_the_intervals():

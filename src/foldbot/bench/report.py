@@ -151,6 +151,30 @@ def markdown(summary: dict) -> str:
                 f"| {_stat(f['actions'])} | {_f((f['coverage_start'] or {}).get('mean'), '.2f')} "
                 f"| {_stat(f['coverage_end'], '.2f')} |"
             )
+    rep_rows = [(n, g["replicates"]) for n, g in rows if g.get("replicates")]
+    if rep_rows:
+        lines += [
+            "",
+            "## Replicates (each towel folded several times, laid 0.1 mm apart)",
+            "",
+            "| group | towels × folds | towels succeeding every time / some times / never "
+            "| fold error SD mm: within a towel / of the towels' means |",
+            "|---|---|---|---|",
+        ]
+        for name, r in rep_rows:
+            some = r["towels"] - r["towels_always_succeeding"] - r["towels_never_succeeding"]
+            lines.append(
+                f"| {name} | {r['towels']} × {r['folds_per_towel']} "
+                f"| {r['towels_always_succeeding']} / {some} / {r['towels_never_succeeding']} "
+                f"| {_f(r['fold_error_mm_sd_within_towel'])} / "
+                f"{_f(r['fold_error_mm_sd_of_towel_means'])} |"
+            )
+        lines += [
+            "",
+            "A spread within a towel as large as between towels says the fold's outcome is "
+            "chaotic: one fold of a towel tells little of what that towel folds to, and a change "
+            "needs replicates (or many more towels) before a difference can be seen.",
+        ]
     failed = summary["overall"]["failed_episodes"]
     if failed:
         evidence = summary["overall"].get("failed_evidence", {})

@@ -13,6 +13,8 @@ Every figure comes from the episodes' records (result.json, or the error that en
 - actions and retries per episode; simulated robot seconds per fold (one fold = one episode's
   whole recipe); wall seconds per episode; simulation speed = Σ simulated s / Σ wall s.
 - failures grouped by cause (`failure_cause`).
+- where towels were folded several times: how often each succeeds, and the fold error's spread
+  within a towel against between towels (`replicate_stats`).
 """
 
 from __future__ import annotations
@@ -209,6 +211,36 @@ def towel_mean_interval(records: list[dict], key: str) -> list[float] | None:
     return mean_interval([float(np.mean(v)) for v in by_towel.values()])
 
 
+def replicate_stats(records: list[dict]) -> dict[str, Any] | None:
+    """Where some towel was folded more than once (suite replicates): how the towels' outcomes
+    repeat, and the fold error's spread within a towel (pooled SD of each towel's scored folds)
+    against the SD of the towels' means. A spread within as large as between says a fold's
+    outcome is chaotic: one fold of a towel tells little of what that towel folds to. None
+    where every towel was folded once."""
+    outcomes = by_towel(records, lambda r: bool(r.get("result", {}).get("success")))
+    if all(len(o) == 1 for o in outcomes):
+        return None
+    errors: dict[str, list[float]] = defaultdict(list)
+    for r in records:
+        v = r.get("result", {}).get("fold_error_mm")
+        if v is not None and math.isfinite(v):
+            errors[towel_of(r.get("id", ""))].append(float(v))
+    scored = [np.asarray(v) for v in errors.values()]
+    dof = sum(v.size - 1 for v in scored)
+    within = (
+        math.sqrt(sum(float(((v - v.mean()) ** 2).sum()) for v in scored) / dof) if dof else None
+    )
+    means = [float(v.mean()) for v in scored]
+    return {
+        "towels": len(outcomes),
+        "folds_per_towel": max(len(o) for o in outcomes),
+        "towels_always_succeeding": sum(all(o) for o in outcomes),
+        "towels_never_succeeding": sum(not any(o) for o in outcomes),
+        "fold_error_mm_sd_within_towel": within,
+        "fold_error_mm_sd_of_towel_means": float(np.std(means, ddof=1)) if len(means) > 1 else None,
+    }
+
+
 def group_stats(records: list[dict]) -> dict[str, Any]:
     """Every summary figure over a list of records. Where some towel was folded more than once
     (suite replicates), the fold error's mean interval is taken over the towels."""
@@ -254,6 +286,7 @@ def group_stats(records: list[dict]) -> dict[str, Any]:
         "failed_episodes": failures,
         "failed_evidence": evidence,
         "flatten": flatten_stats(records),
+        "replicates": replicate_stats(records),
     }
 
 
