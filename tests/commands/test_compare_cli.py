@@ -22,3 +22,29 @@ def test_a_folder_that_is_not_a_run_gets_one_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "foldbot compare: error:" in err and "is not a benchmark run folder" in err
     assert "Traceback" not in err
+
+
+def test_plot_draws_every_pair_and_refuses_what_it_cannot_write(tmp_path, capsys, write_run):
+    episodes = {
+        "towel-half-vision-closed-s0000": ("half", 0, 8.0),
+        "towel-half-vision-closed-s0001": ("half", 1, "SimulationDivergedError"),
+    }
+    a = write_run(tmp_path / "a", episodes)
+    b = write_run(tmp_path / "b", {**episodes, "towel-half-vision-closed-s0001": ("half", 1, 30.0)})
+    picture = tmp_path / "pairs.png"
+    assert main(["compare", str(a), str(b), "--plot", str(picture)]) == 0
+    assert f"Pairs drawn in {picture}" in capsys.readouterr().out
+    assert picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a", "b", "pairs.png"]  # no temp file
+    assert main(["compare", str(a), str(b), "--json"]) == 0
+    pairs = json.loads(capsys.readouterr().out)["pairs"]
+    assert [(p["fold_error_mm"], p["outcome"], p["same"]) for p in pairs] == [
+        ([8.0, 8.0], ["success", "success"], True),
+        ([None, 30.0], ["diverged", "fold inaccurate"], False),
+    ]
+    for bad, says in ((tmp_path / "pairs.jpg", "name a .png file"),
+                      (tmp_path / "no" / "pairs.png", "does not exist")):  # fmt: skip
+        assert main(["compare", str(a), str(b), "--plot", str(bad)]) == 2
+        err = capsys.readouterr().err
+        assert str(bad) in err and says in err and "Traceback" not in err
+        assert not bad.exists()

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from collections import defaultdict
 from pathlib import Path
 from typing import Any
@@ -161,14 +162,16 @@ def compare_runs(first: Path, second: Path, pair_by: str = "id") -> dict[str, An
         )
         groups[key].append((ia if ia == ib else f"{ia} / {ib}", rec_a[ia], rec_b[ib]))
     every = [p for key in groups for p in groups[key]]
-    changed = [
+    pairs = [
         {
             "id": eid,
+            "group": " ".join(str(v) for v in key),
             "fold_error_mm": [_fold_error(a), _fold_error(b)],
             "outcome": [_outcome(a), _outcome(b)],
+            "same": _same(a, b),
         }
-        for eid, a, b in every
-        if not _same(a, b)
+        for key, group in groups.items()
+        for eid, a, b in group
     ]
     paired_a, paired_b = {ia for ia, _ in common}, {ib for _, ib in common}
     return {
@@ -181,7 +184,10 @@ def compare_runs(first: Path, second: Path, pair_by: str = "id") -> dict[str, An
             {**dict(zip(SPEC_AXES, key, strict=True)), **_group_figures(pairs)}
             for key, pairs in groups.items()
         ],
-        "changed": changed,
+        "changed": [
+            {k: p[k] for k in ("id", "fold_error_mm", "outcome")} for p in pairs if not p["same"]
+        ],
+        "pairs": pairs,
     }
 
 
@@ -245,3 +251,55 @@ def markdown(comparison: dict) -> str:
             (ea, eb), (oa, ob) = c["fold_error_mm"], c["outcome"]
             lines.append(f"| {c['id']} | {_f(ea)} → {_f(eb)} | {oa} → {ob} |")
     return "\n".join(lines) + "\n"
+
+
+def plot_pairs(comparison: dict, path: Path) -> None:
+    """Each pair's fold error, second run against first, one colour per group, log scales, the
+    line of no change dashed; a pair that one run did not score (diverged, or an error) sits on
+    that run's 'not scored' edge. Written atomically as PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    pairs = comparison["pairs"]
+    scored = [v for p in pairs for v in p["fold_error_mm"] if v is not None and v > 0]
+    lo = min(scored, default=1.0) / 1.3
+    hi = max(scored, default=10.0) * 1.3
+    edge = hi * 1.6  # where a pair not scored by one run is drawn
+    fig, ax = plt.subplots(figsize=(5.5, 5.5), dpi=100)
+    for i, group in enumerate(dict.fromkeys(p["group"] for p in pairs)):
+        mine = [p for p in pairs if p["group"] == group]
+        xy = [[edge if v is None else max(v, lo) for v in p["fold_error_mm"]] for p in mine]
+        x, y = [v[0] for v in xy], [v[1] for v in xy]
+        ax.scatter(x, y, s=18, alpha=0.75, color=f"C{i % 10}", label=f"{group} ({len(mine)})")
+    ax.plot([lo, hi], [lo, hi], ls="--", lw=1, color="gray")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.minorticks_off()
+    ticks = [v for v in (1, 2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000) if lo <= v <= hi]
+    labels = [f"{v:g}" for v in ticks] + ["not\nscored"]
+    ax.set_xticks([*ticks, edge], labels, fontsize=8)
+    ax.set_yticks([*ticks, edge], labels, fontsize=8)
+    ax.set_xlim(lo, edge * 1.3)
+    ax.set_ylim(lo, edge * 1.3)
+    ax.axvline(hi * 1.25, lw=0.5, color="lightgray")
+    ax.axhline(hi * 1.25, lw=0.5, color="lightgray")
+    first, second = comparison["runs"]
+    ax.set_xlabel(f"fold error (mm), first: {first}", fontsize=8)
+    ax.set_ylabel(f"fold error (mm), second: {second}", fontsize=8)
+    d = comparison["overall"]["difference_mm"]
+    ci = d["mean_ci95"]
+    shown = "–" if d["mean"] is None else f"{d['mean']:+.1f} mm"
+    shown += "" if not ci else f" (95 % CI {ci[0]:+.1f} to {ci[1]:+.1f})"
+    ax.set_title(
+        f"{len(pairs)} pairs: second minus first {shown}\n"
+        f"{d['closer']} closer, {d['further']} further (below the dashed line: closer)",
+        fontsize=9,
+    )
+    ax.legend(fontsize=7, loc="lower right")
+    fig.tight_layout()
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}.png")
+    fig.savefig(tmp)
+    plt.close(fig)
+    os.replace(tmp, path)

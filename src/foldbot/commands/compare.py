@@ -8,7 +8,9 @@ suite's own run:
 
     foldbot bench --suite pants --out runs/pants
     foldbot bench --suite pants --loop-option top_layer_first=false --out runs/p_nofirst
-    foldbot compare runs/pants runs/p_nofirst
+    foldbot compare runs/pants runs/p_nofirst --plot runs/p_nofirst/against_pants.png
+
+`--plot FILE.png` also draws every pair, second run's fold error against the first's.
 """
 
 from __future__ import annotations
@@ -17,7 +19,8 @@ import argparse
 import json
 from pathlib import Path
 
-from foldbot.bench.compare import PAIRINGS, compare_runs, markdown
+from foldbot.bench.compare import PAIRINGS, compare_runs, markdown, plot_pairs
+from foldbot.errors import ConfigError
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -34,12 +37,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--json", action="store_true", help="print the comparison as JSON instead of Markdown"
     )
+    parser.add_argument(
+        "--plot",
+        type=Path,
+        metavar="FILE.png",
+        help="also draw every pair: the second run's fold error against the first's (PNG)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     """Print the comparison."""
+    plot = args.plot
+    if plot is not None:
+        if plot.suffix.lower() != ".png":
+            raise ConfigError(f"--plot {plot}: the picture is written as PNG; name a .png file")
+        if not plot.parent.is_dir():
+            raise ConfigError(f"--plot {plot}: its folder {plot.parent} does not exist")
     comparison = compare_runs(args.first, args.second, args.pair_by)
     print(json.dumps(comparison, indent=2) if args.json else markdown(comparison), end="")
     if args.json:
         print()
+    if plot is not None:
+        plot_pairs(comparison, plot)
+        if not args.json:
+            print(f"\nPairs drawn in {plot}")
     return 0
