@@ -104,7 +104,7 @@ def test_with_replicates_the_mean_interval_is_over_the_towels():
     errors = {"s0000": (5.0, 7.0, 9.0), "s0001": (20.0, 22.0, 24.0)}
     records = [
         {"id": f"towel-half-vision-closed-{towel}{'' if k == 0 else f'-r{k}'}",
-         "result": result(True, e, 0.9)}
+         "result": result(True, e, e / 100)}
         for towel, es in errors.items()
         for k, e in enumerate(es)
     ]  # fmt: skip
@@ -112,6 +112,8 @@ def test_with_replicates_the_mean_interval_is_over_the_towels():
     assert s["towels"] == 2 and s["episodes"] == 6
     assert s["fold_error_mm"]["mean"] == pytest.approx(14.5)
     assert s["fold_error_mm"]["mean_ci95"] == pytest.approx(mean_interval([7.0, 22.0]))
+    # So is every other mean's: the normalized performance's, here a hundredth of the error.
+    assert s["normalized_performance"]["mean_ci95"] == pytest.approx(mean_interval([0.07, 0.22]))
     assert towel_of("towel-half-vision-closed-s0001-r2") == "towel-half-vision-closed-s0001"
     assert towel_of("towel-half-vision-closed-crumpled-s0001") == (
         "towel-half-vision-closed-crumpled-s0001"

@@ -243,7 +243,8 @@ def replicate_stats(records: list[dict]) -> dict[str, Any] | None:
 
 def group_stats(records: list[dict]) -> dict[str, Any]:
     """Every summary figure over a list of records. Where some towel was folded more than once
-    (suite replicates), the fold error's mean interval is taken over the towels."""
+    (suite replicates), every mean's interval is taken over the towels, and the success rate's
+    at the effective number of episodes."""
     scored = [r["result"] for r in records if "result" in r]
     n = len(records)
     successes = sum(bool(r.get("success")) for r in scored)
@@ -258,10 +259,13 @@ def group_stats(records: list[dict]) -> dict[str, Any]:
             evidence[rec["id"]] = evidence_path(rec)
     order = {c: i for i, c in enumerate(CAUSES)}
     failures = dict(sorted(causes.items(), key=lambda kv: (order.get(kv[0], len(order)), kv[0])))
-    fold_error = stats([r.get("fold_error_mm") for r in scored])
     towels = {towel_of(r.get("id", "")) for r in records}
-    if fold_error is not None and len(towels) < n:
-        fold_error["mean_ci95"] = towel_mean_interval(records, "fold_error_mm")
+    scored_stats = {}
+    for key in ("fold_error_mm", "perfect_fold_error_mm", "normalized_performance", "coverage"):
+        figure = stats([r.get(key) for r in scored])
+        if figure is not None and len(towels) < n:
+            figure["mean_ci95"] = towel_mean_interval(records, key)
+        scored_stats[key] = figure
     return {
         "episodes": n,
         "scored": len(scored),
@@ -271,10 +275,7 @@ def group_stats(records: list[dict]) -> dict[str, Any]:
             by_towel(records, lambda r: bool(r.get("result", {}).get("success")))
         ),
         "towels": len(towels),
-        "fold_error_mm": fold_error,
-        "perfect_fold_error_mm": stats([r.get("perfect_fold_error_mm") for r in scored]),
-        "normalized_performance": stats([r.get("normalized_performance") for r in scored]),
-        "coverage": stats([r.get("coverage") for r in scored]),
+        **scored_stats,
         "actions_per_episode": _mean([len(r.get("actions", [])) for r in scored]),
         "retries_per_episode": _mean(
             [sum(a.get("retries", 0) for a in r.get("actions", [])) for r in scored]
