@@ -200,15 +200,21 @@ def by_towel(records: list[dict], outcome: Callable[[dict], bool]) -> list[list[
     return list(grouped.values())
 
 
-def towel_mean_interval(records: list[dict], key: str) -> list[float] | None:
-    """The mean's interval over the towels rather than the episodes: each seed's cloth counts
-    once, with the mean of its replicates (replicates of one towel are not independent draws)."""
-    by_towel: dict[str, list[float]] = defaultdict(list)
+def values_by_towel(records: list[dict], key: str) -> list[np.ndarray]:
+    """Each towel's finite values of result `key` (`towel_of` the record's id), towels with none
+    left out."""
+    grouped: dict[str, list[float]] = defaultdict(list)
     for r in records:
         v = r.get("result", {}).get(key)
         if v is not None and math.isfinite(v):
-            by_towel[towel_of(r.get("id", ""))].append(float(v))
-    return mean_interval([float(np.mean(v)) for v in by_towel.values()])
+            grouped[towel_of(r.get("id", ""))].append(float(v))
+    return [np.asarray(v) for v in grouped.values()]
+
+
+def towel_mean_interval(records: list[dict], key: str) -> list[float] | None:
+    """The mean's interval over the towels rather than the episodes: each seed's cloth counts
+    once, with the mean of its replicates (replicates of one towel are not independent draws)."""
+    return mean_interval([float(v.mean()) for v in values_by_towel(records, key)])
 
 
 def replicate_stats(records: list[dict]) -> dict[str, Any] | None:
@@ -220,12 +226,7 @@ def replicate_stats(records: list[dict]) -> dict[str, Any] | None:
     outcomes = by_towel(records, lambda r: bool(r.get("result", {}).get("success")))
     if all(len(o) == 1 for o in outcomes):
         return None
-    errors: dict[str, list[float]] = defaultdict(list)
-    for r in records:
-        v = r.get("result", {}).get("fold_error_mm")
-        if v is not None and math.isfinite(v):
-            errors[towel_of(r.get("id", ""))].append(float(v))
-    scored = [np.asarray(v) for v in errors.values()]
+    scored = values_by_towel(records, "fold_error_mm")
     dof = sum(v.size - 1 for v in scored)
     within = (
         math.sqrt(sum(float(((v - v.mean()) ** 2).sum()) for v in scored) / dof) if dof else None
