@@ -2,6 +2,7 @@
 SIMD level before they load (foldbot.simd), so in-process tests compute as the commands do."""
 
 import json
+import re
 
 import pytest
 
@@ -33,6 +34,9 @@ def _write_run(folder, episodes, **spec_extra):
     specs = {}
     for eid, (recipe, seed, record) in episodes.items():
         specs[eid] = _spec(recipe, seed, **spec_extra)
+        replicate = re.search(r"-r(\d+)$", eid)
+        if replicate:  # as EpisodeSpec.as_dict: the field only where it is not 0
+            specs[eid]["replicate"] = int(replicate.group(1))
         if isinstance(record, str):
             (folder / "episodes" / f"{eid}.error.json").write_text(
                 json.dumps({"id": eid, "error_type": record, "error": "cloth simulation diverged"})

@@ -154,3 +154,24 @@ def test_replicates_count_as_their_towels(tmp_path, write_run):
     assert overall["difference_mm"]["mean_ci95"] == pytest.approx(mean_interval([-1.0, 5.0]))
     # Three of six succeed, always the same towel: the interval is 1 of 2 towels'.
     assert overall["success_ci95"][0] == pytest.approx(success_interval(1, 2))
+
+
+def test_pair_by_seed_pairs_replicate_with_replicate(tmp_path, write_run):
+    def run(folder, recipe, errors):
+        return write_run(
+            tmp_path / folder,
+            {
+                f"towel-{recipe}-vision-closed-s0000{'' if k == 0 else f'-r{k}'}": (recipe, 0, e)
+                for k, e in enumerate(errors)
+            },
+        )
+
+    c = compare_runs(
+        run("q", "quarter", (40.0, 30.0, 20.0)),
+        run("qy", "quarter_y", (35.0, 31.0, 22.0)),
+        pair_by="seed",
+    )
+    assert c["overall"]["pairs"] == 3
+    assert [p["fold_error_mm"] for p in c["pairs"]] == [[40.0, 35.0], [30.0, 31.0], [20.0, 22.0]]
+    # One towel folded three times: no interval over a single towel's mean difference.
+    assert c["overall"]["difference_mm"]["mean_ci95"] is None

@@ -106,8 +106,9 @@ def _group_figures(pairs: list[tuple[str, dict, dict]]) -> dict[str, Any]:
 
 
 PAIRINGS = ("id", "seed")
-"""How episodes pair: by id (garment, recipe, perception, loop, seed), or by seed alone within
-garment, perception and loop (two recipes on the same towels: quarter against quarter_y)."""
+"""How episodes pair: by id (garment, recipe, perception, loop, seed, replicate), or by seed (and
+replicate) within garment, perception and loop (two recipes on the same towels: quarter against
+quarter_y)."""
 
 
 def _keyed(run: Path, specs: dict[str, dict], pair_by: str) -> dict[Any, str]:
@@ -116,7 +117,13 @@ def _keyed(run: Path, specs: dict[str, dict], pair_by: str) -> dict[Any, str]:
         return {eid: eid for eid in specs}
     keyed: dict[Any, str] = {}
     for eid, spec in specs.items():
-        key = (spec.get("garment"), spec.get("perception"), spec.get("loop"), spec.get("seed"))
+        key = (
+            spec.get("garment"),
+            spec.get("perception"),
+            spec.get("loop"),
+            spec.get("seed"),
+            spec.get("replicate", 0),
+        )
         if key in keyed:
             raise ConfigError(
                 f"--pair-by seed needs one recipe per garment, perception and loop in each run; "
