@@ -106,7 +106,7 @@ def markdown(summary: dict) -> str:
         "",
         "*95 % CI*: the success rate's Wilson score interval, and the Student-t interval of the "
         "mean fold error over the scored episodes: where a mean over many more towels may lie. "
-        "Where a towel was folded more than once (replicates), the fold error's interval is over "
+        "Where a towel was folded more than once (replicates), every mean's interval is over "
         "the towels' means and the success rate's is Wilson's at the effective number of "
         "episodes (`foldbot.bench.summary.clustered_success_interval`): replicates of one towel "
         "are not independent draws.",
