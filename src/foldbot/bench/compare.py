@@ -16,12 +16,11 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
-from foldbot.bench.report import _f, _interval, _pct
+from foldbot.bench.report import _f, _interval, _pct, save_figure
 from foldbot.bench.runner import EPISODES, SUITE_FILE
 from foldbot.bench.summary import (
     by_towel,
@@ -306,7 +305,4 @@ def plot_pairs(comparison: dict, path: Path) -> None:
     )
     ax.legend(fontsize=7, loc="lower right")
     fig.tight_layout()
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}.png")
-    fig.savefig(tmp)
-    plt.close(fig)
-    os.replace(tmp, path)
+    save_figure(fig, path)

@@ -19,6 +19,17 @@ def _atomic_write(path: Path, data: bytes) -> None:
     os.replace(tmp, path)
 
 
+def save_figure(fig: Any, path: Path) -> None:
+    """Write a matplotlib figure as PNG through a temporary file and a rename (complete or
+    absent), and close it."""
+    import matplotlib.pyplot as plt
+
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}.png")
+    fig.savefig(tmp)
+    plt.close(fig)
+    os.replace(tmp, path)
+
+
 def _f(v: Any, fmt: str = ".1f", none: str = "–") -> str:
     return none if v is None else format(v, fmt)
 
@@ -242,10 +253,7 @@ def plot_errors(summary: dict, records_by_group: dict[str, list[float]], path: P
         f"{s['name']}: fold error per group ({summary['episodes_finished']} episodes)", fontsize=10
     )
     fig.tight_layout()
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}.png")
-    fig.savefig(tmp)
-    plt.close(fig)
-    os.replace(tmp, path)
+    save_figure(fig, path)
 
 
 def write_report(summary: dict, records: list[dict], groups_of: dict[str, str], out: Path) -> dict:
