@@ -124,6 +124,32 @@ def test_with_replicates_the_mean_interval_is_over_the_towels():
     assert plain["fold_error_mm"]["mean_ci95"] == pytest.approx(mean_interval([5.0, 20.0]))
 
 
+def test_flatten_figures_with_replicates_are_over_the_towels():
+    # Two crumpled towels, each flattened three times: towel 0 in 1, 2, 3 actions to coverage
+    # 0.90, 0.92, 0.94; towel 1 in 5, 6, 6 to 0.70, 0.80, 0.90 (flattened once). Every mean's
+    # interval is over the two towel means, the success interval over the two towels.
+    runs = {"s0000": ((1, 0.90), (2, 0.92), (3, 0.94)), "s0001": ((5, 0.70), (6, 0.80), (6, 0.90))}
+    records = [
+        {"id": f"towel-half-vision-closed-crumpled-{towel}{'' if k == 0 else f'-r{k}'}",
+         "result": {**result(False, 20.0, 0.5),
+                    "flatten": {"success": cov >= 0.9, "actions": n, "coverage_start": 0.4,
+                                "coverage_end": cov}}}
+        for towel, rs in runs.items()
+        for k, (n, cov) in enumerate(rs)
+    ]  # fmt: skip
+    f = group_stats(records)["flatten"]
+    assert f["episodes"] == 6 and f["successes"] == 4
+    assert f["actions"]["mean"] == pytest.approx(23 / 6)
+    assert f["actions"]["mean_ci95"] == pytest.approx(mean_interval([2.0, 17 / 3]))
+    assert f["coverage_end"]["mean_ci95"] == pytest.approx(mean_interval([0.92, 0.80]))
+    assert f["coverage_start"]["mean_ci95"] == pytest.approx([0.4, 0.4])  # no spread at all
+    by_towel = [[True] * 3, [False, False, True]]
+    assert f["success_ci95"] == pytest.approx(clustered_success_interval(by_towel))
+    # Each towel flattened once: over the episodes, as before.
+    once = group_stats(records[::3])["flatten"]
+    assert once["actions"]["mean_ci95"] == pytest.approx(mean_interval([1.0, 5.0]))
+
+
 def test_clustered_success_interval_counts_what_replicates_are_worth():
     # Each towel folded once: Wilson's interval over the episodes.
     assert clustered_success_interval([[True], [False], [True]]) == success_interval(2, 3)

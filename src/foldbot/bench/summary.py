@@ -200,13 +200,22 @@ def by_towel(records: list[dict], outcome: Callable[[dict], bool]) -> list[list[
     return list(grouped.values())
 
 
+def result_value(record: dict, key: str) -> Any:
+    """The record's result value at `key`, a dotted path into nested tables ("flatten.actions");
+    None where any part is missing."""
+    value: Any = record.get("result", {})
+    for part in key.split("."):
+        value = value.get(part) if isinstance(value, dict) else None
+    return value
+
+
 def values_by_towel(records: list[dict], key: str) -> list[np.ndarray]:
-    """Each towel's finite values of result `key` (`towel_of` the record's id), towels with none
-    left out."""
+    """Each towel's finite values of result `key` (result_value; `towel_of` the record's id),
+    towels with none left out."""
     grouped: dict[str, list[float]] = defaultdict(list)
     for r in records:
-        v = r.get("result", {}).get(key)
-        if v is not None and math.isfinite(v):
+        v = result_value(r, key)
+        if isinstance(v, (int, float)) and math.isfinite(v):
             grouped[towel_of(r.get("id", ""))].append(float(v))
     return [np.asarray(v) for v in grouped.values()]
 
@@ -215,6 +224,15 @@ def towel_mean_interval(records: list[dict], key: str) -> list[float] | None:
     """The mean's interval over the towels rather than the episodes: each seed's cloth counts
     once, with the mean of its replicates (replicates of one towel are not independent draws)."""
     return mean_interval([float(v.mean()) for v in values_by_towel(records, key)])
+
+
+def towel_stats(records: list[dict], key: str) -> dict[str, Any] | None:
+    """stats() of result `key` over the episodes, with the mean's interval taken over the towels
+    where some towel was folded more than once (towel_mean_interval)."""
+    figure = stats([result_value(r, key) for r in records])
+    if figure is not None and len({towel_of(r.get("id", "")) for r in records}) < len(records):
+        figure["mean_ci95"] = towel_mean_interval(records, key)
+    return figure
 
 
 def replicate_stats(records: list[dict]) -> dict[str, Any] | None:
@@ -261,12 +279,10 @@ def group_stats(records: list[dict]) -> dict[str, Any]:
     order = {c: i for i, c in enumerate(CAUSES)}
     failures = dict(sorted(causes.items(), key=lambda kv: (order.get(kv[0], len(order)), kv[0])))
     towels = {towel_of(r.get("id", "")) for r in records}
-    scored_stats = {}
-    for key in ("fold_error_mm", "perfect_fold_error_mm", "normalized_performance", "coverage"):
-        figure = stats([r.get(key) for r in scored])
-        if figure is not None and len(towels) < n:
-            figure["mean_ci95"] = towel_mean_interval(records, key)
-        scored_stats[key] = figure
+    scored_stats = {
+        key: towel_stats(records, key)
+        for key in ("fold_error_mm", "perfect_fold_error_mm", "normalized_performance", "coverage")
+    }
     return {
         "episodes": n,
         "scored": len(scored),
@@ -310,9 +326,9 @@ def flatten_stats(records: list[dict]) -> dict[str, Any] | None:
                 crumpled, lambda r: bool(r.get("result", {}).get("flatten", {}).get("success"))
             )
         ),
-        "actions": stats([f.get("actions") for f in flat]),
-        "coverage_start": stats([f.get("coverage_start") for f in flat]),
-        "coverage_end": stats([f.get("coverage_end") for f in flat]),
+        "actions": towel_stats(crumpled, "flatten.actions"),
+        "coverage_start": towel_stats(crumpled, "flatten.coverage_start"),
+        "coverage_end": towel_stats(crumpled, "flatten.coverage_end"),
     }
 
 
