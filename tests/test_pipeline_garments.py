@@ -7,13 +7,20 @@ import json
 import subprocess
 import sys
 
+import imageio.v3 as iio
 import numpy as np
 import pytest
 
 from foldbot.errors import ConfigError
 from foldbot.garments.pants import PantsSpec
 from foldbot.garments.tshirt import TShirtSpec
+from foldbot.perception.overlay import GRASP_RGB, PLACE_RGB
 from foldbot.pipeline import GARMENT_YAW, EpisodeConfig, run_episode, seeded_garment, seeded_pose
+
+
+def marked(image: np.ndarray, rgb: tuple[int, int, int]) -> int:
+    """Pixels of `image` drawn exactly in `rgb` (the overlays are lossless PNGs)."""
+    return int((image[..., :3] == np.array(rgb)).all(axis=-1).sum())
 
 
 @pytest.mark.parametrize(
@@ -59,6 +66,15 @@ def test_garment_fold_end_to_end(tmp_path, garment, recipe, stages):
     assert [s["stage"] for s in saved["stages"]] == list(range(stages))
     for k in range(1, stages + 1):
         assert (tmp_path / "ep" / f"overlay_stage{k}.png").is_file()
+    # Every later stage's plan is pictured over the frame it started from (the previous stage's
+    # closing view): grasp and place marks drawn there, none on the closing view itself.
+    for k in range(2, stages + 1):
+        plan = iio.imread(tmp_path / "ep" / f"overlay_plan{k}.png")
+        closing = iio.imread(tmp_path / "ep" / f"overlay_stage{k - 1}.png")
+        assert plan.shape == closing.shape
+        for rgb in (GRASP_RGB, PLACE_RGB):
+            assert marked(plan, rgb) > 20 and marked(closing, rgb) == 0
+    assert not (tmp_path / "ep" / "overlay_plan1.png").exists()
     # The first stage's grasps held the cloth, and the garment is folded: its top-view area is
     # well below the flat garment's (one fold alone halves it).
     first = [a for a in result["actions"] if a["fold_line"] == saved["fold_lines"][0]]

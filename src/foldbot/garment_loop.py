@@ -7,6 +7,7 @@ re-planned from new keypoints: their grasp points come from the first observatio
 corrected onto the cloth the camera sees now (a point the earlier carries left on bare table moves
 to the nearest perceived cloth). A failed grasp is retried (bounded). In a two-arm cell a stage's two
 grasps are carried at once, one arm each (garment_pair); a stack carried from its tip, one arm.
+Each later stage's grasps, as aimed from the frame it starts from, are pictured (plan_overlays).
 Written against `FoldCell`, so the same code drives any cell; it never reads ground truth.
 """
 
@@ -342,6 +343,48 @@ def plan_overlay_all(
     )
 
 
+def aimed_actions(
+    cfg: LoopConfig,
+    state: ClothState,
+    obs: Observation,
+    stage: GarmentStage,
+    top: np.ndarray | None,
+    pair: bool,
+) -> list[FoldAction]:
+    """`stage`'s actions as the loop first aims them from this frame (corrected_grasp: onto the
+    cloth seen now, from the tip, the laid layer first); a stage's later one-arm actions are aimed
+    again after each carry, from the frame that carry leaves."""
+    if pair:
+        return [corrected_grasp(cfg, state, obs, a, a) for a in stage.actions]
+    return [
+        corrected_grasp(
+            cfg, state, obs, a, a, stage.from_tip, 0, top if j == 0 and stage.top_first else None
+        )
+        for j, a in enumerate(stage.actions)
+    ]
+
+
+def stage_plan_overlay(
+    cfg: LoopConfig,
+    state: ClothState,
+    obs: Observation,
+    stage: GarmentStage,
+    top: np.ndarray | None,
+    pair: bool,
+    z: float,
+) -> np.ndarray:
+    """A later stage's plan over the frame it starts from: its grasps as aimed from that frame
+    (aimed_actions; as planned where the frame shows no cloth), their places and the fold line."""
+    shown = aimed_actions(cfg, state, obs, stage, top, pair) if state.detected else stage.actions
+    return draw_overlay(
+        obs,
+        state,
+        grasp_points=[a.grasp for a in shown],
+        place_points=[a.place for a in shown],
+        fold_line=line_points(stage.fold_line, z),
+    )
+
+
 def run_garment_fold(
     cfg: LoopConfig,
     cell: FoldCell,
@@ -369,6 +412,12 @@ def run_garment_fold(
     for i, stage in enumerate(plan.stages):
         rec.fold_lines.append(stage.fold_line)
         before_state, before_obs = state, obs
+        if cfg.closed_loop and i > 0:
+            rec.plan_overlays.append(
+                stage_plan_overlay(
+                    cfg, state, obs, stage, top, together(cell, stage), cell.table_height
+                )
+            )
         if cfg.closed_loop and together(cell, stage):
             log(f"stage {i + 1}: {' and '.join(a.label for a in stage.actions)} together")
             entries, state, obs = garment_pair(cfg, cell, stage.actions, state, obs, log)

@@ -280,7 +280,8 @@ class FoldRecord:
     plan_overlays: list[np.ndarray] = field(default_factory=list)
     """From the second closed-loop stage on, each stage's plan (the grasps and places carried, the
     fold line) over the state it was planned from: with the oracle that state has the folded
-    outline's corners, not the closing observation's mesh corners (`FoldCell.start_stage`)."""
+    outline's corners, not the closing observation's mesh corners (`FoldCell.start_stage`). A
+    garment's grasps are shown as aimed from that frame (garment_loop.aimed_actions)."""
     final_state: ClothState | None = None
     final_obs: Observation | None = None
 
