@@ -4,7 +4,7 @@ import json
 
 from foldbot.bench.report import markdown, write_report
 from foldbot.bench.suite import suite_from_dict
-from foldbot.bench.summary import summarise
+from foldbot.bench.summary import mean_interval, summarise
 
 
 def test_report_files(tmp_path, tiny_suite_data):
@@ -89,3 +89,22 @@ def test_markdown_shows_how_replicates_repeat(tiny_suite_data):
     # of the means (6, 30) 17.0.
     assert "| towel half, oracle, closed loop | 2 × 2 | 1 / 0 / 1 | 10.0 / 17.0 |" in md
     assert "## Replicates" not in markdown(summarise(suite_from_dict(tiny_suite_data()), []))
+
+
+def test_markdown_shows_the_flattening_with_intervals_over_the_towels(tiny_suite_data):
+    data = tiny_suite_data(seeds="0-1", replicates=2)
+    data["episode"]["start"] = "crumpled"
+    suite = suite_from_dict(data)
+    # Towel 0 flattened to 0.95 and 0.97 in 2 actions; towel 1 left at 0.60 and 0.70 after 6.
+    cover = iter((0.95, 0.97, 0.60, 0.70))
+    records = []
+    for e in suite.episodes:
+        end = next(cover)
+        flat = {"success": end >= 0.9, "actions": 2 if e.seed == 0 else 6,
+                "coverage_start": 0.4, "coverage_end": end}  # fmt: skip
+        records.append({"id": e.id, "result": {"success": False, "flatten": flat}})
+    md = markdown(summarise(suite, records))
+    assert "## Flattening" in md
+    # Coverage after: towel means 0.96 and 0.65, Student's t over the two towels, not four folds.
+    lo, hi = mean_interval([0.96, 0.65])
+    assert f"| 0.80 / 0.82 / 0.97 | {lo:.2f}–{hi:.2f} |" in md

@@ -153,14 +153,16 @@ def markdown(summary: dict) -> str:
             "## Flattening (crumpled starts; success = coverage ≥ 0.9 within the action budget)",
             "",
             "| group | episodes | flattened (95 % CI) | actions: mean / median / p95 "
-            "| coverage before: mean | coverage after: mean / median / p95 |",
-            "|---|---|---|---|---|---|",
+            "| coverage before: mean | coverage after: mean / median / p95 "
+            "| coverage after: mean's 95 % CI |",
+            "|---|---|---|---|---|---|---|",
         ]
         for name, f in flat_rows:
+            end = f["coverage_end"] or {}
             lines.append(
                 f"| {name} | {f['episodes']} | {_rate(f)} "
                 f"| {_stat(f['actions'])} | {_f((f['coverage_start'] or {}).get('mean'), '.2f')} "
-                f"| {_stat(f['coverage_end'], '.2f')} |"
+                f"| {_stat(f['coverage_end'], '.2f')} | {_interval(end.get('mean_ci95'), '.2f')} |"
             )
     rep_rows = [(n, g["replicates"]) for n, g in rows if g.get("replicates")]
     if rep_rows:
