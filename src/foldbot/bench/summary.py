@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import numbers
 import re
 from collections import defaultdict
 from collections.abc import Callable
@@ -218,7 +219,7 @@ def values_by_towel(records: list[dict], key: str) -> list[np.ndarray]:
     grouped: dict[str, list[float]] = defaultdict(list)
     for r in records:
         v = result_value(r, key)
-        if isinstance(v, (int, float)) and math.isfinite(v):
+        if isinstance(v, numbers.Real) and math.isfinite(v):
             grouped[towel_of(r.get("id", ""))].append(float(v))
     return [np.asarray(v) for v in grouped.values()]
 
