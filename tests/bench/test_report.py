@@ -51,6 +51,8 @@ def test_report_files(tmp_path, tiny_suite_data):
     assert "| perfect fold mm: mean |" in md and "| 2.5 |" in md and "physically perfect fold" in md
     assert "towel half, oracle, closed loop" in md and "vision / oracle" in md
     assert "foldbot bench --suite tiny --out X" in md
+    # Every scored episode simulated 10 s in 25 s of wall time: all five under real time.
+    assert "| 0.40× (0.40–0.40; 5 under 1×) |" in md
     assert "FabricFlowNet" in md and "timeout" in md
     timed_out = records[-1]["id"]
     inaccurate = next(r["id"] for r in records if "result" in r and not r["result"]["success"])

@@ -56,6 +56,12 @@ def test_group_stats_by_hand():
     assert s["sim_seconds_per_fold"] == pytest.approx(11.0)
     assert s["wall_seconds_per_episode"] == pytest.approx(22.5)
     assert s["sim_speed"] == pytest.approx(44 / 90)
+    # Per episode: 0.5, 0.6, 0.35 and 0.8 × real time, every one of them under 1×.
+    assert s["episode_speed"]["min"] == pytest.approx(0.35)
+    assert s["episode_speed"]["max"] == pytest.approx(0.8)
+    assert s["episodes_under_real_time"] == 4
+    fast = group_stats([{"id": "g", "result": result(True, 5.0, 0.9, sim=12, wall=10)}])
+    assert fast["episodes_under_real_time"] == 0 and fast["episode_speed"]["min"] == 1.2
     assert s["failures"] == {"fold inaccurate": 1, "grasp failed": 1, "diverged": 1}
     assert s["failed_episodes"]["grasp failed"] == ["c"]
     # Where to look at each failure: the scored folder, else what the error left, else its record.

@@ -64,6 +64,17 @@ def _difference(d: dict | None) -> str:
     return f"{d['mean']:+.1f} ({shown}), {d['pairs']}"
 
 
+def _speed(g: dict) -> str:
+    """The run's simulation speed with its episodes' spread: '1.21× (0.89–1.78; 7 under 1×)'."""
+    speed = f"{_f(g.get('sim_speed'), '.2f')}×"
+    each = g.get("episode_speed")
+    if not each or g.get("episodes_under_real_time") is None:
+        return speed
+    return (
+        f"{speed} ({each['min']:.2f}–{each['max']:.2f}; {g['episodes_under_real_time']} under 1×)"
+    )
+
+
 def _failures(f: dict[str, int]) -> str:
     return ", ".join(f"{c} {n}" for c, n in f.items()) or "none"
 
@@ -93,7 +104,8 @@ def markdown(summary: dict) -> str:
     header = (
         "| group | episodes | success (95 % CI) | fold error mm: mean / median / p95 "
         "| fold error mm: mean's 95 % CI | perfect fold mm: mean | normalized perf.: mean / median / p95 | coverage: mean | actions / retries per episode "
-        "| sim s per fold | wall s per episode | sim speed | failures by cause |"
+        "| sim s per fold | wall s per episode | sim speed (per episode; under real time) "
+        "| failures by cause |"
     )
     lines += [header, "|" + "---|" * 13]
     rows = [("**all**", summary["overall"])] + [(_group_name(g), g) for g in summary["groups"]]
@@ -106,7 +118,7 @@ def markdown(summary: dict) -> str:
             f"| {_f((g['coverage'] or {}).get('mean'), '.2f')} "
             f"| {_f(g['actions_per_episode'])} / {_f(g['retries_per_episode'], '.2f')} "
             f"| {_f(g['sim_seconds_per_fold'])} | {_f(g['wall_seconds_per_episode'])} "
-            f"| {_f(g['sim_speed'], '.2f')}× | {_failures(g['failures'])} |"
+            f"| {_speed(g)} | {_failures(g['failures'])} |"
         )
     lines += [
         "",

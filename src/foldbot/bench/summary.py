@@ -304,11 +304,27 @@ def group_stats(records: list[dict]) -> dict[str, Any]:
         "sim_seconds_per_fold": _mean([r.get("sim_seconds") for r in scored]),
         "wall_seconds_per_episode": _mean([r.get("wall_seconds") for r in scored]),
         "sim_speed": sim / wall if wall > 0 else None,
+        **episode_speeds(scored),
         "failures": {c: len(ids) for c, ids in failures.items()},
         "failed_episodes": failures,
         "failed_evidence": evidence,
         "flatten": flatten_stats(records),
         "replicates": replicate_stats(records),
+    }
+
+
+def episode_speeds(results: list[dict]) -> dict[str, Any]:
+    """Each scored episode's simulation speed (simulated over wall seconds): their spread
+    (`episode_speed`, stats) and how many ran slower than real time (`episodes_under_real_time`),
+    the target being each episode at least real time, not the run on average."""
+    speeds = [
+        r["sim_seconds"] / r["wall_seconds"]
+        for r in results
+        if r.get("sim_seconds") is not None and (r.get("wall_seconds") or 0.0) > 0.0
+    ]
+    return {
+        "episode_speed": stats(speeds),
+        "episodes_under_real_time": sum(v < 1.0 for v in speeds) if speeds else None,
     }
 
 

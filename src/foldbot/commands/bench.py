@@ -246,6 +246,12 @@ def _print_overview(s: dict) -> None:
             f"{o['retries_per_episode']:.2f} retries, {o['sim_seconds_per_fold']:.1f} s simulated, "
             f"{o['wall_seconds_per_episode']:.1f} s wall (sim speed {o['sim_speed']:.2f}× real time)"
         )
+        each = o.get("episode_speed")
+        if each:
+            print(
+                f"  speed per episode       {each['min']:.2f}–{each['max']:.2f}× real time, "
+                f"{o['episodes_under_real_time']} of {o['scored']} under 1×"
+            )
     for g in s["groups"]:
         e = g["fold_error_mm"]
         print(
