@@ -3,6 +3,7 @@ garment loop, scoring and the episode folder."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import subprocess
 import sys
@@ -13,9 +14,17 @@ import pytest
 
 from foldbot.errors import ConfigError
 from foldbot.garments.pants import PantsSpec
+from foldbot.garments.towel import TowelSpec
 from foldbot.garments.tshirt import TShirtSpec
 from foldbot.perception.overlay import GRASP_RGB, PLACE_RGB
-from foldbot.pipeline import GARMENT_YAW, EpisodeConfig, run_episode, seeded_garment, seeded_pose
+from foldbot.pipeline import (
+    GARMENT_YAW,
+    EpisodeConfig,
+    run_episode,
+    seeded_garment,
+    seeded_pose,
+    spec_record,
+)
 
 
 def marked(image: np.ndarray, rgb: tuple[int, int, int]) -> int:
@@ -50,6 +59,16 @@ def test_garment_size_and_pose_come_from_the_seed():
     assert abs(yaw - GARMENT_YAW) <= cfg.yaw_range  # top toward the robot, ± the yaw range
     pants, _ = seeded_garment(EpisodeConfig(garment="pants", recipe="leg_over_leg", seed=4))
     assert isinstance(pants, PantsSpec)
+
+
+def test_result_records_a_towels_vertex_bound_only_where_one_is_set():
+    # Results from before the bound existed read the same: no max_vertices key unless set.
+    assert spec_record(TowelSpec()) == {
+        "width": 0.30, "height": 0.30, "resolution": 16, "odd_grid": False
+    }  # fmt: skip
+    assert spec_record(TowelSpec(max_vertices=143))["max_vertices"] == 143
+    tshirt, _ = seeded_garment(EpisodeConfig(garment="tshirt", recipe="retail", seed=4))
+    assert spec_record(tshirt) == dataclasses.asdict(tshirt)
 
 
 @pytest.mark.slow

@@ -266,6 +266,15 @@ class _VideoRecorder:
         self.writer.add_frame(frame)
 
 
+def spec_record(spec: object) -> dict:
+    """The garment spec as result.json records it: its fields, a towel's vertex bound only where
+    one is set (results from before the bound existed read the same)."""
+    record = dataclasses.asdict(spec)  # type: ignore[call-overload]
+    if isinstance(spec, TowelSpec) and spec.max_vertices is None:
+        del record["max_vertices"]
+    return record
+
+
 def seeded_towel(cfg: EpisodeConfig) -> TowelSpec:
     """The towel of this episode: `cfg.towel`, or with sides drawn from `towel_size_range`."""
     if cfg.towel_size_range is None:
@@ -489,7 +498,7 @@ def episode_result(
         "perception": cfg.perception,
         "closed_loop": cfg.closed_loop,
         "grasp_points_source": "oracle" if cfg.perception == "oracle" else "vision",
-        ("towel" if cfg.garment == "towel" else "garment_spec"): dataclasses.asdict(spec),
+        ("towel" if cfg.garment == "towel" else "garment_spec"): spec_record(spec),
         "cloth_pose": {"x": x, "y": y, "yaw": yaw},
         "camera": {
             "width": camera.width,

@@ -137,6 +137,19 @@ def test_odd_grid_reaches_the_towel_and_is_left_out_of_specs_by_default(tiny_sui
     assert "odd counts" in suite_from_dict(data).randomised["text"]
 
 
+def test_max_vertices_reaches_the_towel_and_is_left_out_of_specs_by_default(tiny_suite_data):
+    data = tiny_suite_data()
+    default = load_one(data)
+    assert default.to_config().towel.max_vertices is None
+    assert "towel_max_vertices" not in default.as_dict()  # older runs keep resuming
+    data["towel"].update(resolution=13, odd_grid=True, max_vertices=143)
+    spec = load_one(data)
+    assert spec.to_config().towel.grid_shape == (11, 11)  # the 30 cm square: 13 × 13 is 169
+    assert spec.as_dict()["towel_max_vertices"] == 143
+    assert EpisodeSpec.from_dict(spec.as_dict()) == spec
+    assert "at most 143 vertices" in suite_from_dict(data).randomised["text"]
+
+
 def test_arms_reach_the_cell_and_are_left_out_of_specs_by_default(tiny_suite_data):
     data = tiny_suite_data()
     default = load_one(data)
@@ -289,6 +302,8 @@ def test_unknown_suite_name_lists_the_available_ones():
         (lambda d: d["towel"].update(resolution=99), ["towel.resolution", "99"]),
         (lambda d: d["towel"].update(width=2.0), ["towel.width", "2.0"]),
         (lambda d: d["towel"].update(odd_grid="yes"), ["towel.odd_grid", "bool"]),
+        (lambda d: d["towel"].update(max_vertices=10), ["towel.max_vertices = 10", "[25, 1600]"]),
+        (lambda d: d["towel"].update(max_vertices=1.5), ["towel.max_vertices", "int"]),
         (lambda d: d.update(randomise={"towel_side": [0.4, 0.2]}), ["towel_side", "lo ≤ hi"]),
         (lambda d: d.update(randomise={"towel_side": 0.3}), ["towel_side", "[lo, hi]"]),
         (lambda d: d.update(randomise={"yaw_deg": -5}), ["yaw_deg", "-5"]),

@@ -79,6 +79,16 @@ def test_odd_grid_flag_reaches_the_towel():
     assert cfg.towel.odd_grid is False and cfg.towel.grid_shape == (16, 16)
 
 
+def test_max_vertices_reaches_the_towel():
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    cfg = config_from_args(parser.parse_args(["--out", "x", "--resolution", "13"]))
+    assert cfg.towel.max_vertices is None and cfg.towel.grid_shape == (13, 13)
+    args = ["--out", "x", "--resolution", "13", "--max-vertices", "143"]
+    cfg = config_from_args(parser.parse_args(args))
+    assert cfg.towel.max_vertices == 143 and cfg.towel.grid_shape == (11, 11)
+
+
 def test_replicate_reaches_the_episode():
     parser = argparse.ArgumentParser()
     add_arguments(parser)

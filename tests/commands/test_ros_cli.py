@@ -120,6 +120,7 @@ def test_ros_fold_hands_the_nodes_every_option_that_shapes_the_episode(tmp_path)
             *("--robot", "panda", "--start", "flat", "--park", "out_of_view", "--arms", "2"),
             *("--seed", "7", "--replicate", "3", "--width", "0.33", "--height", "0.27"),
             *("--resolution", "11", "--no-odd-grid", "--mass", "0.2", "--time-step", "0.002"),
+            *("--max-vertices", "100"),
             *("--jaw-catch", "surface", "--video-fps", "0"),
             *("--loop-option", "stack_edge_carry=false", "--loop-option", "pair_descent=0.02"),
         ]
@@ -127,4 +128,5 @@ def test_ros_fold_hands_the_nodes_every_option_that_shapes_the_episode(tmp_path)
     _node_args, node_cfg = parse_fold_args(ros_fold.fold_args_text(args))
     assert node_cfg == fold.config_from_args(args)
     assert node_cfg.replicate == 3 and node_cfg.jaw_catch == "surface"
+    assert node_cfg.towel.max_vertices == 100
     assert node_cfg.loop_options == {"stack_edge_carry": False, "pair_descent": 0.02}

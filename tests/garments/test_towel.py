@@ -57,8 +57,38 @@ def test_odd_grid_puts_vertex_rows_on_both_midlines(width, height, resolution, s
         ({"resolution": 400}, "resolution"),
         ({"resolution": 10.5}, "resolution"),
         ({"odd_grid": "yes"}, "odd_grid"),
+        ({"max_vertices": 24}, "max_vertices must be an integer in \\[25, 1600\\], got 24"),
+        ({"max_vertices": 143.0}, "max_vertices"),
+        ({"max_vertices": True}, "max_vertices"),
     ],
 )
 def test_bad_towel_specs_name_the_value(kwargs, needle):
     with pytest.raises(ConfigError, match=needle):
         TowelSpec(**kwargs)
+
+
+@pytest.mark.parametrize(
+    ("width", "height", "max_vertices", "shape"),
+    [
+        (0.30, 0.30, None, (13, 13)),  # no bound: 13 along the longer side
+        (0.30, 0.30, 143, (11, 11)),  # a square towel: fewer along its sides
+        (0.45, 0.35, 143, (11, 13)),  # already within the bound: unchanged
+        (0.45, 0.25, 143, (7, 13)),
+        (0.30, 0.30, 25, (5, 5)),  # the coarsest odd grid
+    ],
+)
+def test_max_vertices_bounds_the_grid(width, height, max_vertices, shape):
+    spec = TowelSpec(width, height, resolution=13, odd_grid=True, max_vertices=max_vertices)
+    assert spec.grid_shape == shape
+    mesh = make_towel(spec)
+    assert len(mesh.vertices) == shape[0] * shape[1]
+    if max_vertices is None:
+        return
+    assert len(mesh.vertices) <= max_vertices
+    # Where the bound coarsened the grid, it is the finest within it: the next resolution up
+    # (a finer grid) would exceed it.
+    unbounded = TowelSpec(width, height, resolution=13, odd_grid=True).grid_shape
+    if shape != unbounded:
+        for resolution in range(max(shape) + 1, 14):
+            finer = TowelSpec(width, height, resolution=resolution, odd_grid=True).grid_shape
+            assert finer == shape or np.prod(finer) > max_vertices

@@ -22,6 +22,8 @@ replicates = 1                          # runs of each seed's cloth (1–20): re
 [towel]                                 # the towel's fixed settings
 resolution = 16                         # vertices along the longer side (4–40)
 odd_grid = false                        # odd vertex counts: vertex rows on both midlines
+max_vertices = 143                      # at most this many vertices (optional): a near-square
+                                        # towel gets fewer along its longer side
 width = 0.30                            # m; used when [randomise] towel_side is absent
 height = 0.30
 
@@ -63,7 +65,7 @@ from pathlib import Path
 from typing import Any
 
 from foldbot.errors import ConfigError
-from foldbot.garments.towel import MAX_RESOLUTION, MIN_RESOLUTION, TowelSpec
+from foldbot.garments.towel import MAX_RESOLUTION, MIN_RESOLUTION, MIN_VERTICES, TowelSpec
 from foldbot.loop_options import LOOP_OPTIONS, LoopOptionValue, check_loop_options
 from foldbot.pipeline import (
     ARM_COUNTS,
@@ -98,7 +100,7 @@ _SCHEMA: dict[str, set[str]] = {
         "reference",
     },
     "axes": {"garment", "recipe", "perception", "loop", "seeds", "replicates"},
-    "towel": {"resolution", "odd_grid", "width", "height"},
+    "towel": {"resolution", "odd_grid", "max_vertices", "width", "height"},
     "randomise": {"towel_side", "position_jitter", "yaw_deg", "garment_yaw_deg"},
     "episode": {"retries", "video_fps", "start", "park", "time_step", "arms", "jaw_catch"},
     "loop_options": set(LOOP_OPTIONS),
@@ -149,6 +151,8 @@ class EpisodeSpec:
     towel_resolution: int = 16
     towel_odd_grid: bool = False
     """Odd vertex counts along both sides (TowelSpec.odd_grid)."""
+    towel_max_vertices: int | None = None
+    """At most this many vertices per towel (TowelSpec.max_vertices); None: no bound."""
     towel_side_range: tuple[float, float] | None = None
     """m; each side drawn uniformly from it by the seed."""
     position_jitter: float = 0.03
@@ -203,6 +207,7 @@ class EpisodeSpec:
                 height=self.towel_height,
                 resolution=self.towel_resolution,
                 odd_grid=self.towel_odd_grid,
+                max_vertices=self.towel_max_vertices,
             ),
             towel_size_range=self.towel_side_range,
             position_jitter=self.position_jitter,
@@ -226,6 +231,8 @@ class EpisodeSpec:
             del d["time_step"]  # runs from before the key existed resume unchanged
         if not d["towel_odd_grid"]:
             del d["towel_odd_grid"]  # likewise
+        if d["towel_max_vertices"] is None:
+            del d["towel_max_vertices"]  # likewise
         if d["arms"] == 1:
             del d["arms"]  # likewise
         if d["jaw_catch"] == "vertices":
@@ -412,6 +419,12 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
             f"[{MIN_RESOLUTION}, {MAX_RESOLUTION}]"
         )
     odd_grid = _get(data, "towel", "odd_grid", bool, False, where)
+    max_vertices = _get(data, "towel", "max_vertices", int, None, where)
+    if max_vertices is not None and not MIN_VERTICES <= max_vertices <= MAX_RESOLUTION**2:
+        raise ConfigError(
+            f"{where}: towel.max_vertices = {max_vertices!r} must be an integer in "
+            f"[{MIN_VERTICES}, {MAX_RESOLUTION**2}]"
+        )
     width = _range(towel.get("width", 0.30), "towel.width", 0.05, 1.0, where)
     height = _range(towel.get("height", 0.30), "towel.height", 0.05, 1.0, where)
 
@@ -488,6 +501,7 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
             towel_height=height,
             towel_resolution=resolution,
             towel_odd_grid=odd_grid,
+            towel_max_vertices=max_vertices,
             towel_side_range=side_range,
             position_jitter=jitter,
             yaw_deg=yaw,
@@ -513,6 +527,7 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
         "towel_fixed_m": None if side_range else [width, height],
         "towel_resolution": resolution,
         "towel_odd_grid": odd_grid,
+        "towel_max_vertices": max_vertices,
         "position_jitter_m": jitter,
         "yaw_deg": yaw,
         "garment_yaw_deg": garment_yaw if set(garments) - {"towel"} else None,
@@ -527,6 +542,12 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
                         )
                         + f", {resolution} vertices along the longer side"
                         + (" (odd counts: vertex rows on both midlines)" if odd_grid else "")
+                        + (
+                            f", at most {max_vertices} vertices (fewer along the longer side "
+                            "where that would give more)"
+                            if max_vertices is not None
+                            else ""
+                        )
                     ]
                     if "towel" in garments
                     else []

@@ -114,6 +114,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="cloth vertices along the towel's longer side (4–40, default 16)",
     )
     parser.add_argument(
+        "--max-vertices",
+        type=int,
+        default=None,
+        metavar="N",
+        help="at most N cloth vertices on the towel: where --resolution along the longer side "
+        "gives more (a near-square towel), fewer along it; a physics step's cost grows with the "
+        "vertices (default: no bound)",
+    )
+    parser.add_argument(
         "--odd-grid",
         action=argparse.BooleanOptionalAction,
         default=True,
@@ -185,6 +194,7 @@ def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
             height=args.height,
             resolution=args.resolution,
             odd_grid=args.odd_grid,
+            max_vertices=args.max_vertices,
         ),
         garment_edge_length=args.garment_edge_length,
         garment_yaw=math.radians(args.garment_yaw),

@@ -92,6 +92,8 @@ def fold_args_text(args: argparse.Namespace) -> str:
         words += ["--garment-edge-length", repr(args.garment_edge_length)]
     words += ["--garment-yaw", repr(args.garment_yaw)]
     words.append("--odd-grid" if args.odd_grid else "--no-odd-grid")
+    if args.max_vertices is not None:
+        words += ["--max-vertices", str(args.max_vertices)]
     if args.overwrite:
         words.append("--overwrite")
     return shlex.join(words)

@@ -11,6 +11,9 @@ from foldbot.garments.mesh import ClothMesh
 
 MIN_RESOLUTION = 4
 MAX_RESOLUTION = 40
+MIN_VERTICES = (MIN_RESOLUTION + 1) ** 2
+"""The smallest vertex bound a towel may be given: the coarsest grid any towel can get (5 × 5,
+odd counts)."""
 TOWEL_CORNERS = ("corner_00", "corner_10", "corner_11", "corner_01")
 """Mesh-frame corner names: corner_ij at (i ? +w/2 : −w/2, j ? +h/2 : −h/2)."""
 
@@ -30,6 +33,10 @@ class TowelSpec:
     least 5), so both midlines, the half folds' lines, are vertex rows. A mass-spring mesh
     creases only at its vertices: a fold line that falls between two rows leaves a whole edge
     standing in the crease, and the folded layer lies up to an edge's length off its goal."""
+    max_vertices: int | None = None
+    """At most this many vertices: where `resolution` along the longer side gives more (a
+    near-square towel), the longer side gets the largest count that stays within it. A physics
+    step's cost grows with the vertices, so this bounds an episode's; None: no bound."""
 
     def __post_init__(self) -> None:
         for name in ("width", "height"):
@@ -48,14 +55,30 @@ class TowelSpec:
             isinstance(self.odd_grid, bool | np.bool_),
             f"towel odd_grid must be true or false, got {self.odd_grid!r}",
         )
+        if self.max_vertices is not None:
+            require(
+                isinstance(self.max_vertices, int | np.integer)
+                and not isinstance(self.max_vertices, bool)
+                and MIN_VERTICES <= self.max_vertices <= MAX_RESOLUTION**2,
+                f"towel max_vertices must be an integer in [{MIN_VERTICES}, "
+                f"{MAX_RESOLUTION**2}], got {self.max_vertices!r}",
+            )
 
     @property
     def grid_shape(self) -> tuple[int, int]:
         """(rows along y, cols along x) of the vertex grid, spacing as square as possible (with
-        `odd_grid`, both counts odd)."""
+        `odd_grid`, both counts odd), `resolution` along the longer side or, where that gives more
+        than `max_vertices`, the largest count that does not."""
+        for resolution in range(self.resolution, MIN_RESOLUTION - 1, -1):
+            ny, nx = self._grid_at(resolution)
+            if self.max_vertices is None or ny * nx <= self.max_vertices:
+                return ny, nx
+        return ny, nx  # the coarsest grid: MIN_VERTICES keeps it within any allowed bound
+
+    def _grid_at(self, resolution: int) -> tuple[int, int]:
         long_side = max(self.width, self.height)
-        edges_x = (self.resolution - 1) * self.width / long_side
-        edges_y = (self.resolution - 1) * self.height / long_side
+        edges_x = (resolution - 1) * self.width / long_side
+        edges_y = (resolution - 1) * self.height / long_side
         if self.odd_grid:  # an even number of edges puts a vertex row on each midline
             return _odd_count(edges_y), _odd_count(edges_x)
         nx = max(MIN_RESOLUTION, round(edges_x) + 1)
