@@ -32,13 +32,13 @@ from foldbot.loop import (
     FoldCell,
     FoldRecord,
     LoopConfig,
+    actions_overlay,
     arms_apart,
     assign_arms,
     corners_of,
     execute_action,
     execute_as_planned,
     finish_fold,
-    line_points,
     missed_grasps,
     open_loop_entry,
     pair_attempt,
@@ -334,13 +334,7 @@ def plan_overlay_all(
 ) -> np.ndarray:
     """The first observation's overlay: keypoints and the first stage's grasps, places and line."""
     first = plan.stages[0]
-    return draw_overlay(
-        obs,
-        state,
-        grasp_points=[a.grasp for a in first.actions],
-        place_points=[a.place for a in first.actions],
-        fold_line=line_points(first.fold_line, z),
-    )
+    return actions_overlay(obs, state, first.actions, first.fold_line, z)
 
 
 def aimed_actions(
@@ -376,13 +370,7 @@ def stage_plan_overlay(
     """A later stage's plan over the frame it starts from: its grasps as aimed from that frame
     (aimed_actions; as planned where the frame shows no cloth), their places and the fold line."""
     shown = aimed_actions(cfg, state, obs, stage, top, pair) if state.detected else stage.actions
-    return draw_overlay(
-        obs,
-        state,
-        grasp_points=[a.grasp for a in shown],
-        place_points=[a.place for a in shown],
-        fold_line=line_points(stage.fold_line, z),
-    )
+    return actions_overlay(obs, state, shown, stage.fold_line, z)
 
 
 def run_garment_fold(

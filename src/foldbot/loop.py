@@ -345,12 +345,24 @@ def plan_overlay(
     carried, where they are not the plan's: a stack carried by its edge's middle) and its fold
     line."""
     shown = plan.actions if actions is None else actions
+    return actions_overlay(obs, state, shown, plan.fold_lines[0], table_height)
+
+
+def actions_overlay(
+    obs: Observation,
+    state: ClothState,
+    actions: Sequence[FoldAction],
+    fold_line: tuple[float, float, float, float],
+    z: float,
+) -> np.ndarray:
+    """The perception overlay with `actions`' grasp and place points and `fold_line` at height
+    `z`: the picture of a stage's plan, towel or garment."""
     return draw_overlay(
         obs,
         state,
-        grasp_points=[a.grasp for a in shown],
-        place_points=[a.place for a in shown],
-        fold_line=line_points(plan.fold_lines[0], table_height),
+        grasp_points=[a.grasp for a in actions],
+        place_points=[a.place for a in actions],
+        fold_line=line_points(fold_line, z),
     )
 
 
