@@ -20,7 +20,7 @@ from collections.abc import Callable
 import cv2
 import numpy as np
 
-from foldbot.errors import ArmsWouldCollideError, FoldbotError, PerceptionError
+from foldbot.errors import FoldbotError, PerceptionError
 from foldbot.grasp_points import (
     GRASP_INSET,
     stack_grasp_point,
@@ -34,17 +34,14 @@ from foldbot.loop import (
     LoopConfig,
     actions_overlay,
     arms_apart,
-    assign_arms,
+    carry_pair,
     corners_of,
     execute_action,
     execute_as_planned,
     finish_fold,
-    missed_grasps,
     open_loop_entry,
-    pair_attempt,
     require_in_view,
     show_action,
-    show_and_carry_pair,
 )
 from foldbot.perception.layers import laid_layer_mask, mask_points
 from foldbot.perception.overlay import draw_overlay
@@ -248,50 +245,35 @@ def garment_pair(
     times, a missed grasp RETRY_INSET farther toward the cloth's centre each time); a pair
     that still fails, or whose arms would meet either way, is done one arm at a time
     (garment_action)."""
-    t_sim, t_wall = cell.sim_time, time.perf_counter()
-    state, obs = latest, latest_obs
-    arms = assign_arms(cell.arm_for, planned)
-    attempts: list[dict] = []
-    outcomes: list[dict] = []
-    actions = list(planned)
-    failed = [False] * len(planned)
-    for attempt in range(cfg.retries + 1):
-        actions = [
-            inward(state, corrected_grasp(cfg, state, obs, p, p), attempt * RETRY_INSET)
-            if failed[i]
-            else corrected_grasp(cfg, state, obs, p, p)
-            for i, p in enumerate(planned)
-        ]
-        try:
-            outcomes, arms = show_and_carry_pair(cell, state, arms, actions, log)
-        except ArmsWouldCollideError as exc:
-            log(f"  the arms would meet ({exc}); carrying them one arm at a time")
-            entries = []
-            for p in planned:
-                entry, state, obs = garment_action(cfg, cell, p, state, obs, log)
-                entry["arms_would_meet"] = str(exc)
-                entries.append(entry)
-            return entries, state, obs
-        cell.park()
-        state, obs = cell.observe()
-        failed = [not o["grasp_success"] for o in outcomes]
-        attempts.append(pair_attempt(actions, outcomes))
-        if outcomes[0]["carried"]:
-            break
-        reasons = missed_grasps(planned, outcomes)
-        if attempt < cfg.retries:
-            log(f"  grasp failed ({reasons}); both arms let go, re-observed, retry {attempt + 1}")
-        else:
-            log(f"  grasp failed ({reasons}); carrying them one arm at a time")
-    pair_sim, pair_wall = cell.sim_time - t_sim, time.perf_counter() - t_wall
+
+    def aim(
+        i: int,
+        attempt: int,
+        missed: bool,
+        state: ClothState,
+        obs: Observation | None,
+        _previous: FoldAction,
+    ) -> FoldAction:
+        grasp = corrected_grasp(cfg, state, obs, planned[i], planned[i])
+        return inward(state, grasp, attempt * RETRY_INSET) if missed else grasp
+
+    pair = carry_pair(cfg, cell, planned, latest, latest_obs, aim, log, "them")
+    state, obs = pair.state, pair.obs
     entries = []
+    if pair.arms_would_meet is not None:
+        for p in planned:
+            entry, state, obs = garment_action(cfg, cell, p, state, obs, log)
+            entry["arms_would_meet"] = pair.arms_would_meet
+            entries.append(entry)
+        return entries, state, obs
     for i, p in enumerate(planned):
-        entry = open_loop_entry(actions[i], outcomes[i], pair_sim / 2, pair_wall / 2)
-        off = max(0.0, -outline_distance(state, actions[i].place)) if state.detected else None
-        entry.update(label=p.label, arm=arms[i], together=True, attempts=attempts)
-        entry.update(retries=len(attempts) - 1, placed_error_m=off)
+        action, outcome = pair.actions[i], pair.outcomes[i]
+        entry = open_loop_entry(action, outcome, pair.sim_seconds / 2, pair.wall_seconds / 2)
+        off = max(0.0, -outline_distance(state, action.place)) if state.detected else None
+        entry.update(label=p.label, arm=pair.arms[i], together=True, attempts=pair.attempts)
+        entry.update(retries=len(pair.attempts) - 1, placed_error_m=off)
         entries.append(entry)
-    if not outcomes[0]["carried"]:
+    if not pair.carried:
         for p in planned:
             log(f"  {p.label} → place, one arm")
             entry, state, obs = garment_action(cfg, cell, p, state, obs, log)

@@ -7,7 +7,8 @@ decisions run whether the modules talk by function call or over topics. The loop
 observations (ClothState from images) and the cell's reports; never ground truth.
 
 A cell with two arms (`FoldCell.arms`) carries a stage's two corners at once, one arm each
-(`two_arm_actions`); everything else, and every fallback, runs one arm at a time.
+(`two_arm_actions`, through `carry_pair`, which the garment loop's pairs share); everything else,
+and every fallback, runs one arm at a time.
 """
 
 from __future__ import annotations
@@ -1010,6 +1011,81 @@ def missed_grasps(planned: Sequence[FoldAction | SpreadAction], outcomes: list[d
     )
 
 
+PairAim = Callable[[int, int, bool, ClothState, "Observation | None", FoldAction], FoldAction]
+"""How a pair's try aims its action `i`: (i, try, whether its grasp missed in the last try, the
+state and frame seen now, the action as last aimed) → the action to carry."""
+
+
+@dataclass
+class PairCarry:
+    """What carry_pair did: the actions as last aimed and their outcomes, the arms that ran
+    them, each try's record (pair_attempt), the state and frame it ended on, and its seconds."""
+
+    actions: list[FoldAction]
+    outcomes: list[dict]
+    arms: list[int]
+    attempts: list[dict]
+    state: ClothState
+    obs: Observation | None
+    sim_seconds: float
+    wall_seconds: float
+    arms_would_meet: str | None = None
+    """Why the pair was not carried at its last try: the arms would meet either way round
+    (nothing moved in that try). None otherwise."""
+
+    @property
+    def carried(self) -> bool:
+        """Whether the last try held every grasp and carried the pair."""
+        return bool(self.outcomes) and bool(self.outcomes[0]["carried"])
+
+
+def carry_pair(
+    cfg: LoopConfig,
+    cell: FoldCell,
+    planned: tuple[FoldAction, ...],
+    state: ClothState,
+    obs: Observation | None,
+    aim: PairAim,
+    log: Callable[[str], None] = print,
+    what: str = "the corners",
+) -> PairCarry:
+    """Carry two planned actions at once, one arm each (assign_arms; show_and_carry_pair turns
+    them round when their motions would meet). Each try aims every action at the frame seen now
+    (`aim`), carries the pair, parks and re-observes; a missed grasp makes both arms let go and
+    the pair is tried again, at most `cfg.retries` times. Stops at a try whose arms would meet
+    either way (`arms_would_meet`). `what` names the pair in the log ("carrying `what` one arm at
+    a time"), where the callers go on with one arm."""
+    t_sim, t_wall = cell.sim_time, time.perf_counter()
+    arms = assign_arms(cell.arm_for, planned)
+    actions, outcomes, attempts = list(planned), [], []
+    failed = [False] * len(planned)
+    for attempt in range(cfg.retries + 1):
+        actions = [aim(i, attempt, failed[i], state, obs, actions[i]) for i in range(len(planned))]
+        try:
+            outcomes, arms = show_and_carry_pair(cell, state, arms, actions, log)
+        except ArmsWouldCollideError as exc:
+            log(f"  the arms would meet ({exc}); carrying {what} one arm at a time")
+            return PairCarry(
+                actions, [], arms, attempts, state, obs,
+                cell.sim_time - t_sim, time.perf_counter() - t_wall, arms_would_meet=str(exc),
+            )  # fmt: skip
+        cell.park()
+        state, obs = cell.observe()
+        failed = [not o["grasp_success"] for o in outcomes]
+        attempts.append(pair_attempt(actions, outcomes))
+        if outcomes[0]["carried"]:
+            break
+        reasons = missed_grasps(planned, outcomes)
+        if attempt < cfg.retries:
+            log(f"  grasp failed ({reasons}); both arms let go, re-observed, retry {attempt + 1}")
+        else:
+            log(f"  grasp failed ({reasons}); carrying {what} one arm at a time")
+    return PairCarry(
+        actions, outcomes, arms, attempts, state, obs,
+        cell.sim_time - t_sim, time.perf_counter() - t_wall,
+    )  # fmt: skip
+
+
 def two_arm_actions(
     cfg: LoopConfig,
     cell: FoldCell,
@@ -1031,51 +1107,39 @@ def two_arm_actions(
     corner is checked, and with `re_place` a corner placed off is re-placed by the arm on its side
     (not for a folded stack: one arm laying a stack's corner again dragged the stack or blew it
     up, docs/experiments.md)."""
-    arms = assign_arms(cell.arm_for, planned)
-    t_sim, t_wall = cell.sim_time, time.perf_counter()
-    state, actions = latest, list(planned)
-    failed = [False] * len(planned)
-    attempts: list[dict] = []
-    outcomes: list[dict] = []
-    for attempt in range(cfg.retries + 1):
-        actions = [
-            aim_grasp(
-                cfg,
-                state,
-                plan_i,
-                actions[i],
-                replacing=False,
-                at_table=failed[i] or (plan_i.layers > 1 and attempt == 0),
-                inject_fault=inject_fault and attempt == 0 and i == 0,
+
+    def aim(
+        i: int,
+        attempt: int,
+        missed: bool,
+        state: ClothState,
+        _obs: Observation | None,
+        previous: FoldAction,
+    ) -> FoldAction:
+        action = aim_grasp(
+            cfg,
+            state,
+            planned[i],
+            previous,
+            replacing=False,
+            at_table=missed or (planned[i].layers > 1 and attempt == 0),
+            inject_fault=inject_fault and attempt == 0 and i == 0,
+        )
+        if cfg.pair_descent is None:
+            return action
+        return dataclasses.replace(action, descent=cfg.pair_descent)
+
+    pair = carry_pair(cfg, cell, planned, latest, None, aim, log, "the corners")
+    state, actions, outcomes, arms = pair.state, pair.actions, pair.outcomes, pair.arms
+    if pair.arms_would_meet is not None:
+        entries = []
+        for plan_i in planned:
+            entry, state = single_arm_action(
+                cfg, cell, plan_i, state, log, predicted_corners=predicted_corners
             )
-            for i, plan_i in enumerate(planned)
-        ]
-        if cfg.pair_descent is not None:
-            actions = [dataclasses.replace(a, descent=cfg.pair_descent) for a in actions]
-        try:
-            outcomes, arms = show_and_carry_pair(cell, state, arms, actions, log)
-        except ArmsWouldCollideError as exc:
-            log(f"  the arms would meet ({exc}); carrying the corners one arm at a time")
-            entries = []
-            for plan_i in planned:
-                entry, state = single_arm_action(
-                    cfg, cell, plan_i, state, log, predicted_corners=predicted_corners
-                )
-                entry["arms_would_meet"] = str(exc)
-                entries.append(entry)
-            return entries, state
-        cell.park()
-        state, _obs = cell.observe()
-        failed = [not o["grasp_success"] for o in outcomes]
-        attempts.append(pair_attempt(actions, outcomes))
-        if outcomes[0]["carried"]:
-            break
-        reasons = missed_grasps(planned, outcomes)
-        if attempt < cfg.retries:
-            log(f"  grasp failed ({reasons}); both arms let go, re-observed, retry {attempt + 1}")
-        else:
-            log(f"  grasp failed ({reasons}); carrying the corners one arm at a time")
-    pair_sim, pair_wall = cell.sim_time - t_sim, time.perf_counter() - t_wall
+            entry["arms_would_meet"] = pair.arms_would_meet
+            entries.append(entry)
+        return entries, state
     entries = []
     for i, plan_i in enumerate(planned):
         entry = {
@@ -1090,15 +1154,15 @@ def two_arm_actions(
             "grasp_reason": outcomes[i]["grasp_reason"],
             "grasped_vertices": outcomes[i]["grasped_vertices"],
             "placed_error_m": None,
-            "retries": len(attempts) - 1,
-            "attempts": attempts,
+            "retries": len(pair.attempts) - 1,
+            "attempts": pair.attempts,
             "max_tracking_error_m": outcomes[i]["max_tracking_error"],
             # The pair's time, shared: both entries ran over the same seconds.
-            "sim_seconds": pair_sim / len(planned),
-            "wall_seconds": pair_wall / len(planned),
+            "sim_seconds": pair.sim_seconds / len(planned),
+            "wall_seconds": pair.wall_seconds / len(planned),
         }
         entries.append(entry)
-    if not outcomes[0]["carried"]:
+    if not pair.carried:
         for plan_i in planned:
             log(f"  {plan_i.label} → place, one arm")
             entry, state = single_arm_action(
