@@ -79,6 +79,26 @@ class FlattenRecord:
         """The overlays tiled into one picture (flatten.png), or None before any observation."""
         return contact_sheet(self.overlays, self.captions) if self.overlays else None
 
+    def finish(
+        self,
+        coverage: float,
+        target: float,
+        state: ClothState,
+        obs: Observation,
+        expected: np.ndarray | None = None,
+    ) -> FlattenRecord:
+        """End the run at perceived `coverage` (against `target`) on the view `obs` / `state`,
+        pictured last (with the `expected` outline where the run had one); returns self."""
+        self.final_coverage = coverage
+        self.reached = coverage >= target
+        self.overlays.append(draw_overlay(obs, state, expected_outline=expected))
+        self.captions.append(
+            f"end: {coverage:.2f}"
+            + (" (target reached)" if self.reached else f" (target {target:.2f})")
+        )
+        self.final_state, self.final_obs = state, obs
+        return self
+
     def result_entry(
         self, coverage_start: float, coverage_end: float, max_actions: int, policy: str = "vision"
     ) -> dict[str, Any]:
@@ -146,15 +166,7 @@ def run_flatten(
         state, obs, coverage = _pull_step(
             cfg, cell, state, obs, pulls, expected, coverage, area, rec, log
         )
-    rec.final_coverage = coverage
-    rec.reached = coverage >= cfg.target_coverage
-    rec.overlays.append(draw_overlay(obs, state, expected_outline=expected))
-    rec.captions.append(
-        f"end: {coverage:.2f}"
-        + (" (target reached)" if rec.reached else f" (target {cfg.target_coverage:.2f})")
-    )
-    rec.final_state, rec.final_obs = state, obs
-    return rec
+    return rec.finish(coverage, cfg.target_coverage, state, obs, expected)
 
 
 def flatten_and_score(
@@ -458,15 +470,7 @@ def run_spreads(
             raise FoldbotError(
                 f"the cloth was lost after flattening spread {len(rec.actions)}: {state.reason}"
             )
-    rec.final_coverage = coverage
-    rec.reached = coverage >= cfg.target_coverage
-    rec.overlays.append(draw_overlay(obs, state))
-    rec.captions.append(
-        f"end: {coverage:.2f}"
-        + (" (target reached)" if rec.reached else f" (target {cfg.target_coverage:.2f})")
-    )
-    rec.final_state, rec.final_obs = state, obs
-    return rec
+    return rec.finish(coverage, cfg.target_coverage, state, obs)
 
 
 def _spread_once(
