@@ -57,8 +57,8 @@ def test_tshirt_retail_stages(yaw):
     assert plan.recipe == "retail"
     assert [len(s.actions) for s in plan.stages] == [2, 2, 2]
     s1, s2, s3 = plan.stages
-    assert [a.label for a in s1.actions] == ["left_hem", "left_sleeve"]
-    assert [a.label for a in s2.actions] == ["right_hem", "right_sleeve"]
+    assert [a.label for a in s1.actions] == ["left_sleeve", "left_hem"]
+    assert [a.label for a in s2.actions] == ["right_sleeve", "right_hem"]
     for stage, side in ((s1, "left"), (s2, "right")):
         line = FoldLine(*stage.fold_line)
         for a in stage.actions:
@@ -70,7 +70,7 @@ def test_tshirt_retail_stages(yaw):
         assert not line.moving_mask(kp[f"{other}_hem"][None, :2])[0]
         assert not line.moving_mask(kp["neck"][None, :2])[0]
     # The folded sleeve stays short of the other side's line.
-    assert not FoldLine(*s2.fold_line).moving_mask(s1.actions[1].place[None, :2])[0]
+    assert not FoldLine(*s2.fold_line).moving_mask(s1.actions[0].place[None, :2])[0]
     # Hem up: the hems move, the shoulders stay; carried from the tip, planned mid-hem on top.
     assert [a.label for a in s3.actions] == ["hem", "hem_rest"] and s3.from_tip
     assert not any(s.top_first for s in plan.stages)  # hem up from the tip: it folded better so

@@ -9,9 +9,11 @@ reflections. The closed loop (foldbot.garment_loop) corrects each grasp onto the
 Recipes (`GARMENT_RECIPES`):
 - tshirt "retail" — sleeves and sides in, then hem up (3 stages):
   1. the left side with its sleeve onto the body: line parallel to the body axis at u = −a;
-     grasps left_hem, then left_sleeve. `a` is half the body's half-width, widened when needed so
-     the mirrored sleeve end stays short of the other side's line (a ≥ c/3, c = the cuff's |u|);
-  2. the right side likewise at u = +a (right_hem, right_sleeve);
+     grasps left_sleeve, then left_hem (the hem corner, which carries the side's body strip,
+     placed last, so the sleeve's carry does not drag it back: carried first it fell back;
+     docs/experiments.md). `a` is half the body's half-width, widened when needed so the
+     mirrored sleeve end stays short of the other side's line (a ≥ c/3, c = the cuff's |u|);
+  2. the right side likewise at u = +a (right_sleeve, right_hem);
   3. hem up: the line across the body halfway between the hem and the shoulders, carried from
      the tip (see below), up to two actions.
 - pants "leg_over_leg" — leg over leg, then in half (2 stages):
@@ -242,15 +244,15 @@ def _plan_tshirt(k: dict[str, np.ndarray], lift: float, thickness: float) -> Gar
     s1 = GarmentStage(
         left,
         (
-            _action(k["left_hem"], left, "left_hem", lift),
             _action(k["left_sleeve"], left, "left_sleeve", lift),
+            _action(k["left_hem"], left, "left_hem", lift),
         ),
     )
     s2 = GarmentStage(
         right,
         (
-            _action(k["right_hem"], right, "right_hem", lift),
             _action(k["right_sleeve"], right, "right_sleeve", lift),
+            _action(k["right_hem"], right, "right_hem", lift),
         ),
     )
     xy = f.xy(0.0, STACK_INSET)
