@@ -45,33 +45,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from foldbot.errors import ConfigError
+from foldbot.garments.pants import PANTS_KEYPOINTS
+from foldbot.garments.tshirt import TSHIRT_KEYPOINTS
 from foldbot.metrics import FoldLine
 from foldbot.planning.actions import FoldAction
 
 Line = tuple[float, float, float, float]
 
-TSHIRT_KEYPOINTS = (
-    "neck",
-    "left_shoulder",
-    "right_shoulder",
-    "left_sleeve",
-    "right_sleeve",
-    "left_armpit",
-    "right_armpit",
-    "left_hem",
-    "right_hem",
-)
-"""Named T-shirt keypoints (mesh and perception use the same names)."""
-PANTS_KEYPOINTS = (
-    "left_waist",
-    "right_waist",
-    "left_leg_outer",
-    "left_leg_inner",
-    "right_leg_outer",
-    "right_leg_inner",
-    "crotch",
-)
-"""Named pants keypoints."""
 GARMENT_RECIPES: dict[str, tuple[str, ...]] = {
     "tshirt": ("retail",),
     "pants": ("leg_over_leg",),
