@@ -98,6 +98,7 @@ def fell_back(rows: list[dict], vertex: int, near: float, back: float) -> str:
 
 def trace_episode(suite: str, recipe: str, seed: int, every: float) -> tuple[list[dict], dict]:
     """Run one suite episode, sampling its corners every `every` s; (rows, result.json)."""
+    import foldbot.carry as carry
     import foldbot.loop as loop
     from foldbot import metrics
     from foldbot.bench.suite import load_suite
@@ -110,7 +111,7 @@ def trace_episode(suite: str, recipe: str, seed: int, every: float) -> tuple[lis
         raise SystemExit(f"no {recipe} episode with seed {seed} in suite {suite}")
     samples: list[Sample] = []
     seen: dict = {}
-    execute, together = loop.execute_action, loop.execute_together
+    execute, together = carry.execute_action, carry.execute_together
 
     def start(cell, label: str) -> None:
         """Name the action under way; on the first, hook the sampler into the world."""
@@ -139,7 +140,9 @@ def trace_episode(suite: str, recipe: str, seed: int, every: float) -> tuple[lis
         start(cell, "+".join(a.label for _, a in pairs))
         return together(cell, pairs)
 
-    loop.execute_action, loop.execute_together = traced, traced_pair
+    # The towel loop's one-arm carries (loop) and the as-planned ones (carry), and the pairs.
+    loop.execute_action = carry.execute_action = traced
+    carry.execute_together = traced_pair
     out = Path(tempfile.mkdtemp(prefix="trace_corners_")) / "episode"
     result = run_episode(spec.to_config(), out, log=lambda _msg: None)
     goal = metrics.fold_goal(seen["initial"], result["fold_lines"], 0.0)[0]

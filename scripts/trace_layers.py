@@ -58,6 +58,7 @@ def staying_drift_mm(vertices: np.ndarray, initial: np.ndarray, staying: np.ndar
 
 def trace_episode(suite: str, recipe: str, seed: int) -> dict:
     """Run one episode with the action tracer (in the calling process); its rows and result."""
+    import foldbot.carry as carry
     import foldbot.loop as loop
     from foldbot import metrics
     from foldbot.bench.suite import load_suite
@@ -70,7 +71,7 @@ def trace_episode(suite: str, recipe: str, seed: int) -> dict:
         return {"recipe": recipe, "seed": seed, "error": f"no {recipe} seed {seed} in {suite}"}
     rows: list[dict] = []
     state: dict = {"lines": []}
-    execute, together = loop.execute_action, loop.execute_together
+    execute, together = carry.execute_action, carry.execute_together
 
     def record(cell, action, label: str, run):
         """Run one action (`run()`: its outcome and how many vertices the jaws held), then
@@ -120,7 +121,9 @@ def trace_episode(suite: str, recipe: str, seed: int) -> dict:
         label = "+".join(a.label for _, a in pairs)
         return record(cell, pairs[0][1], label, run)
 
-    loop.execute_action, loop.execute_together = traced, traced_pair
+    # The towel loop's one-arm carries (loop) and the as-planned ones (carry), and the pairs.
+    loop.execute_action = carry.execute_action = traced
+    carry.execute_together = traced_pair
     out = Path(tempfile.mkdtemp(prefix="trace_layers_")) / "episode"
     try:
         result = run_episode(spec.to_config(), out, log=lambda _msg: None)

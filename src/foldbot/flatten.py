@@ -1,5 +1,5 @@
 """The closed flattening loop — observe → stop at the target coverage, else plan a pull → execute
-→ park → re-observe — written once against `loop.FoldCell`, from perception only.
+→ park → re-observe — written once against `cell.FoldCell`, from perception only.
 
 The robot knows the item's nominal flat size (the task names the towel), never the cloth's state:
 perceived coverage is the perceived top-view area over that expected area.
@@ -17,20 +17,20 @@ from typing import Any
 import numpy as np
 
 from foldbot import metrics
+from foldbot.carry import (
+    execute_action,
+    execute_together,
+    line_points,
+    missed_grasps,
+    pair_attempt,
+)
+from foldbot.cell import FoldCell
 from foldbot.errors import (
     ArmsWouldCollideError,
     FoldbotError,
     UnreachableTargetError,
     failed_segment,
     require,
-)
-from foldbot.loop import (
-    FoldCell,
-    execute_action,
-    execute_together,
-    line_points,
-    missed_grasps,
-    pair_attempt,
 )
 from foldbot.perception.overlay import contact_sheet, draw_overlay
 from foldbot.perception.state import ClothState
@@ -485,7 +485,7 @@ def _spread_once(
     tried: list[SpreadPlan] | None = None,
     missed: np.ndarray | None = None,
 ) -> tuple[SpreadPlan, list[dict]] | None:
-    """Plan a spread on the observation and run it (loop.execute_together: both arms planned
+    """Plan a spread on the observation and run it (carry.execute_together: both arms planned
     before anything moves, on one clock; a missed grasp lets both go), holding the towel as
     high as the arms reach: the surest pair of corners whose grasps keep the palm clear of the
     heap, at each of `spread.hang_margins` in turn, then the next pair, until one is feasible

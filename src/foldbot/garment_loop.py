@@ -20,6 +20,15 @@ from collections.abc import Callable
 import cv2
 import numpy as np
 
+from foldbot.carry import (
+    arms_apart,
+    carry_pair,
+    execute_action,
+    execute_as_planned,
+    open_loop_entry,
+    show_action,
+)
+from foldbot.cell import FoldCell
 from foldbot.errors import FoldbotError, PerceptionError
 from foldbot.grasp_points import (
     GRASP_INSET,
@@ -29,19 +38,12 @@ from foldbot.grasp_points import (
     top_layer_action,
 )
 from foldbot.loop import (
-    FoldCell,
     FoldRecord,
     LoopConfig,
     actions_overlay,
-    arms_apart,
-    carry_pair,
     corners_of,
-    execute_action,
-    execute_as_planned,
     finish_fold,
-    open_loop_entry,
     require_in_view,
-    show_action,
 )
 from foldbot.perception.layers import laid_layer_mask, mask_points
 from foldbot.perception.overlay import draw_overlay
@@ -257,7 +259,7 @@ def garment_pair(
         grasp = corrected_grasp(cfg, state, obs, planned[i], planned[i])
         return inward(state, grasp, attempt * RETRY_INSET) if missed else grasp
 
-    pair = carry_pair(cfg, cell, planned, latest, latest_obs, aim, log, "them")
+    pair = carry_pair(cell, planned, latest, latest_obs, aim, cfg.retries, log, "them")
     state, obs = pair.state, pair.obs
     entries = []
     if pair.arms_would_meet is not None:

@@ -1,19 +1,17 @@
 """The closed fold loop — observe → plan a stage → per action: grasp where the corner is now,
 carry, place → re-observe → retry or go on → verify the stage — written once against `FoldCell`.
 
-`FoldCell` is what the loop needs from a robot cell. The in-process simulation implements it
-(`pipeline.SimCell`), and so do the ROS nodes (`foldbot.ros.task_node.RosCell`), so the same
-decisions run whether the modules talk by function call or over topics. The loop sees only
-observations (ClothState from images) and the cell's reports; never ground truth.
+`FoldCell` (`foldbot.cell`) is what the loop needs from a robot cell, in process or over ROS;
+`foldbot.carry` moves what the loop decides to carry. The loop sees only observations
+(ClothState from images) and the cell's reports; never ground truth.
 
 A cell with two arms (`FoldCell.arms`) carries a stage's two corners at once, one arm each
-(`two_arm_actions`, through `carry_pair`, which the garment loop's pairs share); everything else,
-and every fallback, runs one arm at a time.
+(`two_arm_actions`, through `carry.carry_pair`, which the garment loop's pairs share);
+everything else, and every fallback, runs one arm at a time.
 """
 
 from __future__ import annotations
 
-import abc
 import contextlib
 import dataclasses
 import time
@@ -24,7 +22,16 @@ from typing import Any
 import numpy as np
 from scipy.spatial import ConvexHull
 
-from foldbot.errors import ArmsWouldCollideError, FoldbotError, UnreachableTargetError
+from foldbot.carry import (
+    arms_apart,
+    carry_pair,
+    execute_action,
+    execute_as_planned,
+    line_points,
+    show_action,
+)
+from foldbot.cell import FoldCell
+from foldbot.errors import FoldbotError
 from foldbot.grasp_points import (
     finish_action,
     inset_grasp,
@@ -39,22 +46,15 @@ from foldbot.perception.layers import deepest_gap, laid_corner, laid_layer_mask,
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState, fold_check_iou
 from foldbot.planning.actions import FoldAction, FoldPlan, edge_middle
-from foldbot.planning.garment_recipes import GarmentPlan, plan_garment
 from foldbot.planning.recipes import (
     carries_stack,
-    plan_stage,
     predicted_cover,
     predicted_outline,
     recipe_stages,
     takes_crease_room,
 )
-from foldbot.planning.spread import SpreadAction
-from foldbot.types import GraspResult, Observation
+from foldbot.types import Observation
 
-MIN_ARM_SEPARATION = 0.12
-"""A two-arm cell carries a stage's two corners together only when both their grasp points and
-both their place points lie at least this far apart (m); closer, the grippers would meet, and the
-corners are carried one after the other."""
 STACK_EDGE_LAYERS = 2
 """Layers at the middle of the edge of quarter's stack that one arm carries (stack_edge): both
 layers' free edges lie there one over the other, and the jaws close at the table, under both
@@ -136,139 +136,6 @@ class LoopConfig:
 
 
 @dataclass
-class StepLog:
-    """What one motion step (a segment, and its gripper event) did."""
-
-    name: str
-    max_tracking_error: float
-    grasp: GraspResult | None = None
-
-
-class FoldCell(abc.ABC):
-    """A robot cell as the fold loop drives it: eyes, a planner for motions, an arm that moves."""
-
-    table_height: float
-    """Height of the table top in the world (m), for drawing fold lines."""
-
-    @property
-    @abc.abstractmethod
-    def sim_time(self) -> float:
-        """The cell's clock (s)."""
-
-    @abc.abstractmethod
-    def observe(self) -> tuple[ClothState, Observation]:
-        """A fresh camera frame of the resting cell and what perception makes of it."""
-
-    def plan_stage(
-        self,
-        recipe: str,
-        stage: int,
-        corners: dict[str, np.ndarray],
-        place_lift: float,
-        crease_room: float = 0.0,
-    ) -> tuple[FoldPlan, np.ndarray]:
-        """The stage's fold plan from perceived corners, and the outline it should leave."""
-        return (
-            plan_stage(recipe, stage, corners, place_lift, crease_room),
-            predicted_outline(recipe, stage, corners, crease_room),
-        )
-
-    def plan_garment(
-        self, recipe: str, keypoints: dict[str, np.ndarray], place_lift: float, thickness: float
-    ) -> GarmentPlan:
-        """A garment recipe's every stage, planned from the keypoints perceived on the flat
-        garment (planning.garment_recipes.plan_garment)."""
-        return plan_garment(recipe, keypoints, place_lift, thickness)
-
-    @abc.abstractmethod
-    def plan_action(self, action: FoldAction) -> list[Any]:
-        """Motion steps for one pick-and-place, every waypoint's IK solved before anything moves;
-        raises UnreachableTargetError naming the infeasible waypoint."""
-
-    @abc.abstractmethod
-    def run_step(self, step: Any) -> StepLog:
-        """Move along one planned step, then apply its gripper event (close → grasp result)."""
-
-    @abc.abstractmethod
-    def release_and_lift(self) -> None:
-        """After a failed grasp: open the gripper and move straight up (the retreat height)."""
-
-    @abc.abstractmethod
-    def park(self) -> None:
-        """Move the arm (joint space) to its park pose, out of the camera's way."""
-
-    @abc.abstractmethod
-    def wait(self, seconds: float) -> None:
-        """Let the cloth come to rest for `seconds` of cell time."""
-
-    @property
-    def arms(self) -> int:
-        """Arms in the cell; a cell with two implements the `*_together` methods."""
-        return 1
-
-    @property
-    def active_arm(self) -> int:
-        """The arm single actions use now (use_arm; a cell may switch to another arm in
-        plan_action when this one cannot do the action)."""
-        return 0
-
-    def use_arm(self, arm: int) -> None:
-        """Make `arm` the one plan_action, run_step, release_and_lift and the loop's single
-        actions use (a one-arm cell has only arm 0)."""
-        if arm != 0:
-            raise ValueError(f"this cell has one arm (0), got arm {arm!r}")
-
-    def arm_for(self, point: np.ndarray) -> int:
-        """The arm that should handle a grasp at `point`: the one on its side of the cell."""
-        return 0
-
-    def plan_on_an_able_arm(self, plan_with: Callable[[int], list[Any]]) -> list[Any]:
-        """plan_with(arm) for the active arm first and, when it cannot do the action
-        (UnreachableTargetError: IK, or it would meet another arm where that one stands), for
-        the others in turn; the arm that can becomes the active one. The first arm's error when
-        none can."""
-        order = [self.active_arm] + [i for i in range(self.arms) if i != self.active_arm]
-        first_error: UnreachableTargetError | None = None
-        for arm in order:
-            try:
-                plan = plan_with(arm)
-            except UnreachableTargetError as exc:
-                first_error = first_error or exc
-                continue
-            self.use_arm(arm)
-            return plan
-        assert first_error is not None
-        raise first_error
-
-    def plan_together(self, actions: list[tuple[int, FoldAction]]) -> list[list[Any]]:
-        """Two-arm cells: each (arm, action)'s motion steps, every waypoint's IK solved before
-        anything moves (UnreachableTargetError names the infeasible one), the arms checked to
-        keep clear of each other (ArmsWouldCollideError)."""
-        raise NotImplementedError("this cell has one arm")
-
-    def run_together(self, steps: list[tuple[int, Any]]) -> list[StepLog]:
-        """Two-arm cells: move each arm along its step at once, then apply the gripper events."""
-        raise NotImplementedError("this cell has one arm")
-
-    def release_and_lift_arm(self, arm: int) -> None:
-        """Open `arm`'s gripper and lift it straight up (the active arm stays as it was)."""
-        previous = self.active_arm
-        self.use_arm(arm)
-        try:
-            self.release_and_lift()
-        finally:
-            self.use_arm(previous)
-
-    def start_stage(self, stage: int) -> bool:
-        """Called before stage `stage` (≥ 1) is planned; True when the previous stage's closing
-        observation is stale for planning (the oracle switches corner sources)."""
-        return False
-
-    def show(self, state: ClothState | None = None, **overlay: Any) -> None:  # noqa: B027
-        """Debug overlay for the video: the latest state and planned points / fold line."""
-
-
-@dataclass
 class FoldRecord:
     """What a fold did, for the episode's result.json and pictures."""
 
@@ -322,12 +189,6 @@ def fold_and_picture(
         raise
     write_fold_overlays(record, write_image)
     return record
-
-
-def line_points(line: tuple[float, float, float, float], z: float) -> np.ndarray:
-    """The fold line's segment across the cloth as two world points, for drawing."""
-    x, y, dx, dy = line
-    return np.array([[x, y, z], [x + dx, y + dy, z]])
 
 
 def corners_of(state: ClothState) -> dict[str, np.ndarray]:
@@ -674,31 +535,6 @@ def run_open_loop(
             rec.actions.append(execute_as_planned(cell, state, action))
 
 
-def execute_as_planned(cell: FoldCell, state: ClothState, action: FoldAction) -> dict:
-    """Show and run one action as planned (no re-observation or retry); its result.json entry."""
-    t_sim, t_wall = cell.sim_time, time.perf_counter()
-    show_action(cell, state, action)
-    outcome = execute_action(cell, action)
-    return open_loop_entry(action, outcome, cell.sim_time - t_sim, time.perf_counter() - t_wall)
-
-
-def open_loop_entry(action: FoldAction, outcome: dict, sim_s: float, wall_s: float) -> dict:
-    """result.json's entry for an action executed as planned (no re-observation or retry)."""
-    return {
-        **action.as_dict(),
-        "kind": "pick_and_place",
-        "grasp_success": outcome["grasp_success"],
-        "grasp_reason": outcome["grasp_reason"],
-        "grasped_vertices": outcome["grasped_vertices"],
-        "placed_error_m": None,
-        "retries": 0,
-        "attempts": [],
-        "max_tracking_error_m": outcome["max_tracking_error"],
-        "sim_seconds": sim_s,
-        "wall_seconds": wall_s,
-    }
-
-
 def corner_to_grasp(
     cfg: LoopConfig, state: ClothState, label: str, action: FoldAction, replacing: bool
 ) -> np.ndarray | None:
@@ -844,56 +680,6 @@ def aim_grasp(
     return action
 
 
-def show_action(cell: FoldCell, state: ClothState, action: FoldAction) -> None:
-    """The video's overlay while an action runs: its grasp and place points and fold line."""
-    cell.show(
-        state,
-        grasp_points=[action.grasp],
-        place_points=[action.place],
-        fold_line=line_points(action.fold_line, cell.table_height),
-    )
-
-
-def execute_action(cell: FoldCell, action: FoldAction) -> dict:
-    """Plan the whole pick-and-place (IK on every waypoint), then run it; after a failed grasp,
-    open, lift and stop."""
-    try:
-        steps = cell.plan_action(action)
-    except UnreachableTargetError as exc:
-        raise UnreachableTargetError(
-            f"action '{action.label}' is infeasible (nothing moved): {exc}"
-        ) from exc
-    grasp_result, max_err = None, 0.0
-    for step in steps:
-        step_log = cell.run_step(step)
-        max_err = max(max_err, step_log.max_tracking_error)
-        if step_log.grasp is not None:
-            grasp_result = step_log.grasp
-            if not grasp_result.success:
-                cell.release_and_lift()
-                break
-    ok = bool(grasp_result and grasp_result.success)
-    return {
-        "grasp_success": ok,
-        "grasp_reason": grasp_result.reason if grasp_result else "no grasp attempted",
-        "grasped_vertices": list(grasp_result.vertex_ids) if grasp_result else [],
-        "max_tracking_error": max_err,
-    }
-
-
-# --- two arms ------------------------------------------------------------------------------------
-
-
-def arms_apart(actions: tuple[FoldAction, ...]) -> bool:
-    """Whether two actions' grasp points and place points are far enough apart for two grippers
-    to work them at once (MIN_ARM_SEPARATION)."""
-    a, b = actions
-    return bool(
-        np.linalg.norm(a.grasp[:2] - b.grasp[:2]) >= MIN_ARM_SEPARATION
-        and np.linalg.norm(a.place[:2] - b.place[:2]) >= MIN_ARM_SEPARATION
-    )
-
-
 def single_arm_action(
     cfg: LoopConfig,
     cell: FoldCell,
@@ -910,180 +696,6 @@ def single_arm_action(
     if cell.arms > 1:
         entry["arm"] = cell.active_arm
     return entry, state
-
-
-def nearest_arm(point: np.ndarray, bases_y: tuple[float, ...]) -> int:
-    """The arm whose base is nearest `point` along y: the one on its side of the cell."""
-    return int(np.argmin([abs(float(point[1]) - by) for by in bases_y]))
-
-
-def assign_arms(arm_for: Callable[[np.ndarray], int], actions: tuple[FoldAction, ...]) -> list[int]:
-    """One arm per action, each on its grasp's side (`arm_for`); if both grasps fall on one arm's
-    side, the grasp further along +y goes to arm 0 (the left arm)."""
-    arms = [arm_for(a.grasp) for a in actions]
-    if len(set(arms)) == len(arms):
-        return arms
-    left_first = sorted(range(len(actions)), key=lambda i: -float(actions[i].grasp[1]))
-    out = [0] * len(actions)
-    for arm, i in enumerate(left_first):
-        out[i] = arm
-    return out
-
-
-def execute_together(cell: FoldCell, pairs: list[tuple[int, FoldAction]]) -> list[dict]:
-    """Plan every arm's pick-and-place (IK on every waypoint of both) before anything moves, then
-    run them step by step on one clock. When a grasp fails, every arm opens and lifts and the
-    pair stops there (nothing is carried by one arm alone)."""
-    try:
-        steps = cell.plan_together(pairs)
-    except UnreachableTargetError as exc:
-        labels = " and ".join(f"'{a.label}'" for _, a in pairs)
-        raise UnreachableTargetError(
-            f"actions {labels} are infeasible (nothing moved): {exc}"
-        ) from exc
-    if len({len(s) for s in steps}) != 1:
-        raise FoldbotError("arms moved together need the same number of motion steps")
-    grasps: list[GraspResult | None] = [None] * len(pairs)
-    max_err = [0.0] * len(pairs)
-    for k in range(len(steps[0])):
-        logs = cell.run_together([(arm, s[k]) for (arm, _), s in zip(pairs, steps, strict=True)])
-        for i, step_log in enumerate(logs):
-            max_err[i] = max(max_err[i], step_log.max_tracking_error)
-            if step_log.grasp is not None:
-                grasps[i] = step_log.grasp
-        if any(g is not None and not g.success for g in grasps):
-            for arm, _ in pairs:
-                cell.release_and_lift_arm(arm)
-            break
-    carried = all(g is not None and g.success for g in grasps)
-    return [
-        {
-            "grasp_success": bool(g and g.success),
-            "grasp_reason": g.reason if g else "no grasp attempted",
-            "grasped_vertices": list(g.vertex_ids) if g else [],
-            "max_tracking_error": err,
-            "carried": carried,
-        }
-        for g, err in zip(grasps, max_err, strict=True)
-    ]
-
-
-def show_and_carry_pair(
-    cell: FoldCell,
-    state: ClothState,
-    arms: list[int],
-    actions: list[FoldAction],
-    log: Callable[[str], None] = print,
-) -> tuple[list[dict], list[int]]:
-    """Show a pair's grasps, places and fold line, then carry it (execute_together) with the arms
-    as assigned, or the other way round when they would meet; returns the outcomes and the arms
-    used. ArmsWouldCollideError when they would meet either way (nothing moved)."""
-    cell.show(
-        state,
-        grasp_points=[a.grasp for a in actions],
-        place_points=[a.place for a in actions],
-        fold_line=line_points(actions[0].fold_line, cell.table_height),
-    )
-    try:
-        return execute_together(cell, list(zip(arms, actions, strict=True))), arms
-    except ArmsWouldCollideError as exc:
-        log(f"  the arms would meet ({exc}); trying them the other way round")
-        arms = arms[::-1]
-        return execute_together(cell, list(zip(arms, actions, strict=True))), arms
-
-
-def pair_attempt(actions: Sequence[FoldAction | SpreadAction], outcomes: list[dict]) -> dict:
-    """One try of a pair (pick-and-places or a spread's two arms), as the entries' `attempts`
-    record it: grasps aimed, and what they held."""
-    return {
-        "grasps": [[float(v) for v in a.grasp] for a in actions],
-        "grasp_success": [o["grasp_success"] for o in outcomes],
-        "grasp_reasons": [o["grasp_reason"] for o in outcomes],
-    }
-
-
-def missed_grasps(planned: Sequence[FoldAction | SpreadAction], outcomes: list[dict]) -> str:
-    """The log's words for a pair's failed grasps: each missed action's label and reason."""
-    return "; ".join(
-        f"{a.label}: {o['grasp_reason']}"
-        for a, o in zip(planned, outcomes, strict=True)
-        if not o["grasp_success"]
-    )
-
-
-PairAim = Callable[[int, int, bool, ClothState, "Observation | None", FoldAction], FoldAction]
-"""How a pair's try aims its action `i`: (i, try, whether its grasp missed in the last try, the
-state and frame seen now, the action as last aimed) → the action to carry."""
-
-
-@dataclass
-class PairCarry:
-    """What carry_pair did: the actions as last aimed and their outcomes, the arms that ran
-    them, each try's record (pair_attempt), the state and frame it ended on, and its seconds."""
-
-    actions: list[FoldAction]
-    outcomes: list[dict]
-    arms: list[int]
-    attempts: list[dict]
-    state: ClothState
-    obs: Observation | None
-    sim_seconds: float
-    wall_seconds: float
-    arms_would_meet: str | None = None
-    """Why the pair was not carried at its last try: the arms would meet either way round
-    (nothing moved in that try). None otherwise."""
-
-    @property
-    def carried(self) -> bool:
-        """Whether the last try held every grasp and carried the pair."""
-        return bool(self.outcomes) and bool(self.outcomes[0]["carried"])
-
-
-def carry_pair(
-    cfg: LoopConfig,
-    cell: FoldCell,
-    planned: tuple[FoldAction, ...],
-    state: ClothState,
-    obs: Observation | None,
-    aim: PairAim,
-    log: Callable[[str], None] = print,
-    what: str = "the corners",
-) -> PairCarry:
-    """Carry two planned actions at once, one arm each (assign_arms; show_and_carry_pair turns
-    them round when their motions would meet). Each try aims every action at the frame seen now
-    (`aim`), carries the pair, parks and re-observes; a missed grasp makes both arms let go and
-    the pair is tried again, at most `cfg.retries` times. Stops at a try whose arms would meet
-    either way (`arms_would_meet`). `what` names the pair in the log ("carrying `what` one arm at
-    a time"), where the callers go on with one arm."""
-    t_sim, t_wall = cell.sim_time, time.perf_counter()
-    arms = assign_arms(cell.arm_for, planned)
-    actions, outcomes, attempts = list(planned), [], []
-    failed = [False] * len(planned)
-    for attempt in range(cfg.retries + 1):
-        actions = [aim(i, attempt, failed[i], state, obs, actions[i]) for i in range(len(planned))]
-        try:
-            outcomes, arms = show_and_carry_pair(cell, state, arms, actions, log)
-        except ArmsWouldCollideError as exc:
-            log(f"  the arms would meet ({exc}); carrying {what} one arm at a time")
-            return PairCarry(
-                actions, [], arms, attempts, state, obs,
-                cell.sim_time - t_sim, time.perf_counter() - t_wall, arms_would_meet=str(exc),
-            )  # fmt: skip
-        cell.park()
-        state, obs = cell.observe()
-        failed = [not o["grasp_success"] for o in outcomes]
-        attempts.append(pair_attempt(actions, outcomes))
-        if outcomes[0]["carried"]:
-            break
-        reasons = missed_grasps(planned, outcomes)
-        if attempt < cfg.retries:
-            log(f"  grasp failed ({reasons}); both arms let go, re-observed, retry {attempt + 1}")
-        else:
-            log(f"  grasp failed ({reasons}); carrying {what} one arm at a time")
-    return PairCarry(
-        actions, outcomes, arms, attempts, state, obs,
-        cell.sim_time - t_sim, time.perf_counter() - t_wall,
-    )  # fmt: skip
 
 
 def two_arm_actions(
@@ -1129,7 +741,7 @@ def two_arm_actions(
             return action
         return dataclasses.replace(action, descent=cfg.pair_descent)
 
-    pair = carry_pair(cfg, cell, planned, latest, None, aim, log, "the corners")
+    pair = carry_pair(cell, planned, latest, None, aim, cfg.retries, log, "the corners")
     state, actions, outcomes, arms = pair.state, pair.actions, pair.outcomes, pair.arms
     if pair.arms_would_meet is not None:
         entries = []

@@ -18,6 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
+from foldbot.carry import nearest_arm
+from foldbot.cell import FoldCell, StepLog
 from foldbot.control.bimanual import check_arms_clear, check_clear_of_still_arms
 from foldbot.control.executor import (
     ArmExecutor,
@@ -32,15 +34,7 @@ from foldbot.garments import sample_garment
 from foldbot.garments.mesh import ClothMesh
 from foldbot.garments.towel import TowelSpec, make_towel
 from foldbot.io.episode import EpisodeWriter
-from foldbot.loop import (
-    FoldCell,
-    FoldRecord,
-    LoopConfig,
-    StepLog,
-    fold_and_picture,
-    nearest_arm,
-    run_fold,
-)
+from foldbot.loop import FoldRecord, LoopConfig, fold_and_picture, run_fold
 from foldbot.loop_options import LoopOptionValue, apply_loop_options, check_loop_options
 from foldbot.metrics import score_episode
 from foldbot.perception.fallback import vision_estimator

@@ -29,17 +29,12 @@ from tf2_msgs.msg import TFMessage
 from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
 
 from foldbot import errors
+from foldbot.carry import nearest_arm
+from foldbot.cell import FoldCell, StepLog
 from foldbot.flatten import flatten_and_score
 from foldbot.garment_loop import run_garment_fold
 from foldbot.io.episode import EpisodeWriter
-from foldbot.loop import (
-    FoldCell,
-    StepLog,
-    corners_of,
-    fold_and_picture,
-    nearest_arm,
-    run_fold,
-)
+from foldbot.loop import corners_of, fold_and_picture, run_fold
 from foldbot.metrics import score_episode
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState
