@@ -144,17 +144,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 @dataclass(frozen=True)
-class Scene:
-    """The randomised parameters of one evaluation scene (SI units, colours RGB 0..1)."""
+class SceneLook:
+    """How a scene looks besides the cloth's shape and pose, drawn alike for towel and garment
+    scenes (_sample_look): colours, the arm, the camera, sensor noise, lighting (SI units,
+    colours RGB 0..1)."""
 
-    index: int
-    state: str
-    towel_width: float
-    towel_height: float
-    fold_axis: str
-    yaw: float
-    x: float
-    y: float
     cloth_rgb: tuple[float, float, float]
     table_rgb: tuple[float, float, float]
     similar_colour: bool
@@ -169,7 +163,21 @@ class Scene:
 
 
 @dataclass(frozen=True)
-class GarmentScene:
+class Scene(SceneLook):
+    """The randomised parameters of one evaluation scene (SI units, colours RGB 0..1)."""
+
+    index: int
+    state: str
+    towel_width: float
+    towel_height: float
+    fold_axis: str
+    yaw: float
+    x: float
+    y: float
+
+
+@dataclass(frozen=True)
+class GarmentScene(SceneLook):
     """The randomised parameters of one flat T-shirt or pants scene (SI units, colours RGB 0..1)."""
 
     index: int
@@ -178,17 +186,6 @@ class GarmentScene:
     yaw: float
     x: float
     y: float
-    cloth_rgb: tuple[float, float, float]
-    table_rgb: tuple[float, float, float]
-    similar_colour: bool
-    arm_target: tuple[float, float, float] | None
-    eye: tuple[float, float, float]
-    target: tuple[float, float, float]
-    roll: float
-    depth_noise: float
-    depth_dropout: float
-    rgb_noise: float
-    lighting: Lighting
 
     @property
     def state(self) -> str:
