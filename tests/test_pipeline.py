@@ -441,3 +441,20 @@ def test_towel_size_is_drawn_from_the_seed_within_range():
     assert len(sizes) == 20
     with pytest.raises(ConfigError, match="towel_size_range"):
         EpisodeConfig(towel_size_range=(0.5, 0.2))
+
+
+def test_a_cloth_option_reaches_the_simulated_cloth_and_the_record(tmp_path):
+    """`--cloth margin_divisor=8`: the soft body's margin is an eighth of a mesh edge, so the
+    layer thickness the goal uses (cloth.npz) is a quarter of one; result.json names the option."""
+    from foldbot.cli import build_parser
+    from foldbot.commands.fold import config_from_args
+    from foldbot.garments.towel import make_towel
+
+    args = ["fold", "--width", "0.2", "--height", "0.2", "--resolution", "6", "--video-fps", "0"]
+    args += ["--cloth", "margin_divisor=8", "--out", str(tmp_path / "ep")]
+    run_cli(*args)
+    result = json.loads((tmp_path / "ep" / "result.json").read_text())
+    assert result["cloth_options"] == {"margin_divisor": 8.0}
+    edge = make_towel(config_from_args(build_parser().parse_args(args)).towel).edge_length
+    thickness = float(np.load(tmp_path / "ep" / "cloth.npz")["thickness"])
+    assert thickness == pytest.approx(edge / 4)

@@ -20,6 +20,7 @@ import numpy as np
 
 from foldbot.carry import nearest_arm
 from foldbot.cell import FoldCell, StepLog
+from foldbot.cloth_options import changed_cloth_options
 from foldbot.control.bimanual import check_arms_clear, check_clear_of_still_arms
 from foldbot.control.executor import (
     ArmExecutor,
@@ -487,6 +488,7 @@ def episode_result(
         "time_step": cfg.sim.time_step,
         "jaw_catch": cfg.jaw_catch,
         "loop_options": dict(cfg.loop_options),
+        "cloth_options": changed_cloth_options(cfg.cloth),
         "seed": cfg.seed,
         "replicate": cfg.replicate,
         "perception": cfg.perception,

@@ -76,6 +76,17 @@ def test_markdown_names_the_loop_options_a_suite_sets(tiny_suite_data):
     assert "Loop options set: relay_corners = false, pair_descent = none" in markdown(summary)
 
 
+def test_markdown_names_the_cloth_options_a_suite_sets(tiny_suite_data):
+    assert "Cloth set" not in markdown(summarise(suite_from_dict(tiny_suite_data()), []))
+    data = tiny_suite_data()
+    data["cloth"] = {"margin_divisor": 6.5}
+    summary = summarise(suite_from_dict(data), [])
+    assert summary["suite"]["cloth_options"] == {"margin_divisor": 6.5}
+    assert "Cloth set: margin_divisor = 6.5 (the others at ClothConfig's defaults)" in markdown(
+        summary
+    )
+
+
 def test_markdown_shows_how_replicates_repeat(tiny_suite_data):
     from foldbot.pipeline import REPLICATE_NUDGE_M
 

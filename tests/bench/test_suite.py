@@ -15,6 +15,7 @@ from foldbot.bench.suite import (
 )
 from foldbot.errors import ConfigError
 from foldbot.pipeline import loop_config
+from foldbot.sim.cloth import ClothConfig
 
 
 def test_repository_suites_are_listed():
@@ -186,6 +187,40 @@ def test_loop_options_reach_the_loop_and_are_left_out_of_specs_by_default(tiny_s
     assert spec.as_dict()["loop_options"] == expected
     assert EpisodeSpec.from_dict(spec.as_dict()) == spec
     assert suite_from_dict(data).loop_options == expected
+
+
+def test_cloth_options_reach_the_cloth_and_are_left_out_of_specs_by_default(tiny_suite_data):
+    data = tiny_suite_data()
+    default = load_one(data)
+    assert default.to_config().cloth == ClothConfig()
+    assert "cloth_options" not in default.as_dict()  # older runs keep resuming
+    assert suite_from_dict(data).cloth_options == {}
+    data["cloth"] = {"margin_divisor": 6.5, "friction": 2}
+    spec = load_one(data)
+    expected = {"friction": 2.0, "margin_divisor": 6.5}
+    assert spec.to_config().cloth == ClothConfig(friction=2.0, margin_divisor=6.5)
+    assert spec.as_dict()["cloth_options"] == expected
+    assert EpisodeSpec.from_dict(spec.as_dict()) == spec
+    assert suite_from_dict(data).cloth_options == expected
+
+
+@pytest.mark.parametrize(
+    ("table", "needle"),
+    [
+        (
+            {"thickness": 0.01},
+            "unknown key 'cloth.thickness'; allowed in [cloth]: bending_stiffness",
+        ),
+        ({"margin_divisor": 1}, "[cloth] cloth margin_divisor must be in [2, 20]"),
+        ({"friction": "high"}, "[cloth] cloth option friction = 'high' must be a finite number"),
+    ],
+)
+def test_a_bad_cloth_table_is_named(tiny_suite_data, table, needle):
+    data = tiny_suite_data()
+    data["cloth"] = table
+    with pytest.raises(ConfigError) as exc:
+        suite_from_dict(data)
+    assert needle in str(exc.value)
 
 
 def test_garment_yaw_reaches_the_pose_and_is_left_out_of_specs_by_default(tiny_suite_data):

@@ -139,6 +139,22 @@ def test_loop_options_go_over_the_suites_own(tmp_path):
     assert suite.loop_options == expected
 
 
+def test_cloth_options_go_over_the_suites_own(tmp_path):
+    suite_file = tmp_path / "tiny.toml"
+    suite_file.write_text(
+        'name = "tiny"\n[axes]\nseeds = "0-1"\n[cloth]\nfriction = 2.0\nmass = 0.2\n'
+    )
+    args = build_parser().parse_args(
+        ["bench", "--suite", str(suite_file), "--out", "x", "--cloth", "mass=0.3"]
+    )
+    suite = suite_from_args(args)
+    assert [(e.to_config().cloth.mass, e.to_config().cloth.friction) for e in suite.episodes] == [
+        (0.3, 2.0),
+        (0.3, 2.0),
+    ]
+    assert suite.cloth_options == {"mass": 0.3, "friction": 2.0}
+
+
 def test_a_bad_loop_option_is_refused_before_anything_runs(tmp_path, capsys):
     out = tmp_path / "b"
     code = main(

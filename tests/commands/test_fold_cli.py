@@ -52,6 +52,9 @@ def test_subcommand_help(cmd, capsys):
         (["--loop-option", "stack_inset=-0.01"], "stack_inset = -0.01 must be a length in m"),
         (["--loop-option", "grip=true"], "unknown loop option 'grip'"),
         (["--loop-option", "relay_corners=false", "--loop-option", "relay_corners=true"], "twice"),
+        (["--cloth", "margin_divisor=1"], "cloth margin_divisor must be in [2, 20]"),
+        (["--cloth", "glue=1"], "unknown cloth option 'glue'"),
+        (["--mass", "0.2", "--cloth", "mass=0.3"], "mass is given twice"),
         (
             ["--garment", "tshirt", "--loop-option", "crease_band=0.03"],
             "crease_band acts on towel folds only; the tshirt loop reads top_layer_first",

@@ -123,6 +123,7 @@ def test_ros_fold_hands_the_nodes_every_option_that_shapes_the_episode(tmp_path)
             *("--max-vertices", "100"),
             *("--jaw-catch", "surface", "--video-fps", "0"),
             *("--loop-option", "stack_edge_carry=false", "--loop-option", "pair_descent=0.02"),
+            *("--cloth", "friction=0.8", "--cloth", "margin_divisor=6.5"),
         ]
     )
     _node_args, node_cfg = parse_fold_args(ros_fold.fold_args_text(args))
@@ -130,3 +131,5 @@ def test_ros_fold_hands_the_nodes_every_option_that_shapes_the_episode(tmp_path)
     assert node_cfg.replicate == 3 and node_cfg.jaw_catch == "surface"
     assert node_cfg.towel.max_vertices == 100
     assert node_cfg.loop_options == {"stack_edge_carry": False, "pair_descent": 0.02}
+    assert (node_cfg.cloth.mass, node_cfg.cloth.friction) == (0.2, 0.8)
+    assert node_cfg.cloth.margin_divisor == 6.5

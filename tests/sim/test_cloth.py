@@ -128,9 +128,20 @@ def test_default_thickness_is_two_margins(world):
         ({"elastic_stiffness": 0.0}, "elastic_stiffness"),
         ({"friction": -0.1}, "friction"),
         ({"collision_margin": 0.5}, "collision_margin"),
+        ({"margin_divisor": 1.0}, "margin_divisor"),
+        ({"margin_divisor": float("nan")}, "margin_divisor"),
         ({"thickness": 1.0}, "thickness"),
     ],
 )
 def test_bad_cloth_config(kwargs, needle):
     with pytest.raises(ConfigError, match=needle):
         ClothConfig(**kwargs)
+
+
+def test_a_larger_margin_divisor_makes_a_thinner_cloth(world):
+    mesh = make_towel(TowelSpec(0.3, 0.3, 8))
+    cloth = SoftCloth(
+        world.client, mesh, ClothConfig(margin_divisor=8.0), world.layout.table_height, (0.45, 0.0)
+    )
+    assert cloth.margin == pytest.approx(mesh.edge_length / 8)
+    assert cloth.thickness == pytest.approx(mesh.edge_length / 4)

@@ -99,6 +99,10 @@ def markdown(summary: dict) -> str:
     if options:
         shown = ", ".join(f"{k} = {shown_value(v)}" for k, v in options.items())
         lines += [f"Loop options set: {shown} (the others at LoopConfig's defaults).", ""]
+    cloth = s.get("cloth_options")
+    if cloth:
+        shown = ", ".join(f"{k} = {v:g}" for k, v in cloth.items())
+        lines += [f"Cloth set: {shown} (the others at ClothConfig's defaults).", ""]
     if summary.get("command"):
         lines += ["```bash", summary["command"], "```", ""]
     header = (

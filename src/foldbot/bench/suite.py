@@ -46,6 +46,9 @@ jaw_catch = "vertices"                  # "surface": closed jaws also hold cloth
 [loop_options]                          # the closed loop's switches (foldbot.loop_options), e.g.
 top_layer_first = false                 # true/false, integers, metres; "none" where allowed
 
+[cloth]                                 # the cloth's physical parameters (foldbot.cloth_options),
+margin_divisor = 6.5                    # e.g. a thinner collision margin: edge / 6.5 (default 5)
+
 [reference]
 ravens_speed = true                     # plain-PyBullet speed reference (ravens_reference.py)
 ```
@@ -64,6 +67,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from foldbot.cloth_options import CLOTH_OPTIONS, apply_cloth_options, check_cloth_options
 from foldbot.errors import ConfigError
 from foldbot.garments.towel import MAX_RESOLUTION, MIN_RESOLUTION, MIN_VERTICES, TowelSpec
 from foldbot.loop_options import LOOP_OPTIONS, LoopOptionValue, check_loop_options
@@ -78,6 +82,7 @@ from foldbot.pipeline import (
 )
 from foldbot.planning.garment_recipes import GARMENT_RECIPES
 from foldbot.planning.recipes import RECIPES
+from foldbot.sim.cloth import ClothConfig
 from foldbot.sim.grasp import JAW_CATCHES
 from foldbot.sim.world import SimConfig
 
@@ -97,6 +102,7 @@ _SCHEMA: dict[str, set[str]] = {
         "randomise",
         "episode",
         "loop_options",
+        "cloth",
         "reference",
     },
     "axes": {"garment", "recipe", "perception", "loop", "seeds", "replicates"},
@@ -104,6 +110,7 @@ _SCHEMA: dict[str, set[str]] = {
     "randomise": {"towel_side", "position_jitter", "yaw_deg", "garment_yaw_deg"},
     "episode": {"retries", "video_fps", "start", "park", "time_step", "arms", "jaw_catch"},
     "loop_options": set(LOOP_OPTIONS),
+    "cloth": set(CLOTH_OPTIONS),
     "reference": {"ravens_speed"},
 }
 
@@ -175,6 +182,9 @@ class EpisodeSpec:
     """What the closed jaws hold (EpisodeConfig.jaw_catch): vertices, or surface."""
     loop_options: tuple[tuple[str, LoopOptionValue], ...] = ()
     """The closed loop's switches set by name (EpisodeConfig.loop_options), as (name, value)."""
+    cloth_options: tuple[tuple[str, float], ...] = ()
+    """The cloth's physical parameters set by name (cloth_options.CLOTH_OPTIONS), as (name,
+    value); the others at ClothConfig's defaults."""
     replicate: int = 0
     """EpisodeConfig.replicate: 0, the seed's pose; k > 0, the same cloth laid 0.1 mm from it."""
 
@@ -220,6 +230,7 @@ class EpisodeSpec:
             arms=self.arms,
             jaw_catch=self.jaw_catch,
             loop_options=dict(self.loop_options),
+            cloth=apply_cloth_options(ClothConfig(), dict(self.cloth_options)),
             replicate=self.replicate,
             sim=SimConfig() if self.time_step is None else SimConfig(time_step=self.time_step),
         )
@@ -243,6 +254,10 @@ class EpisodeSpec:
             d["loop_options"] = dict(self.loop_options)
         else:
             del d["loop_options"]  # likewise
+        if d["cloth_options"]:
+            d["cloth_options"] = dict(self.cloth_options)
+        else:
+            del d["cloth_options"]  # likewise
         if d["replicate"] == 0:
             del d["replicate"]  # likewise
         if d["towel_side_range"] is not None:
@@ -255,8 +270,9 @@ class EpisodeSpec:
         d = dict(d)
         if d.get("towel_side_range") is not None:
             d["towel_side_range"] = tuple(d["towel_side_range"])
-        if "loop_options" in d:
-            d["loop_options"] = tuple(d["loop_options"].items())
+        for key in ("loop_options", "cloth_options"):
+            if key in d:
+                d[key] = tuple(d[key].items())
         return cls(**d)
 
 
@@ -278,6 +294,11 @@ class Suite:
     def loop_options(self) -> dict[str, LoopOptionValue]:
         """The loop options its episodes set (one [loop_options] table for the whole suite)."""
         return dict(self.episodes[0].loop_options) if self.episodes else {}
+
+    @property
+    def cloth_options(self) -> dict[str, float]:
+        """The cloth options its episodes set (one [cloth] table for the whole suite)."""
+        return dict(self.episodes[0].cloth_options) if self.episodes else {}
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-able description (written to DIR/suite.json; resuming checks it)."""
@@ -488,6 +509,10 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
             check_loop_options(dict(loop_options), garment)
     except ConfigError as exc:
         raise ConfigError(f"{where}: [loop_options] {exc}") from None
+    try:
+        cloth_options = tuple(check_cloth_options(data.get("cloth", {})).items())
+    except ConfigError as exc:
+        raise ConfigError(f"{where}: [cloth] {exc}") from None
     ravens = _get(data, "reference", "ravens_speed", bool, True, where)
 
     specs = [
@@ -514,6 +539,7 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
             arms=arms,
             jaw_catch=jaw_catch,
             loop_options=loop_options,
+            cloth_options=cloth_options,
             replicate=replicate,
         )
         for garment, recipe, perception, loop, seed, replicate in itertools.product(

@@ -27,7 +27,8 @@ from foldbot.bench.report import write_report
 from foldbot.bench.runner import DEFAULT_TIMEOUT_S, run_suite
 from foldbot.bench.suite import Suite, load_suite, parse_seeds, suite_from_dict
 from foldbot.bench.summary import summarise
-from foldbot.commands.fold import add_loop_option
+from foldbot.cloth_options import check_cloth_options, cloth_options_from_args
+from foldbot.commands.fold import add_cloth_option, add_loop_option
 from foldbot.errors import ConfigError
 from foldbot.loop_options import check_loop_options, loop_options_from_args
 from foldbot.pipeline import PERCEPTION_MODES
@@ -78,6 +79,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help=f"stop an episode after this many wall seconds (default {DEFAULT_TIMEOUT_S:g})",
     )
     add_loop_option(parser, "in every episode, over the suite's [loop_options]")
+    add_cloth_option(parser, "in every episode, over the suite's [cloth]")
     one = parser.add_argument_group("one-recipe suite (instead of --suite)")
     one.add_argument(
         "--recipe",
@@ -108,19 +110,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def suite_from_args(args: argparse.Namespace) -> Suite:
     """The suite named by --suite, or the one-recipe suite the other options describe, with the
-    --loop-option settings over its own."""
-    return with_loop_options(_suite_from_args(args), loop_options_from_args(args.loop_option))
+    --loop-option and --cloth settings over its own."""
+    return with_options(
+        _suite_from_args(args),
+        loop_options_from_args(args.loop_option),
+        cloth_options_from_args(args.cloth),
+    )
 
 
-def with_loop_options(suite: Suite, options: dict) -> Suite:
-    """The suite with `options` set in every episode, over (and beside) the suite's own."""
-    if not options:
+def with_options(suite: Suite, loop: dict, cloth: dict | None = None) -> Suite:
+    """The suite with the `loop` options and the `cloth` ones set in every episode, over (and
+    beside) the suite's own."""
+    if not loop and not cloth:
         return suite
     episodes = tuple(
         dataclasses.replace(
             e,
             loop_options=tuple(
-                check_loop_options({**dict(e.loop_options), **options}, e.garment).items()
+                check_loop_options({**dict(e.loop_options), **loop}, e.garment).items()
+            ),
+            cloth_options=tuple(
+                check_cloth_options({**dict(e.cloth_options), **(cloth or {})}).items()
             ),
         )
         for e in suite.episodes

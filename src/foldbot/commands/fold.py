@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import math
 from pathlib import Path
 
+from foldbot.cloth_options import apply_cloth_options, cloth_options_from_args, cloth_options_help
+from foldbot.errors import ConfigError
 from foldbot.garments.towel import TowelSpec
 from foldbot.loop_options import loop_options_from_args, loop_options_help
 from foldbot.pipeline import (
@@ -60,6 +61,19 @@ def add_loop_option(parser: argparse.ArgumentParser, where: str) -> None:
         metavar="NAME=VALUE",
         help=f"set one of the closed loop's switches (repeatable; {where}); VALUE is true/false, "
         "an integer, metres, or none: " + loop_options_help(),
+    )
+
+
+def add_cloth_option(parser: argparse.ArgumentParser, where: str) -> None:
+    """`--cloth NAME=VALUE` (repeatable), shared by the commands that run episodes; `where` says
+    what it goes over."""
+    parser.add_argument(
+        "--cloth",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help=f"set one of the cloth's physical parameters (repeatable; {where}): "
+        + cloth_options_help(),
     )
 
 
@@ -164,6 +178,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "[episode] jaw_catch)",
     )
     add_loop_option(parser, "a suite's [loop_options]")
+    add_cloth_option(parser, "a suite's [cloth]; --mass is mass=")
     parser.add_argument(
         "--video-fps", type=float, default=10.0, help="video frames per simulated second (0 = off)"
     )
@@ -177,7 +192,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
     """Build the episode config (validated) from parsed options."""
     base = EpisodeConfig()
-    cloth = base.cloth if args.mass is None else dataclasses.replace(base.cloth, mass=args.mass)
+    cloth_options = cloth_options_from_args(args.cloth)
+    if args.mass is not None:
+        if "mass" in cloth_options:
+            raise ConfigError("the cloth's mass is given twice (--mass and --cloth mass=)")
+        cloth_options["mass"] = args.mass
+    cloth = apply_cloth_options(base.cloth, cloth_options)
     return EpisodeConfig(
         garment=args.garment,
         recipe=args.recipe or DEFAULT_RECIPES[args.garment],

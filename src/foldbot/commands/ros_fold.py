@@ -88,6 +88,8 @@ def fold_args_text(args: argparse.Namespace) -> str:
     words += ["--time-step", repr(args.time_step)]
     for option in args.loop_option or ():
         words += ["--loop-option", option]
+    for option in args.cloth or ():
+        words += ["--cloth", option]
     if args.garment_edge_length is not None:
         words += ["--garment-edge-length", repr(args.garment_edge_length)]
     words += ["--garment-yaw", repr(args.garment_yaw)]

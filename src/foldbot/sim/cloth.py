@@ -33,7 +33,11 @@ class ClothConfig:
     friction: float = 1.0
     """Cloth friction coefficient (the binding's default of 0 is frictionless cloth)."""
     collision_margin: float | None = None
-    """Collision margin (m); None = mean edge length / 5, which keeps the cloth on the table."""
+    """Collision margin (m); None = the mesh's mean edge length / `margin_divisor`."""
+    margin_divisor: float = 5.0
+    """Where `collision_margin` is None, the margin is the mean edge length over this: a fifth
+    keeps the cloth on the table; thinner (a larger divisor) makes stacks blow up
+    (docs/experiments.md)."""
     self_collision: bool = True
     """Cloth–cloth collision, which keeps folded layers apart."""
     thickness: float | None = None
@@ -48,6 +52,11 @@ class ClothConfig:
         require(
             math.isfinite(self.mass) and 0.0 < self.mass <= 5.0,
             f"cloth mass must be in (0, 5] kg, got {self.mass!r}",
+        )
+        require(
+            math.isfinite(self.margin_divisor) and 2.0 <= self.margin_divisor <= 20.0,
+            f"cloth margin_divisor must be in [2, 20] (margin = edge / it), "
+            f"got {self.margin_divisor!r}",
         )
         for name in ("elastic_stiffness", "bending_stiffness"):
             v = getattr(self, name)
@@ -89,7 +98,7 @@ class SoftCloth:
         self.mesh = mesh
         self.config = config
         self.table_height = table_height
-        self.margin = config.collision_margin or mesh.edge_length / 5.0
+        self.margin = config.collision_margin or mesh.edge_length / config.margin_divisor
         self.thickness = config.thickness if config.thickness is not None else 2 * self.margin
         base = np.array([position_xy[0], position_xy[1], table_height + config.drop_height])
         self.spawn_vertices = mesh.vertices @ yaw_rotation(yaw).T + base
