@@ -164,3 +164,14 @@ def test_a_bad_loop_option_is_refused_before_anything_runs(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "stack_edge_carry = 1 must be true or false" in err and "Traceback" not in err
     assert not out.exists()
+
+
+def test_the_summary_command_repeats_the_options_set(tmp_path):
+    """summary.md's command reruns the run: the loop and cloth options it set are in it."""
+    out = tmp_path / "r"
+    options = ["--loop-option", "relay_corners=false", "--cloth", "friction=0.5"]
+    assert main(["bench", "--suite", "smoke", "--out", str(out), "--report-only", *options]) == 0
+    command = json.loads((out / "summary.json").read_text())["command"]
+    assert command.endswith(
+        "--loop-option relay_corners=false --cloth friction=0.5 --out " + str(out)
+    )

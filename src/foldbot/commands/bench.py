@@ -218,6 +218,10 @@ def run(args: argparse.Namespace) -> int:
         cmd += ["--seeds", args.seeds or "0-9"]
         if args.size_range is not None:
             cmd += ["--size-range", *map(str, args.size_range)]
+    for option in args.loop_option:
+        cmd += ["--loop-option", option]
+    for option in args.cloth:
+        cmd += ["--cloth", option]
     summary["command"] = shlex.join([*cmd, "--out", str(out)])
     if suite.ravens_speed and not args.no_reference:
         summary["ravens_speed_reference"] = _reference(suite, summary)
