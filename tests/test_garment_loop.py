@@ -92,6 +92,23 @@ def test_a_retried_tip_grasp_closes_farther_inside_the_cloth():
     assert again.grasp[2] == pytest.approx(Z, abs=1e-3)
 
 
+def test_a_part_dragged_away_is_carried_from_what_is_left_past_the_line():
+    """A T-shirt's hem corner after its cuff's carry: nothing seen within the regrasp radius of
+    the planned grasp, so the grasp goes where the cloth left past the line reaches farthest."""
+    s, obs = square_state(), overhead_view(Z)  # the cloth spans x 0.35–0.55, y −0.1–0.1
+    line = (0.50, 0.0, 0.0, -1.0)  # moving side: x > 0.50, whose tip is the +x side at 0.55
+    planned = FoldAction(np.array([0.70, 0.0, Z]), np.array([0.30, 0.0, Z]), line, "left_hem")
+    cfg = LoopConfig(recipe="retail")
+    assert snap_to_cloth(s, planned.grasp, cfg.regrasp_radius) is None
+    action = corrected_grasp(cfg, s, obs, planned, planned)
+    assert action.grasp[:2] == pytest.approx([0.55 - GRASP_INSET, 0.0], abs=1e-6)
+    assert action.place[0] == pytest.approx(0.50 - (action.grasp[0] - 0.50), abs=1e-6)
+    assert action.label == "left_hem" and action.grasp[2] == pytest.approx(Z, abs=1e-3)
+    # A planned grasp that still has cloth near it is snapped onto it, as before.
+    near = FoldAction(np.array([0.53, 0.05, Z]), np.array([0.47, 0.05, Z]), line, "left_hem")
+    assert corrected_grasp(cfg, s, obs, near, near).grasp[:2] == pytest.approx([0.53, 0.05])
+
+
 def test_a_stacks_top_layer_is_grasped_first_where_it_reaches_farthest():
     """Pants' legs: the layer the previous stage laid ends at x = 0.52, short of the stack's tip
     at 0.55; given its points, the first grasp takes that layer's end, at the surface seen there."""

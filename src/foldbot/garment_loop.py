@@ -132,15 +132,19 @@ def corrected_grasp(
     (or, `from_tip`, where the cloth left past the line reaches farthest, or with `top`, the
     points of the layer the previous stage laid, where that layer reaches farthest; on the
     `retry`-th retry after a miss RETRY_INSET farther in each time) and onto the perceived surface
-    height there (a stack: at the table, under every layer)."""
+    height there (a stack: at the table, under every layer). A planned part with no cloth seen
+    near it (an earlier carry dragged it along: a T-shirt's hem corner after its cuff) is carried
+    from the tip instead, as what is left of it past the line (tip_action)."""
+    inset = GRASP_INSET + retry * RETRY_INSET
     if from_tip:
-        inset = GRASP_INSET + retry * RETRY_INSET
         lead = None if top is None else top_layer_action(top, planned, inset)
         action = lead or tip_action(state, planned, inset) or action
     else:
         seen = snap_to_cloth(state, planned.grasp, cfg.regrasp_radius)
         if seen is not None:
             action = dataclasses.replace(action, grasp=seen)
+        else:
+            action = tip_action(state, planned, inset) or action
     top = surface_height(obs, action.grasp)
     if planned.layers == 1 and top is not None:
         action = dataclasses.replace(action, grasp=np.r_[action.grasp[:2], top])
@@ -179,15 +183,14 @@ def garment_action(
     and the observation taken after it (state and frame)."""
     t_sim, t_wall = cell.sim_time, time.perf_counter()
     action, retries, attempts, state, obs = planned, 0, [], latest, latest_obs
-    carried = (
+    gone = from_tip or snap_to_cloth(state, planned.grasp, cfg.regrasp_radius) is None
+    carried = gone and (
         tip_action(state, planned) is None
-        if from_tip
-        else snap_to_cloth(state, planned.grasp, cfg.regrasp_radius) is None
-        and outline_distance(state, planned.place) >= 0.0
+        or (not from_tip and outline_distance(state, planned.place) >= 0.0)
     )
     if carried:
-        # Earlier carries took this part along: no cloth is left near the grasp point (or past the
-        # line) and the cloth already covers the place point.
+        # Earlier carries took this part along: no cloth is left past the line, or none near the
+        # grasp point with the cloth already covering the place point.
         log(f"  {planned.label}: already carried; skipped")
         entry = open_loop_entry(planned, _SKIPPED, 0.0, time.perf_counter() - t_wall)
         entry.update(skipped=True)
@@ -195,6 +198,9 @@ def garment_action(
     lead = from_tip and top is not None and top_layer_action(top, planned) is not None
     if lead:
         log(f"  {planned.label}: the top layer first, from where it reaches farthest")
+    dragged = gone and not from_tip
+    if dragged:
+        log(f"  {planned.label}: no cloth seen near it; what is left past the line, from its tip")
     while True:
         # A missed top-layer grasp is retried as the whole stack's tip carry: the miss has moved
         # the layers, so the frame that showed the laid layer no longer shows it.
@@ -224,7 +230,7 @@ def garment_action(
         log(f"  grasp failed ({outcome['grasp_reason']}); re-observed, retry {retries}")
     entry = open_loop_entry(action, outcome, cell.sim_time - t_sim, time.perf_counter() - t_wall)
     entry.update(label=planned.label, placed_error_m=attempts[-1]["placed_error_m"])
-    entry.update(retries=retries, attempts=attempts, top_layer=bool(lead))
+    entry.update(retries=retries, attempts=attempts, top_layer=bool(lead), dragged=dragged)
     if cell.arms > 1:
         entry["arm"] = cell.active_arm
     return entry, state, obs
