@@ -14,7 +14,7 @@ import dataclasses
 import math
 from collections.abc import Mapping
 
-from foldbot.errors import ConfigError
+from foldbot.errors import ConfigError, split_name_value
 from foldbot.sim.cloth import ClothConfig
 
 CLOTH_OPTIONS = (
@@ -69,13 +69,7 @@ def changed_cloth_options(cloth: ClothConfig) -> dict[str, float]:
 
 def parse_cloth_option(text: str) -> tuple[str, float]:
     """'NAME=VALUE' from the command line → (name, checked value)."""
-    name, sep, raw = text.partition("=")
-    name, raw = name.strip(), raw.strip()
-    if not sep or not name or not raw:
-        raise ConfigError(
-            f"cloth option {text!r} must look like NAME=VALUE, e.g. margin_divisor=6.5; "
-            f"names: {', '.join(CLOTH_OPTIONS)}"
-        )
+    name, raw = split_name_value(text, "cloth option", "margin_divisor=6.5", CLOTH_OPTIONS)
     try:
         value = float(raw)
     except ValueError:

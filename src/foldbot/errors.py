@@ -59,6 +59,18 @@ def require(condition: bool, message: str) -> None:
         raise ConfigError(message)
 
 
+def split_name_value(text: str, what: str, example: str, names: tuple[str, ...]) -> tuple[str, str]:
+    """A command line's 'NAME=VALUE' → (name, raw value), both stripped; ConfigError naming `what`
+    (e.g. "loop option"), an `example` and the allowed `names` when it is not of that form."""
+    name, sep, raw = text.partition("=")
+    name, raw = name.strip(), raw.strip()
+    if not sep or not name or not raw:
+        raise ConfigError(
+            f"{what} {text!r} must look like NAME=VALUE, e.g. {example}; names: {', '.join(names)}"
+        )
+    return name, raw
+
+
 def reported_error(report: dict, what: str) -> FoldbotError:
     """The error another process reported (JSON: `error`, `error_type`) as the same foldbot error
     type (FoldbotError for any other name), its message prefixed with `what`, with the report's

@@ -12,7 +12,7 @@ import dataclasses
 import math
 from collections.abc import Mapping
 
-from foldbot.errors import ConfigError
+from foldbot.errors import ConfigError, split_name_value
 from foldbot.loop import LoopConfig
 
 LoopOptionValue = bool | int | float | None
@@ -114,13 +114,7 @@ def check_loop_options(
 def parse_loop_option(text: str) -> tuple[str, LoopOptionValue]:
     """'NAME=VALUE' from the command line → (name, checked value). VALUE is true/false, an
     integer, a number of metres, or none."""
-    name, sep, raw = text.partition("=")
-    name, raw = name.strip(), raw.strip()
-    if not sep or not name or not raw:
-        raise ConfigError(
-            f"loop option {text!r} must look like NAME=VALUE, e.g. top_layer_first=false; "
-            f"names: {', '.join(LOOP_OPTIONS)}"
-        )
+    name, raw = split_name_value(text, "loop option", "top_layer_first=false", LOOP_OPTIONS)
     if name not in LOOP_OPTION_KINDS:
         check_loop_option(name, None)  # raises: unknown name, with the allowed ones
     low = raw.lower()
