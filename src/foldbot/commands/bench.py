@@ -118,7 +118,7 @@ def suite_from_args(args: argparse.Namespace) -> Suite:
     )
 
 
-def with_options(suite: Suite, loop: dict, cloth: dict | None = None) -> Suite:
+def with_options(suite: Suite, loop: dict, cloth: dict) -> Suite:
     """The suite with the `loop` options and the `cloth` ones set in every episode, over (and
     beside) the suite's own."""
     if not loop and not cloth:
@@ -129,9 +129,7 @@ def with_options(suite: Suite, loop: dict, cloth: dict | None = None) -> Suite:
             loop_options=tuple(
                 check_loop_options({**dict(e.loop_options), **loop}, e.garment).items()
             ),
-            cloth_options=tuple(
-                check_cloth_options({**dict(e.cloth_options), **(cloth or {})}).items()
-            ),
+            cloth_options=tuple(check_cloth_options({**dict(e.cloth_options), **cloth}).items()),
         )
         for e in suite.episodes
     )
