@@ -92,6 +92,24 @@ def test_a_retried_tip_grasp_closes_farther_inside_the_cloth():
     assert again.grasp[2] == pytest.approx(Z, abs=1e-3)
 
 
+def test_a_retried_grasp_on_the_cloth_moves_toward_its_centre():
+    """A T-shirt's hem corner whose grasp missed: the retry closes RETRY_INSET per retry toward
+    the perceived cloth's centre (0.45, 0), not on the point that just missed."""
+    s, obs = square_state(), overhead_view(Z)
+    line = (0.40, 0.0, 0.0, -1.0)
+    planned = FoldAction(np.array([0.53, 0.08, Z]), np.array([0.27, 0.08, Z]), line, "left_hem")
+    cfg = LoopConfig(recipe="retail")
+    first = corrected_grasp(cfg, s, obs, planned, planned)
+    assert first.grasp[:2] == pytest.approx([0.53, 0.08])
+    to_centre = np.array([0.45 - 0.53, 0.0 - 0.08]) / np.hypot(0.08, 0.08)
+    for retry in (1, 2):
+        again = corrected_grasp(cfg, s, obs, planned, first, retry=retry)
+        expected = np.array([0.53, 0.08]) + to_centre * retry * RETRY_INSET
+        assert again.grasp[:2] == pytest.approx(expected, abs=1e-6)
+        assert again.place[:2] == pytest.approx(planned.place[:2])
+        assert again.grasp[2] == pytest.approx(Z, abs=1e-3)
+
+
 def test_a_part_dragged_away_is_carried_from_what_is_left_past_the_line():
     """A T-shirt's hem corner after its cuff's carry: nothing seen within the regrasp radius of
     the planned grasp, so the grasp goes where the cloth left past the line reaches farthest."""

@@ -134,7 +134,9 @@ def corrected_grasp(
     `retry`-th retry after a miss RETRY_INSET farther in each time) and onto the perceived surface
     height there (a stack: at the table, under every layer). A planned part with no cloth seen
     near it (an earlier carry dragged it along: a T-shirt's hem corner after its cuff) is carried
-    from the tip instead, as what is left of it past the line (tip_action)."""
+    from the tip instead, as what is left of it past the line (tip_action). A retried grasp
+    snapped onto the cloth moves RETRY_INSET per retry toward the cloth's centre (inward), as a
+    pair's does, rather than closing on the point that just missed."""
     inset = GRASP_INSET + retry * RETRY_INSET
     if from_tip:
         lead = None if top is None else top_layer_action(top, planned, inset)
@@ -142,7 +144,7 @@ def corrected_grasp(
     else:
         seen = snap_to_cloth(state, planned.grasp, cfg.regrasp_radius)
         if seen is not None:
-            action = dataclasses.replace(action, grasp=seen)
+            action = inward(state, dataclasses.replace(action, grasp=seen), retry * RETRY_INSET)
         else:
             action = tip_action(state, planned, inset) or action
     top = surface_height(obs, action.grasp)
