@@ -274,17 +274,30 @@ def test_crumpled_towel_is_flattened_over_topics(tmp_path):
 
 def test_two_arms_fold_over_topics(tmp_path):
     """`--arms 2`: each arm's joints and base frame named left_/right_, a pair of corners moved
-    on one clock by one trajectory, each gripper commanded by its arm."""
+    on one clock by one trajectory, each gripper commanded by its arm. `--cloth
+    margin_divisor=6` reaches the sim node's cloth: the layer thickness it reports (cloth.npz)
+    is a third of a mesh edge, and result.json names the option."""
     import rosbag
 
+    from foldbot.cli import build_parser
+    from foldbot.commands.fold import config_from_args
+    from foldbot.garments.towel import make_towel
+
     out, bag_path = tmp_path / "episode", tmp_path / "run.bag"
+    episode = ["--arms", "2", "--resolution", "8", "--cloth", "margin_divisor=6"]
     proc = foldbot(
-        "ros-fold", "--arms", "2", "--resolution", "8", "--video-fps", "0", "--camera-rate", "2",
+        "ros-fold", *episode, "--video-fps", "0", "--camera-rate", "2",
         "--out", str(out), "--record", str(bag_path), "--port", str(free_port()),
     )  # fmt: skip
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     result = json.loads((out / "result.json").read_text())
     assert result["transport"] == "ros" and result["arms"] == 2
+    assert result["cloth_options"] == {"margin_divisor": 6.0}
+    edge = make_towel(
+        config_from_args(build_parser().parse_args(["fold", *episode, "--out", "x"])).towel
+    )
+    thickness = float(np.load(out / "cloth.npz")["thickness"])
+    assert thickness == pytest.approx(edge.edge_length / 3)
     # One stage, its two far corners carried at once, each by the arm on its side (as in process:
     # tests/test_pipeline.py), planned together by the planner node and checked for clearance.
     actions = result["actions"]
