@@ -130,6 +130,47 @@ def test_two_arms_carry_a_pants_leg_by_waist_and_hem_together(tmp_path):
     assert np.isfinite(result["fold_error_mm"])
 
 
+EPISODE = """
+import json, sys
+from pathlib import Path
+from foldbot.pipeline import EpisodeConfig, run_episode
+run_episode(EpisodeConfig(**json.loads(sys.argv[1])), Path(sys.argv[2]), log=lambda *_: None)
+"""
+
+
+def fresh_episode(out, **kwargs) -> dict:
+    """run_episode in a fresh process (Bullet's soft-body state is process-global, so an episode
+    after others in one process can differ); its result.json."""
+    subprocess.run(
+        [sys.executable, "-c", EPISODE, json.dumps(kwargs), str(out)],
+        capture_output=True, timeout=900, check=True,
+    )  # fmt: skip
+    return json.loads((out / "result.json").read_text())
+
+
+@pytest.mark.slow
+def test_a_garment_grasp_aimed_off_the_cloth_is_seen_to_fail_and_retried(tmp_path):
+    """The first grasp (the left waist corner) aimed 6 cm off the cloth: the jaws close on bare
+    table, the loop sees it, re-observes and grasps the corner on the cloth."""
+    result = fresh_episode(
+        tmp_path / "ep",
+        garment="pants",
+        recipe="leg_over_leg",
+        seed=1,
+        garment_edge_length=0.03,
+        fault_grasp_offset=0.06,
+        video_fps=0,
+    )
+    first = result["actions"][0]
+    assert first["label"] == "left_waist" and first["retries"] == 1
+    missed, retried = first["attempts"]
+    assert missed["grasp_success"] is False and "no cloth" in missed["grasp_reason"]
+    assert retried["grasp_success"] is True and first["grasp_success"] is True
+    # The miss was aimed 6 cm farther out than the retry, which closed on the cloth.
+    assert np.hypot(*np.subtract(missed["grasp"][:2], retried["grasp"][:2])) > 0.05
+    assert np.isfinite(result["fold_error_mm"])
+
+
 @pytest.mark.slow
 def test_crumpled_towel_is_flattened_then_folded(tmp_path):
     # A fresh process: Bullet's soft-body state is process-global, and a crumpled heap is where

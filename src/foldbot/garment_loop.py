@@ -169,6 +169,17 @@ def inward(state: ClothState, action: FoldAction, distance: float) -> FoldAction
     return dataclasses.replace(action, grasp=np.r_[action.grasp[:2] + step, action.grasp[2]])
 
 
+def faulted(cfg: LoopConfig, state: ClothState, action: FoldAction) -> FoldAction:
+    """`action` with its grasp moved `cfg.fault_grasp_offset` (m) away from the perceived cloth's
+    centre, onto bare table: an injected grasp failure (tests), as the towel loop's."""
+    outline = np.asarray(state.outline_world, dtype=float).reshape(-1, 3)
+    if not state.detected or len(outline) < 3:
+        return action
+    outward = action.grasp[:2] - outline[:, :2].mean(axis=0)
+    outward = outward / max(float(np.linalg.norm(outward)), 1e-9) * cfg.fault_grasp_offset
+    return dataclasses.replace(action, grasp=action.grasp + np.r_[outward, 0.0])
+
+
 def garment_action(
     cfg: LoopConfig,
     cell: FoldCell,
@@ -178,10 +189,12 @@ def garment_action(
     log: Callable[[str], None] = print,
     from_tip: bool = False,
     top: np.ndarray | None = None,
+    inject_fault: bool = False,
 ) -> tuple[dict, ClothState, Observation]:
     """One pick-and-place with the grasp corrected onto the cloth seen now (x, y onto the
     perceived cloth, height onto the perceived surface there; `top`: see corrected_grasp); a
-    failed grasp is re-observed and retried (at most `cfg.retries` times). Returns the log entry
+    failed grasp is re-observed and retried (at most `cfg.retries` times). `inject_fault` aims
+    the first attempt `cfg.fault_grasp_offset` off the cloth (faulted). Returns the log entry
     and the observation taken after it (state and frame)."""
     t_sim, t_wall = cell.sim_time, time.perf_counter()
     action, retries, attempts, state, obs = planned, 0, [], latest, latest_obs
@@ -210,6 +223,8 @@ def garment_action(
         action = corrected_grasp(
             cfg, state, obs, planned, action, from_tip, retries, top if lead_now else None
         )
+        if inject_fault and not attempts:
+            action = faulted(cfg, state, action)
         cell.use_arm(cell.arm_for(action.grasp))
         show_action(cell, state, action)
         outcome = execute_action(cell, action)
@@ -245,6 +260,7 @@ def garment_pair(
     latest: ClothState,
     latest_obs: Observation,
     log: Callable[[str], None] = print,
+    inject_fault: bool = False,
 ) -> tuple[list[dict], ClothState, Observation]:
     """A stage's two grasps (a side's hem corner and cuff, a leg's waist corner and hem) carried
     at once, one arm each, so the edge between them is folded rather than dragged by one end.
@@ -254,7 +270,8 @@ def garment_pair(
     makes both arms let go; the cell re-observes and redoes the pair (at most `cfg.retries`
     times, a missed grasp RETRY_INSET farther toward the cloth's centre each time); a pair
     that still fails, or whose arms would meet either way, is done one arm at a time
-    (garment_action)."""
+    (garment_action). `inject_fault` aims the first grasp's first attempt off the cloth
+    (faulted)."""
 
     def aim(
         i: int,
@@ -265,14 +282,18 @@ def garment_pair(
         _previous: FoldAction,
     ) -> FoldAction:
         grasp = corrected_grasp(cfg, state, obs, planned[i], planned[i])
+        if inject_fault and attempt == 0 and i == 0:
+            return faulted(cfg, state, grasp)
         return inward(state, grasp, attempt * RETRY_INSET) if missed else grasp
 
     pair = carry_pair(cell, planned, latest, latest_obs, aim, cfg.retries, log, "them")
     state, obs = pair.state, pair.obs
     entries = []
     if pair.arms_would_meet is not None:
-        for p in planned:
-            entry, state, obs = garment_action(cfg, cell, p, state, obs, log)
+        for k, p in enumerate(planned):
+            entry, state, obs = garment_action(
+                cfg, cell, p, state, obs, log, inject_fault=inject_fault and k == 0
+            )
             entry["arms_would_meet"] = pair.arms_would_meet
             entries.append(entry)
         return entries, state, obs
@@ -389,6 +410,7 @@ def run_garment_fold(
     rec.initial_overlay = plan_overlay_all(obs, state, plan, cell.table_height)
     parts = [np.asarray(state.outline_world, dtype=float)[:, :2]]
     top = None  # the layer the previous stage laid (N×3), for a stage whose top layer goes first
+    fault = cfg.fault_grasp_offset > 0  # the episode's first grasp is aimed off the cloth
     for i, stage in enumerate(plan.stages):
         rec.fold_lines.append(stage.fold_line)
         before_state, before_obs = state, obs
@@ -400,7 +422,9 @@ def run_garment_fold(
             )
         if cfg.closed_loop and together(cell, stage):
             log(f"stage {i + 1}: {' and '.join(a.label for a in stage.actions)} together")
-            entries, state, obs = garment_pair(cfg, cell, stage.actions, state, obs, log)
+            entries, state, obs = garment_pair(
+                cfg, cell, stage.actions, state, obs, log, fault and not rec.actions
+            )
             rec.actions.extend(entries)
         else:
             for j, planned in enumerate(stage.actions):
@@ -415,6 +439,7 @@ def run_garment_fold(
                         log,
                         from_tip=stage.from_tip,
                         top=top if j == 0 and stage.top_first else None,
+                        inject_fault=fault and not rec.actions,
                     )
                 else:
                     cell.use_arm(cell.arm_for(planned.grasp))
