@@ -70,6 +70,8 @@ def test_episode_folder_follows_the_contract(half_fold_episode):
     stored = json.loads((out / "result.json").read_text())
     assert set(REQUIRED_RESULT_KEYS) <= stored.keys()
     assert stored["grasp_points_source"] == "vision"
+    # This process imported foldbot before numpy and cv2 (tests/conftest.py): the cap held.
+    assert stored["simd_uncapped"] == []
     episode = load_episode(out)
     assert episode.faces.shape[1] == 3 and episode.initial.shape == episode.final.shape
     # Every metric can be recomputed from cloth.npz and fold_lines alone.

@@ -17,6 +17,10 @@ from foldbot.simd import (
     OPENCV_DISABLED_FEATURES,
     cap_simd_level,
     cpu_flags,
+    late_libraries,
+    late_warning,
+    numpy_avx512_dispatch,
+    opencv_avx512_dispatch,
 )
 
 CPUINFO = "processor\t: 0\nvendor_id\t: AuthenticAMD\nflags\t\t: fpu sse2 {}\n\nprocessor\t: 1\n"
@@ -146,3 +150,69 @@ def test_this_test_process_computes_as_the_commands_do() -> None:
     from numpy._core._multiarray_umath import __cpu_features__
 
     assert not __cpu_features__.get("X86_V4", False)
+
+
+def test_the_avx512_kernels_in_use_are_read_from_what_the_libraries_report() -> None:
+    dispatch = ["X86_V3", "X86_V4", "AVX512_ICL", "AVX512_SPR"]  # numpy 2.4 on x86-64
+    on = {"X86_V3": True, "X86_V4": True, "AVX512_ICL": True, "AVX512_SPR": False}
+    assert numpy_avx512_dispatch(dispatch, on) == ["X86_V4", "AVX512_ICL"]
+    capped = {**on, "X86_V4": False, "AVX512_ICL": False}
+    assert numpy_avx512_dispatch(dispatch, capped) == []
+    assert opencv_avx512_dispatch("SSE SSE2 *SSE4.1 *AVX2 *AVX512-SKX") == ["AVX512-SKX"]
+    assert opencv_avx512_dispatch("SSE SSE2 *SSE4.1 *AVX2 *AVX512-SKX?") == []
+
+
+class _OpenCV:
+    """What late_libraries reads of a loaded cv2: its dispatch line."""
+
+    def __init__(self, line: str) -> None:
+        self.line = line
+
+    def getCPUFeaturesLine(self) -> str:  # OpenCV's name
+        return self.line
+
+
+def test_a_library_loaded_before_the_cap_is_named_only_where_the_cap_is_foldbots() -> None:
+    uncapped = {"cv2": _OpenCV("SSE *AVX2 *AVX512-SKX")}
+    assert late_libraries(dict(CAP), uncapped) == ["OpenCV (AVX512-SKX)"]
+    assert late_libraries(dict(CAP), {"cv2": _OpenCV("SSE *AVX2 *AVX512-SKX?")}) == []
+    # No cap set (a CPU without AVX2, or off x86), or the user's own value: their choice.
+    assert late_libraries({}, uncapped) == []
+    assert late_libraries({"OPENCV_CPU_DISABLE": "AVX2"}, uncapped) == []
+    message = late_warning(["OpenCV (AVX512-SKX)"])
+    assert "after OpenCV (AVX512-SKX) had loaded" in message
+    assert message.endswith("Import foldbot before numpy and cv2.")
+
+
+IMPORT_ORDER = """
+import json, sys, warnings
+warnings.simplefilter("always")
+with warnings.catch_warnings(record=True) as caught:
+    for name in sys.argv[1:]:
+        __import__(name)
+from foldbot.simd import late_libraries
+ours = [str(w.message) for w in caught if w.category is RuntimeWarning]
+print(json.dumps({"late": late_libraries(), "warnings": ours}))
+"""
+
+
+@pytest.mark.parametrize(
+    ("order", "late"), [(["foldbot", "numpy"], False), (["numpy", "foldbot"], True)]
+)
+def test_numpy_imported_before_foldbot_is_warned_about(order: list[str], late: bool) -> None:
+    """numpy loaded first keeps its AVX-512 dispatch on a CPU that has it: `import foldbot` says
+    so; imported after foldbot, it is capped and nothing is said."""
+    env = {k: v for k, v in os.environ.items() if k not in CAP}
+    out = subprocess.run(
+        [sys.executable, "-c", IMPORT_ORDER, *order],
+        capture_output=True, text=True, env=env, check=True,
+    )  # fmt: skip
+    seen = json.loads(out.stdout.strip().splitlines()[-1])
+    if late and not seen["late"] and "avx512f" not in cpu_flags(Path("/proc/cpuinfo").read_text()):
+        pytest.skip("no AVX-512 on this CPU: numpy has no AVX-512 kernels to keep")
+    if not late:
+        assert seen == {"late": [], "warnings": []}
+        return
+    assert seen["late"] and seen["late"][0].startswith("numpy (")
+    assert len(seen["warnings"]) == 1
+    assert seen["warnings"][0] == late_warning(seen["late"])

@@ -55,6 +55,7 @@ from foldbot.sim.grasp import JAW_CATCHES, ClothGrasp
 from foldbot.sim.oracle import GroundTruthOracle, OracleEstimator
 from foldbot.sim.robots import ROBOT_NAMES, make_robot
 from foldbot.sim.world import SimConfig, SimWorld
+from foldbot.simd import late_libraries
 from foldbot.types import Observation
 
 GARMENTS = ("towel", *GARMENT_RECIPES)
@@ -489,6 +490,7 @@ def episode_result(
         "jaw_catch": cfg.jaw_catch,
         "loop_options": dict(cfg.loop_options),
         "cloth_options": changed_cloth_options(cfg.cloth),
+        "simd_uncapped": late_libraries(),
         "seed": cfg.seed,
         "replicate": cfg.replicate,
         "perception": cfg.perception,

@@ -6,13 +6,16 @@ kernels, 6.1 mm without).
 
 `import foldbot` caps them at AVX2 with FMA (x86-64-v3): OpenBLAS runs its Haswell kernels, and
 numpy's and OpenCV's AVX-512 dispatch is switched off. Each reads its setting once, when it first
-loads, so the cap is set before anything imports numpy or cv2; a value the user has set is kept."""
+loads, so the cap is set before anything imports numpy or cv2; a value the user has set is kept.
+A program that imported numpy or cv2 before foldbot keeps their AVX-512 kernels: `import foldbot`
+warns, naming them (late_libraries), and result.json records them (`simd_uncapped`)."""
 
 from __future__ import annotations
 
 import os
 import platform
-from collections.abc import MutableMapping
+import sys
+from collections.abc import Mapping, MutableMapping
 from pathlib import Path
 
 OPENBLAS_CORETYPE = "Haswell"
@@ -66,3 +69,49 @@ def cap_simd_level(
                     continue
                 environ.setdefault(name, value)
     return {k: environ[k] for k in CAP if k in environ}
+
+
+def numpy_avx512_dispatch(dispatch: list[str], features: Mapping[str, bool]) -> list[str]:
+    """numpy's AVX-512 dispatch targets in use: those of `dispatch` (numpy's `__cpu_dispatch__`)
+    that NUMPY_DISABLED_FEATURES names and `features` (`__cpu_features__`) has switched on."""
+    capped = set(NUMPY_DISABLED_FEATURES.split())
+    return [f for f in dispatch if f in capped and features.get(f, False)]
+
+
+def opencv_avx512_dispatch(line: str) -> list[str]:
+    """OpenCV's AVX-512 dispatch targets in use, from `cv2.getCPUFeaturesLine()`: a target the
+    CPU lacks, or that is switched off, ends in '?'."""
+    return [f.lstrip("*") for f in line.split() if "AVX512" in f and not f.endswith("?")]
+
+
+def late_libraries(
+    environ: Mapping[str, str] = os.environ, modules: Mapping[str, object] = sys.modules
+) -> list[str]:
+    """The libraries the cap in `environ` did not reach: numpy or OpenCV, already loaded before it
+    was set (imported before foldbot), still dispatching AVX-512 kernels, e.g. "numpy (X86_V4,
+    AVX512_ICL)". Empty where the cap holds, or where none of foldbot's is set (a CPU that needs
+    none, or a value the user chose)."""
+    late = []
+    if "numpy" in modules and environ.get("NPY_DISABLE_CPU_FEATURES") == NUMPY_DISABLED_FEATURES:
+        try:
+            from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
+        except ImportError:  # numpy < 2
+            from numpy.core._multiarray_umath import __cpu_dispatch__, __cpu_features__
+        used = numpy_avx512_dispatch(list(__cpu_dispatch__), __cpu_features__)
+        if used:
+            late.append(f"numpy ({', '.join(used)})")
+    cv2 = modules.get("cv2")
+    if cv2 is not None and environ.get("OPENCV_CPU_DISABLE") == OPENCV_DISABLED_FEATURES:
+        used = opencv_avx512_dispatch(cv2.getCPUFeaturesLine())
+        if used:
+            late.append(f"OpenCV ({', '.join(used)})")
+    return late
+
+
+def late_warning(late: list[str]) -> str:
+    """What `import foldbot` says when late_libraries found some."""
+    return (
+        f"foldbot was imported after {' and '.join(late)} had loaded: those AVX-512 kernels stay "
+        "in use, so the same seed can give a different episode here than in foldbot's commands, "
+        "benchmark and CI (README: Determinism). Import foldbot before numpy and cv2."
+    )
