@@ -105,16 +105,19 @@ def test_garment_fold_end_to_end(tmp_path, garment, recipe, stages):
     assert np.isfinite(result["fold_error_mm"])
 
 
+COARSE_PANTS = {
+    "garment": "pants",
+    "recipe": "leg_over_leg",
+    "seed": 1,
+    "garment_edge_length": 0.03,
+    "video_fps": 0,
+}
+"""Pants on a coarse 3 cm mesh, the garment episodes' small case."""
+
+
 @pytest.mark.slow
 def test_two_arms_carry_a_pants_leg_by_waist_and_hem_together(tmp_path):
-    cfg = EpisodeConfig(
-        garment="pants",
-        recipe="leg_over_leg",
-        seed=1,
-        garment_edge_length=0.03,
-        arms=2,
-        video_fps=0,
-    )
+    cfg = EpisodeConfig(**COARSE_PANTS, arms=2)
     result = run_episode(cfg, tmp_path / "ep", log=lambda *_: None)
     assert result["arms"] == 2
     # Leg over leg: the waist corner and the leg's hem carried at once, one arm each.
@@ -152,15 +155,7 @@ def fresh_episode(out, **kwargs) -> dict:
 def test_a_garment_grasp_aimed_off_the_cloth_is_seen_to_fail_and_retried(tmp_path):
     """The first grasp (the left waist corner) aimed 6 cm off the cloth: the jaws close on bare
     table, the loop sees it, re-observes and grasps the corner on the cloth."""
-    result = fresh_episode(
-        tmp_path / "ep",
-        garment="pants",
-        recipe="leg_over_leg",
-        seed=1,
-        garment_edge_length=0.03,
-        fault_grasp_offset=0.06,
-        video_fps=0,
-    )
+    result = fresh_episode(tmp_path / "ep", **COARSE_PANTS, fault_grasp_offset=0.06)
     first = result["actions"][0]
     assert first["label"] == "left_waist" and first["retries"] == 1
     missed, retried = first["attempts"]
