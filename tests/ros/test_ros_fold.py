@@ -293,6 +293,7 @@ def test_two_arms_fold_over_topics(tmp_path):
     result = json.loads((out / "result.json").read_text())
     assert result["transport"] == "ros" and result["arms"] == 2
     assert result["cloth_options"] == {"margin_divisor": 6.0}
+    assert result["simd_uncapped"] == []  # the nodes import foldbot first, as the commands do
     edge = make_towel(
         config_from_args(build_parser().parse_args(["fold", *episode, "--out", "x"])).towel
     )
