@@ -159,25 +159,15 @@ def corrected_grasp(
 
 def inward(state: ClothState, action: FoldAction, distance: float) -> FoldAction:
     """`action` with its grasp moved `distance` (m) in the table plane toward the perceived
-    cloth's centre: where a pair's retry aims after the jaws closed on no cloth (a coarse mesh's
-    vertices can lie farther in than the perceived edge)."""
+    cloth's centre: where a retry aims after the jaws closed on no cloth (a coarse mesh's
+    vertices can lie farther in than the perceived edge). A negative `distance` moves it away,
+    onto bare table: an injected grasp failure (`cfg.fault_grasp_offset`, tests)."""
     outline = np.asarray(state.outline_world, dtype=float).reshape(-1, 3)
-    if not state.detected or len(outline) < 3 or distance <= 0.0:
+    if not state.detected or len(outline) < 3 or distance == 0.0:
         return action
     to_centre = outline[:, :2].mean(axis=0) - action.grasp[:2]
     step = to_centre / max(float(np.linalg.norm(to_centre)), 1e-9) * distance
     return dataclasses.replace(action, grasp=np.r_[action.grasp[:2] + step, action.grasp[2]])
-
-
-def faulted(cfg: LoopConfig, state: ClothState, action: FoldAction) -> FoldAction:
-    """`action` with its grasp moved `cfg.fault_grasp_offset` (m) away from the perceived cloth's
-    centre, onto bare table: an injected grasp failure (tests), as the towel loop's."""
-    outline = np.asarray(state.outline_world, dtype=float).reshape(-1, 3)
-    if not state.detected or len(outline) < 3:
-        return action
-    outward = action.grasp[:2] - outline[:, :2].mean(axis=0)
-    outward = outward / max(float(np.linalg.norm(outward)), 1e-9) * cfg.fault_grasp_offset
-    return dataclasses.replace(action, grasp=action.grasp + np.r_[outward, 0.0])
 
 
 def garment_action(
@@ -194,7 +184,7 @@ def garment_action(
     """One pick-and-place with the grasp corrected onto the cloth seen now (x, y onto the
     perceived cloth, height onto the perceived surface there; `top`: see corrected_grasp); a
     failed grasp is re-observed and retried (at most `cfg.retries` times). `inject_fault` aims
-    the first attempt `cfg.fault_grasp_offset` off the cloth (faulted). Returns the log entry
+    the first attempt `cfg.fault_grasp_offset` off the cloth (inward, outward). Returns the log entry
     and the observation taken after it (state and frame)."""
     t_sim, t_wall = cell.sim_time, time.perf_counter()
     action, retries, attempts, state, obs = planned, 0, [], latest, latest_obs
@@ -224,7 +214,7 @@ def garment_action(
             cfg, state, obs, planned, action, from_tip, retries, top if lead_now else None
         )
         if inject_fault and not attempts:
-            action = faulted(cfg, state, action)
+            action = inward(state, action, -cfg.fault_grasp_offset)
         cell.use_arm(cell.arm_for(action.grasp))
         show_action(cell, state, action)
         outcome = execute_action(cell, action)
@@ -271,7 +261,7 @@ def garment_pair(
     times, a missed grasp RETRY_INSET farther toward the cloth's centre each time); a pair
     that still fails, or whose arms would meet either way, is done one arm at a time
     (garment_action). `inject_fault` aims the first grasp's first attempt off the cloth
-    (faulted)."""
+    (inward, outward)."""
 
     def aim(
         i: int,
@@ -283,7 +273,7 @@ def garment_pair(
     ) -> FoldAction:
         grasp = corrected_grasp(cfg, state, obs, planned[i], planned[i])
         if inject_fault and attempt == 0 and i == 0:
-            return faulted(cfg, state, grasp)
+            return inward(state, grasp, -cfg.fault_grasp_offset)
         return inward(state, grasp, attempt * RETRY_INSET) if missed else grasp
 
     pair = carry_pair(cell, planned, latest, latest_obs, aim, cfg.retries, log, "them")
