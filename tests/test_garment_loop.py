@@ -9,6 +9,7 @@ import pytest
 from foldbot.errors import PerceptionError
 from foldbot.garment_loop import (
     RETRY_INSET,
+    already_carried,
     corrected_grasp,
     garment_keypoints,
     laid_layer,
@@ -155,3 +156,23 @@ def test_no_laid_layer_is_looked_for_when_top_layer_first_is_off():
     assert on is not None and len(on) > 1000  # the whole view rose by a layer
     off = LoopConfig(recipe="leg_over_leg", top_layer_first=False)
     assert laid_layer(off, s, before, s, after) is None
+
+
+def test_a_part_with_no_cloth_near_it_or_past_its_line_is_already_carried():
+    """What decides a skip before the first grasp, and the end of the retries after a miss
+    (T-shirt seed 23's hem corner, whose retry closed again on bare table where the first had)."""
+    s = square_state()  # the cloth spans x 0.35–0.55, y −0.1–0.1
+    cfg = LoopConfig(recipe="retail")
+    past = (0.50, 0.0, 0.0, -1.0)  # moving side x > 0.50: the cloth reaches 5 cm past it
+    clear = (0.60, 0.0, 0.0, -1.0)  # moving side x > 0.60: no cloth there
+    far = np.array([0.70, 0.0, Z])  # no cloth within the regrasp radius
+    gone = FoldAction(far, np.array([0.50, 0.0, Z]), clear, "right_hem")
+    assert already_carried(cfg, s, gone)
+    assert already_carried(cfg, s, gone, from_tip=True)
+    # Cloth left past the line (and the place not covered): carried from its tip, not skipped.
+    left = FoldAction(far, np.array([0.30, 0.0, Z]), past, "right_hem")
+    assert not already_carried(cfg, s, left)
+    # Cloth near the planned grasp: grasped there, whatever lies past the line.
+    near = FoldAction(np.array([0.53, 0.05, Z]), np.array([0.67, 0.05, Z]), clear, "right_hem")
+    assert not already_carried(cfg, s, near)
+    assert already_carried(cfg, s, near, from_tip=True)

@@ -5,8 +5,10 @@ placements make a corner. Pure geometry on hand-made perception states."""
 import numpy as np
 import pytest
 from cloth_states import LINE, TABLE_Z, dragged_towel, state
+from layer_scene import TABLE_PLANE, box, observe
 
 from foldbot.grasp_points import (
+    ARM_HEIGHT,
     MIN_LEFT,
     inset_grasp,
     moving_side_tip,
@@ -15,6 +17,7 @@ from foldbot.grasp_points import (
     regrasp_point,
     shifted_grasp,
     stack_grasp_point,
+    surface_height,
     tip_action,
     top_layer_action,
 )
@@ -180,3 +183,24 @@ def test_outline_corners_are_the_detectors_four_not_a_bump_on_a_side():
 # --- two arms ------------------------------------------------------------------------------------
 
 BASES_Y = (0.3, -0.3)  # CellLayout.arm_layouts(2): arm 0 on the left (+y), arm 1 on the right
+
+
+def test_the_surface_under_a_grasp_is_the_cloth_not_the_arm_hiding_it():
+    """A gripper parked over the grasp point (pants seed 8's waist corner under the home pose)
+    is seen 25 cm up; given the table plane, the height is the cloth's beside it."""
+    cloth = box(-0.2, 0.2, -0.2, 0.2, 0.005)
+    point = np.array([0.05, 0.02, 0.0])
+    plain = observe(cloth)
+    assert surface_height(plain, point) == pytest.approx(0.005, abs=1e-6)
+    assert surface_height(plain, point, table_plane=TABLE_PLANE) == surface_height(plain, point)
+    hidden = observe(cloth, box(0.04, 0.06, 0.01, 0.03, 0.25))
+    assert surface_height(hidden, point) == pytest.approx(0.25, abs=1e-6)
+    assert surface_height(hidden, point, table_plane=TABLE_PLANE) == pytest.approx(0.005, abs=1e-6)
+    # A cloth stack up to ARM_HEIGHT is still cloth.
+    stack = observe(cloth, box(0.04, 0.06, 0.01, 0.03, ARM_HEIGHT - 0.005))
+    assert surface_height(stack, point, table_plane=TABLE_PLANE) == pytest.approx(
+        ARM_HEIGHT - 0.005, abs=1e-6
+    )
+    # The arm hiding everything within the search: no height rather than the arm's.
+    covered = observe(cloth, box(-0.1, 0.2, -0.1, 0.15, 0.25))
+    assert surface_height(covered, point, table_plane=TABLE_PLANE) is None

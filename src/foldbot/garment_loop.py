@@ -147,7 +147,7 @@ def corrected_grasp(
             action = inward(state, dataclasses.replace(action, grasp=seen), retry * RETRY_INSET)
         else:
             action = tip_action(state, planned, inset) or action
-    top = surface_height(obs, action.grasp)
+    top = surface_height(obs, action.grasp, table_plane=state.table_plane)
     if planned.layers == 1 and top is not None:
         action = dataclasses.replace(action, grasp=np.r_[action.grasp[:2], top])
     if planned.layers > 1:
@@ -170,6 +170,20 @@ def inward(state: ClothState, action: FoldAction, distance: float) -> FoldAction
     return dataclasses.replace(action, grasp=np.r_[action.grasp[:2] + step, action.grasp[2]])
 
 
+def already_carried(
+    cfg: LoopConfig, state: ClothState, planned: FoldAction, from_tip: bool = False
+) -> bool:
+    """Whether earlier carries took `planned`'s part along, as the cloth seen now shows: no cloth
+    is left past its line, or (a planned grasp, not a from-tip one) none is seen near its grasp
+    point while the cloth already covers its place point. Such a part is skipped, and a missed
+    grasp on it is not retried."""
+    gone = from_tip or snap_to_cloth(state, planned.grasp, cfg.regrasp_radius) is None
+    return gone and (
+        tip_action(state, planned) is None
+        or (not from_tip and outline_distance(state, planned.place) >= 0.0)
+    )
+
+
 def garment_action(
     cfg: LoopConfig,
     cell: FoldCell,
@@ -189,11 +203,7 @@ def garment_action(
     t_sim, t_wall = cell.sim_time, time.perf_counter()
     action, retries, attempts, state, obs = planned, 0, [], latest, latest_obs
     gone = from_tip or snap_to_cloth(state, planned.grasp, cfg.regrasp_radius) is None
-    carried = gone and (
-        tip_action(state, planned) is None
-        or (not from_tip and outline_distance(state, planned.place) >= 0.0)
-    )
-    if carried:
+    if already_carried(cfg, state, planned, from_tip):
         # Earlier carries took this part along: no cloth is left past the line, or none near the
         # grasp point with the cloth already covering the place point.
         log(f"  {planned.label}: already carried; skipped")
@@ -206,6 +216,7 @@ def garment_action(
     dragged = gone and not from_tip
     if dragged:
         log(f"  {planned.label}: no cloth seen near it; what is left past the line, from its tip")
+    given_up = False
     while True:
         # A missed top-layer grasp is retried as the whole stack's tip carry: the miss has moved
         # the layers, so the frame that showed the laid layer no longer shows it.
@@ -233,11 +244,18 @@ def garment_action(
         )
         if outcome["grasp_success"] or retries >= cfg.retries:
             break
+        if already_carried(cfg, state, planned, from_tip):
+            # Nothing seen near the grasp and nothing past the line: a retry would close the jaws
+            # where they just closed on nothing.
+            log(f"  grasp failed ({outcome['grasp_reason']}); no cloth left to grasp, not retried")
+            given_up = True
+            break
         retries += 1
         log(f"  grasp failed ({outcome['grasp_reason']}); re-observed, retry {retries}")
     entry = open_loop_entry(action, outcome, cell.sim_time - t_sim, time.perf_counter() - t_wall)
     entry.update(label=planned.label, placed_error_m=attempts[-1]["placed_error_m"])
     entry.update(retries=retries, attempts=attempts, top_layer=bool(lead), dragged=dragged)
+    entry.update(nothing_left=given_up)
     if cell.arms > 1:
         entry["arm"] = cell.active_arm
     return entry, state, obs
@@ -398,6 +416,7 @@ def run_garment_fold(
     )
     height = float(np.median(state.keypoint_array()[:, 2]))
     rec.initial_overlay = plan_overlay_all(obs, state, plan, cell.table_height)
+    rec.initial_state = state
     parts = [np.asarray(state.outline_world, dtype=float)[:, :2]]
     top = None  # the layer the previous stage laid (N×3), for a stage whose top layer goes first
     fault = cfg.fault_grasp_offset > 0  # the episode's first grasp is aimed off the cloth

@@ -14,8 +14,9 @@ import numpy as np
 from scipy.spatial import ConvexHull
 
 from foldbot.metrics import FoldLine
-from foldbot.perception.geometry import backproject_pixel, project_points
+from foldbot.perception.geometry import backproject, backproject_pixel, project_points
 from foldbot.perception.keypoints import max_area_quad
+from foldbot.perception.segmentation import SegmentationConfig
 from foldbot.perception.state import ClothState
 from foldbot.planning.actions import FoldAction
 from foldbot.types import Observation
@@ -27,6 +28,11 @@ TIP_BAND = 0.01
 MIN_LEFT = 0.03
 """Cloth reaching less than this (m) past a stage's fold line is the crease's bulge, not cloth
 left to fold: a from-tip or finishing action runs only when more is left."""
+ARM_HEIGHT = SegmentationConfig().occluder_height
+"""A surface seen higher than this (m) above the table is the arm or gripper, never cloth (the
+segmentation's occluder rule)."""
+SURFACE_SEARCH_RADII = (4, 8, 12, 16, 24)
+"""Pixel radii searched, nearest first, for cloth beside a grasp point the arm hides."""
 
 
 def nearest_keypoint(state: ClothState, point: np.ndarray, radius: float) -> np.ndarray | None:
@@ -117,17 +123,53 @@ def stack_grasp_point(state: ClothState, point: np.ndarray, height: float) -> np
     return np.array([point[0], point[1], min(float(point[2]), z_table + height)])
 
 
-def surface_height(obs: Observation, point: np.ndarray, radius: int = 2) -> float | None:
+def surface_height(
+    obs: Observation,
+    point: np.ndarray,
+    radius: int = 2,
+    table_plane: np.ndarray | None = None,
+) -> float | None:
     """Height (world z, m) of the surface the camera sees at `point`'s x, y (robust depth around
-    its pixel); None when that pixel is outside the image or has no depth."""
+    its pixel); None when that pixel is outside the image or has no depth. Given the
+    `table_plane` (a, b, c, d), a surface more than ARM_HEIGHT above it is the arm hiding the
+    cloth there (parked over a garment's waist, say), so the height is the cloth's nearest beside
+    it (SURFACE_SEARCH_RADII), or None when the arm hides all of that."""
     uv, z = project_points(
         np.asarray(point, dtype=float)[None, :], obs.intrinsics, obs.T_world_camera
     )
     (u, v), h, w = uv[0], obs.intrinsics.height, obs.intrinsics.width
     if not (z[0] > 0 and 0 <= u < w and 0 <= v < h):
         return None
-    seen = backproject_pixel(obs, float(u), float(v), radius)
-    return float(seen[2]) if np.all(np.isfinite(seen)) else None
+    plane = None if table_plane is None else np.asarray(table_plane, dtype=float).reshape(-1)
+    if plane is None or plane.size != 4 or not np.any(plane[:3]):
+        seen = backproject_pixel(obs, float(u), float(v), radius)
+        return float(seen[2]) if np.all(np.isfinite(seen)) else None
+    for r in (radius, *(q for q in SURFACE_SEARCH_RADII if q > radius)):
+        pts = _window_points(obs, float(u), float(v), r)
+        if len(pts) == 0:
+            continue
+        cloth = pts[pts @ plane[:3] + plane[3] <= ARM_HEIGHT]
+        if r == radius and len(cloth) == len(pts):
+            # Nothing of the arm in sight: the plain robust lookup, as without a table plane.
+            seen = backproject_pixel(obs, float(u), float(v), radius)
+            return float(seen[2]) if np.all(np.isfinite(seen)) else None
+        if len(cloth):
+            return float(np.median(cloth[:, 2]))
+    return None
+
+
+def _window_points(obs: Observation, u: float, v: float, radius: int) -> np.ndarray:
+    """World points (N×3) of the pixels with depth in the (2r+1)² window at pixel (u, v)."""
+    rows, cols = obs.depth.shape
+    c, r = int(np.rint(u)), int(np.rint(v))
+    vv, uu = np.mgrid[
+        max(0, r - radius) : min(rows, r + radius + 1),
+        max(0, c - radius) : min(cols, c + radius + 1),
+    ]
+    depth = obs.depth[vv, uu].astype(float)
+    ok = np.isfinite(depth) & (depth > 0)
+    uv = np.stack([uu[ok], vv[ok]], axis=1).astype(float)
+    return backproject(uv, depth[ok], obs.intrinsics, obs.T_world_camera)
 
 
 def tip_action(
@@ -192,7 +234,7 @@ def finish_action(state: ClothState, obs: Observation, last: FoldAction) -> Fold
     extra = tip_action(state, last)
     if extra is None:
         return None
-    top = surface_height(obs, extra.grasp)
+    top = surface_height(obs, extra.grasp, table_plane=state.table_plane)
     grasp = extra.grasp if top is None else np.r_[extra.grasp[:2], top]
     return dataclasses.replace(extra, grasp=grasp, label=f"finish_{last.label}", layers=1)
 
