@@ -72,6 +72,10 @@ def test_episode_folder_follows_the_contract(half_fold_episode):
     assert stored["grasp_points_source"] == "vision"
     # This process imported foldbot before numpy and cv2 (tests/conftest.py): the cap held.
     assert stored["simd_uncapped"] == []
+    # The corners the fold was planned from, against the towel's own (README: p95 ≤ 8 mm).
+    first = stored["first_frame_keypoint_error_mm"]
+    assert set(first) == {"near_left", "near_right", "far_right", "far_left"}
+    assert max(first.values()) < 3.0, first
     episode = load_episode(out)
     assert episode.faces.shape[1] == 3 and episode.initial.shape == episode.final.shape
     # Every metric can be recomputed from cloth.npz and fold_lines alone.

@@ -143,6 +143,9 @@ class FoldRecord:
     actions: list[dict] = field(default_factory=list)
     stages: list[dict] = field(default_factory=list)
     initial_overlay: np.ndarray | None = None
+    initial_state: ClothState | None = None
+    """What perception saw in the frame the first stage was planned from (for the benchmark's
+    first-frame keypoint error)."""
     stage_overlays: list[np.ndarray] = field(default_factory=list)
     """The perception overlay of each closed-loop stage's closing observation."""
     plan_overlays: list[np.ndarray] = field(default_factory=list)
@@ -281,6 +284,7 @@ def run_fold(
         rec.fold_lines.append(plan.fold_lines[0])
         if stage == 0:
             rec.initial_overlay = plan_overlay(obs, state, plan, cell.table_height)
+            rec.initial_state = state
         corner_places = outline_corners(np.asarray(predicted, dtype=float).reshape(-1, 3))
         # A folded stack goes over by its edge's middle, one arm, in either cell (stack_edge).
         edge_of = stack_edge(cfg, stage, plan.actions)
@@ -528,6 +532,7 @@ def run_open_loop(
         rec.fold_lines.append(plan.fold_lines[0])
     first = plans[0]
     rec.initial_overlay = plan_overlay(obs, state, first, cell.table_height)
+    rec.initial_state = state
     for plan in plans:
         for action in plan.actions:
             log(f"open loop: {action.label} → place")

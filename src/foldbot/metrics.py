@@ -448,6 +448,20 @@ def success(normalized: float, fold_error_mm: float, flat_area_m2: float) -> boo
     return n >= FOLD_SUCCESS_MIN_NORMALIZED and e <= limit + 1e-9
 
 
+def keypoint_errors_mm(
+    perceived: dict[str, Sequence[float]], truth: dict[str, Sequence[float]]
+) -> dict[str, float]:
+    """3-D distance (mm) of each perceived keypoint from the true one of the same name (the
+    names both have), as `eval-perception` measures them."""
+    out = {}
+    for name in perceived:
+        if name in truth:
+            p = np.asarray(perceived[name], dtype=float).reshape(3)
+            t = np.asarray(truth[name], dtype=float).reshape(3)
+            out[name] = float(1000.0 * np.linalg.norm(p - t))
+    return out
+
+
 def flatten_success(coverage: float) -> bool:
     """Flatten success: coverage ≥ 0.9."""
     c = float(coverage)

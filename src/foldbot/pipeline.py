@@ -37,8 +37,9 @@ from foldbot.garments.towel import TowelSpec, make_towel
 from foldbot.io.episode import EpisodeWriter
 from foldbot.loop import FoldRecord, LoopConfig, fold_and_picture, run_fold
 from foldbot.loop_options import LoopOptionValue, apply_loop_options, check_loop_options
-from foldbot.metrics import score_episode
+from foldbot.metrics import keypoint_errors_mm, score_episode
 from foldbot.perception.fallback import vision_estimator
+from foldbot.perception.keypoints import label_corners
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState
 from foldbot.planning.actions import FoldAction
@@ -510,6 +511,33 @@ def episode_result(
     }
 
 
+def true_start_keypoints(
+    cfg: EpisodeConfig, mesh: ClothMesh, initial: np.ndarray
+) -> dict[str, np.ndarray] | None:
+    """GROUND TRUTH, for the benchmark: the flat start's keypoints as perception names them (a
+    towel's four corners by the shared labelling rule, a garment's named mesh points); None
+    for a crumpled start, whose outline corners are not its mesh corners."""
+    if cfg.start != "flat":
+        return None
+    v = np.asarray(initial, dtype=float)
+    if cfg.garment != "towel":
+        return {name: v[i].copy() for name, i in mesh.keypoints.items()}
+    corners = np.array([v[i] for name, i in mesh.keypoints.items() if name.startswith("corner")])
+    return {label: corners[i].copy() for label, i in label_corners(corners).items()}
+
+
+def first_frame_keypoint_errors(
+    cfg: EpisodeConfig, mesh: ClothMesh, initial: np.ndarray, seen: ClothState | None
+) -> dict[str, float] | None:
+    """Each keypoint the first stage was planned from against the cloth's own (mm, 3-D), where
+    the benchmark's perception has to work: the cell's frame, the arm parked in it. None where
+    the start was crumpled or nothing was perceived."""
+    truth = true_start_keypoints(cfg, mesh, initial)
+    if truth is None or seen is None or not seen.detected:
+        return None
+    return keypoint_errors_mm({n: xyz for n, (xyz, _conf) in seen.keypoints.items()}, truth)
+
+
 @dataclass
 class SimCellParts:
     """The simulated cell of one episode, built from its config (and seed) in a world."""
@@ -666,6 +694,9 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
         if flattened is not None:
             result["flatten"] = flattened
         result["cloth_fastest_slide_mps"] = parts.monitor.fastest_slide
+        result["first_frame_keypoint_error_mm"] = first_frame_keypoint_errors(
+            cfg, mesh, initial, record.initial_state
+        )
         writer.write_result(result)
         path = writer.commit()
     result["out_dir"] = str(path)

@@ -121,3 +121,17 @@ def test_markdown_shows_the_flattening_with_intervals_over_the_towels(tiny_suite
     # Coverage after: towel means 0.96 and 0.65, Student's t over the two towels, not four folds.
     lo, hi = mean_interval([0.96, 0.65])
     assert f"| 0.80 / 0.82 / 0.97 | {lo:.2f}–{hi:.2f} |" in md
+
+
+def test_markdown_shows_the_first_frames_perception(tiny_suite_data):
+    suite = suite_from_dict(tiny_suite_data(seeds="0-1"))
+    errors = iter(({"near_left": 0.5, "far_left": 12.0}, {"near_left": 1.5, "far_left": 2.0}))
+    records = [
+        {"id": e.id, "result": {"success": False, "first_frame_keypoint_error_mm": next(errors)}}
+        for e in suite.episodes
+    ]
+    md = markdown(summarise(suite, records))
+    assert "## Perception in the first frame" in md
+    # Pooled: 0.5, 1.5, 2.0, 12.0 → median 1.75; one episode off by > 10 mm; far_left worst.
+    assert "| 2 | 1.8 / " in md and "| 1 | far_left: 7.0 / 12.0 |" in md
+    assert "## Perception in the first frame" not in markdown(summarise(suite, []))

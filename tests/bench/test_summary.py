@@ -243,6 +243,24 @@ def test_group_stats_perfect_fold_error_over_records_that_have_it():
     assert group_stats([{"id": "c", "result": old}])["perfect_fold_error_mm"] is None
 
 
+def test_first_frame_keypoint_errors_are_pooled_with_the_worst_keypoint_named():
+    def seen(**errors):
+        return {**result(False, 40.0, 0.5), "first_frame_keypoint_error_mm": errors}
+
+    records = [
+        {"id": "a", "result": seen(left_waist=38.0, right_waist=1.0, crotch=2.0)},
+        {"id": "b", "result": seen(left_waist=2.0, right_waist=1.0, crotch=4.0)},
+        {"id": "c", "result": {**result(False, 40.0, 0.5), "first_frame_keypoint_error_mm": None}},
+        {"id": "d", "error": "diverged", "error_type": "SimulationDivergedError"},
+    ]
+    first = group_stats(records)["first_frame_keypoints"]
+    assert first["episodes"] == 2 and first["episodes_off"] == 1  # a: 38 mm > 10 mm
+    assert first["error_mm"]["median"] == pytest.approx(2.0) and first["error_mm"]["max"] == 38.0
+    assert first["worst"] == {"name": "left_waist", "mean_mm": 20.0, "max_mm": 38.0}
+    # Crumpled starts and results written before the figure have none.
+    assert group_stats(records[2:])["first_frame_keypoints"] is None
+
+
 def test_empty_and_all_failed_groups():
     assert group_stats([])["success_rate"] is None
     s = group_stats([{"id": "x", "error_type": "Crashed", "error": "died"}])

@@ -8,7 +8,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from foldbot.bench.summary import CAUSES
+from foldbot.bench.summary import CAUSES, FIRST_FRAME_OFF_MM
 from foldbot.io.episode import to_jsonable
 from foldbot.loop_options import shown_value
 
@@ -180,6 +180,29 @@ def markdown(summary: dict) -> str:
                 f"| {_stat(f['actions'])} | {_f((f['coverage_start'] or {}).get('mean'), '.2f')} "
                 f"| {_stat(f['coverage_end'], '.2f')} | {_interval(end.get('mean_ci95'), '.2f')} |"
             )
+    seen_rows = [(n, g["first_frame_keypoints"]) for n, g in rows if g.get("first_frame_keypoints")]
+    if seen_rows:
+        lines += [
+            "",
+            "## Perception in the first frame (the keypoints the fold was planned from)",
+            "",
+            "| group | episodes | keypoint error mm: median / p95 / max "
+            f"| episodes with a keypoint off by > {FIRST_FRAME_OFF_MM:.0f} mm "
+            "| worst keypoint: mean / max mm |",
+            "|---|---|---|---|---|",
+        ]
+        for name, f in seen_rows:
+            w = f["worst"]
+            lines.append(
+                f"| {name} | {f['episodes']} | {_stat(f['error_mm'], keys=('median', 'p95', 'max'))} "
+                f"| {f['episodes_off']} | {w['name']}: {_f(w['mean_mm'])} / {_f(w['max_mm'])} |"
+            )
+        lines += [
+            "",
+            "Measured against the simulator's keypoints of the flat start (ground truth, for "
+            "the benchmark only), in the cell's own frame with the arm where it waits: what "
+            "`eval-perception`'s scenes do not show.",
+        ]
     rep_rows = [(n, g["replicates"]) for n, g in rows if g.get("replicates")]
     if rep_rows:
         lines += [

@@ -310,6 +310,37 @@ def group_stats(records: list[dict]) -> dict[str, Any]:
         "failed_evidence": evidence,
         "flatten": flatten_stats(records),
         "replicates": replicate_stats(records),
+        "first_frame_keypoints": first_frame_stats(scored),
+    }
+
+
+FIRST_FRAME_OFF_MM = 10.0
+"""A first-frame keypoint further than this (mm) from the cloth's own is counted as off."""
+
+
+def first_frame_stats(results: list[dict]) -> dict[str, Any] | None:
+    """Perception where the benchmark's plans are made: every keypoint of the frame each flat
+    start's first stage was planned from, against the cloth's own (result.json's
+    `first_frame_keypoint_error_mm`), pooled; the episodes with a keypoint off by more than
+    FIRST_FRAME_OFF_MM, and the keypoint with the largest mean error. None where no episode
+    has the figure (crumpled starts, older results)."""
+    seen = [e for r in results if (e := r.get("first_frame_keypoint_error_mm"))]
+    if not seen:
+        return None
+    by_name: dict[str, list[float]] = defaultdict(list)
+    for errors in seen:
+        for name, mm in errors.items():
+            by_name[name].append(mm)
+    worst = max(by_name, key=lambda n: float(np.mean(by_name[n])))
+    return {
+        "episodes": len(seen),
+        "error_mm": stats([mm for errors in seen for mm in errors.values()]),
+        "episodes_off": sum(max(errors.values()) > FIRST_FRAME_OFF_MM for errors in seen),
+        "worst": {
+            "name": worst,
+            "mean_mm": float(np.mean(by_name[worst])),
+            "max_mm": float(np.max(by_name[worst])),
+        },
     }
 
 

@@ -38,7 +38,13 @@ from foldbot.loop import corners_of, fold_and_picture, run_fold
 from foldbot.metrics import score_episode
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState
-from foldbot.pipeline import episode_result, loop_config, seeded_garment, seeded_pose
+from foldbot.pipeline import (
+    episode_result,
+    first_frame_keypoint_errors,
+    loop_config,
+    seeded_garment,
+    seeded_pose,
+)
 from foldbot.planning.actions import FoldAction, FoldPlan
 from foldbot.planning.garment_recipes import GarmentPlan
 from foldbot.ros import CAMERA_FRAME, TOPICS, WORLD_FRAME, convert
@@ -520,6 +526,9 @@ def run_task(fold_args: str, log=rospy.loginfo) -> dict:
             if flattened is not None:
                 result["flatten"] = flattened
             result["cloth_fastest_slide_mps"] = cell.fastest_slide
+            result["first_frame_keypoint_error_mm"] = first_frame_keypoint_errors(
+                cfg, seeded_garment(cfg)[1], initial, record.initial_state
+            )
             result["transport"] = "ros"
             writer.write_result(result)
             path = writer.commit()
