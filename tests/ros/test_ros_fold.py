@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from ros_helpers import free_port, requires_ros
 
+from foldbot.garments import GARMENT_KEYPOINTS
 from foldbot.io.episode import REQUIRED_RESULT_KEYS, rescore
 from foldbot.sim.cloth import MAX_SLIDE_SPEED
 
@@ -189,6 +190,11 @@ def test_pants_fold_over_topics(ros_pants):
     carried = [a for a in result["actions"] if not a.get("skipped")]
     assert len(carried) >= 3 and all(a["grasp_success"] for a in carried)
     assert result["coverage"] < 0.5  # legs stacked, then folded in half: a quarter or so is left
+    # The keypoints the planner node planned from, against the garment's own (the task node
+    # rebuilds the seed's mesh to name them; the sim node publishes the start).
+    first_frame = result["first_frame_keypoint_error_mm"]
+    assert set(first_frame) == set(GARMENT_KEYPOINTS["pants"])
+    assert max(first_frame.values()) < 10.0, first_frame
 
 
 def test_pants_replay_gives_the_live_keypoints(ros_pants):
