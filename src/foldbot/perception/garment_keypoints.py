@@ -190,17 +190,15 @@ def symmetry_axis(
     whose mirror lands on them, unless they are half the outline or more."""
     c = polygon_centroid(xy)
     tree = cKDTree(xy)
-    fine_step, coarse_step = max(1, len(xy) // 400), max(1, len(xy) // 100)
-    fine, coarse = xy[::fine_step] - c, xy[::coarse_step] - c
     if hidden is None or not hidden.any() or hidden.mean() >= 0.5:
         hidden = None
-    seen = {
-        len(fine): None if hidden is None else ~hidden[::fine_step],
-        len(coarse): None if hidden is None else ~hidden[::coarse_step],
-    }
+    # Query points (relative to c) and, where the arm hides some, which of them it does not.
+    steps = {"fine": max(1, len(xy) // 400), "coarse": max(1, len(xy) // 100)}
+    queries = {k: (xy[::n] - c, None if hidden is None else ~hidden[::n]) for k, n in steps.items()}
 
-    def cost(angle: float, query: np.ndarray = fine, offset: float = 0.0) -> float:
+    def cost(angle: float, which: str = "fine", offset: float = 0.0) -> float:
         # The axis through c + offset·right: mirroring across it shifts the image 2·offset right.
+        query, seen = queries[which]
         t = np.array([math.cos(angle), math.sin(angle)])
         mirrored = 2.0 * (query @ t)[:, None] * t - query + c
         if offset:
@@ -208,12 +206,12 @@ def symmetry_axis(
         d, partner = tree.query(mirrored)
         if hidden is None:
             return float(d.mean())
-        keep = seen[len(query)] & ~hidden[partner]
+        keep = seen & ~hidden[partner]
         return float(d[keep].mean()) if keep.any() else float(d.mean())
 
     prior, window, step = config.top_yaw, config.axis_window, config.axis_step
     grid = prior + np.arange(-window, window + 0.5 * step, step)
-    best = float(grid[int(np.argmin([cost(a, coarse) for a in grid]))])
+    best = float(grid[int(np.argmin([cost(a, "coarse") for a in grid]))])
     res = minimize_scalar(
         cost, bounds=(best - step, best + step), method="bounded", options={"xatol": 1e-4}
     )
@@ -224,13 +222,13 @@ def symmetry_axis(
     if hidden is not None:
         # The area centroid moves with the cloth the arm hides; the axis is found off it.
         shift = minimize_scalar(
-            lambda o: cost(angle, fine, o),
+            lambda o: cost(angle, "fine", o),
             bounds=(-MAX_AXIS_SHIFT, MAX_AXIS_SHIFT),
             method="bounded",
             options={"xatol": 1e-5},
         )
         turn = minimize_scalar(
-            lambda a: cost(a, fine, float(shift.x)),
+            lambda a: cost(a, "fine", float(shift.x)),
             bounds=(angle - step, angle + step),
             method="bounded",
             options={"xatol": 1e-4},
@@ -736,8 +734,8 @@ def mirrored_where_hidden(
     """`found` with each left or right keypoint that has outline hidden by the arm within
     `reach` (m) of it taken as the mirror image of its partner across the garment's axis, where
     the arm hides nothing near the partner: behind the arm the outline is the amodal mask's hull,
-    whose corner can lie centimetres off (pants seeds 1, 2, 3 and 8 of the suite, their waist
-    corner under the gripper parked at home: 19–39 mm)."""
+    whose corner can lie centimetres off (8 of the `pants` suite's 20 waist corners, under the
+    gripper parked at home: 10–39 mm)."""
     if len(hidden_xy) == 0:
         return found
     tree = cKDTree(np.asarray(hidden_xy, dtype=float).reshape(-1, 2))
