@@ -61,6 +61,7 @@ from foldbot.garments.mesh import ClothMesh
 from foldbot.garments.pants import PantsSpec
 from foldbot.garments.towel import TowelSpec, make_towel
 from foldbot.garments.tshirt import TShirtSpec
+from foldbot.metrics import keypoint_errors_mm
 from foldbot.perception.estimator import VisionEstimator
 from foldbot.perception.garment_keypoints import GarmentEstimator
 from foldbot.perception.keypoints import CORNER_LABELS
@@ -728,10 +729,9 @@ def _evaluate(args: argparse.Namespace, stage: Path) -> dict[str, Any]:
             "scene": {k: v for k, v in asdict(scene).items() if k not in ("index", "state")},
         }
         if state.detected:
-            for name in CORNER_LABELS:
-                xyz, conf = state.keypoints[name]
-                row["corner_error_mm"][name] = 1000.0 * float(np.linalg.norm(xyz - truth[name]))
-                row["confidence"][name] = conf
+            seen = {name: state.keypoints[name][0] for name in CORNER_LABELS}
+            row["corner_error_mm"] = keypoint_errors_mm(seen, truth)
+            row["confidence"] = {name: state.keypoints[name][1] for name in CORNER_LABELS}
             row["label_ok"] = _label_ok(state, truth)
         score = max(row["corner_error_mm"].values()) if state.detected else math.inf
         row["score"] = score if math.isfinite(score) else None  # None: not detected
@@ -864,11 +864,11 @@ def _evaluate_garment(args: argparse.Namespace, stage: Path) -> dict[str, Any]:
             "missing": [n for n in names if n not in state.keypoints],
             "scene": {k: v for k, v in asdict(scene).items() if k != "index"},
         }
-        for name in names:
-            if name in state.keypoints:
-                xyz, conf = state.keypoints[name]
-                row["keypoint_error_mm"][name] = 1000.0 * float(np.linalg.norm(xyz - truth[name]))
-                row["confidence"][name] = conf
+        found = [name for name in names if name in state.keypoints]
+        row["keypoint_error_mm"] = keypoint_errors_mm(
+            {name: state.keypoints[name][0] for name in found}, truth
+        )
+        row["confidence"] = {name: state.keypoints[name][1] for name in found}
         score = max(row["keypoint_error_mm"].values()) if not row["missing"] else math.inf
         row["score"] = score if math.isfinite(score) else None  # None: a keypoint not found
         rows.append(row)
