@@ -59,7 +59,9 @@ def test_an_unrecognised_garment_is_a_perception_failure():
     # perception failed (the benchmark's cause), naming what it missed, not blame the config.
     s = square_state()
     s.keypoints["near_left"] = (np.array([0.35, 0.1, Z]), 0.9)
-    with pytest.raises(PerceptionError, match=r"not recognised for recipe 'leg_over_leg'.*crotch"):
+    with pytest.raises(
+        PerceptionError, match=r"not recognised for recipe 'leg_over_leg'.*left_leg_inner"
+    ):
         garment_keypoints(s, "leg_over_leg")
     with pytest.raises(PerceptionError, match="seen: none"):
         garment_keypoints(square_state(), "retail")

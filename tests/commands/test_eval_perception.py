@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -12,8 +13,10 @@ import pytest
 
 from foldbot.commands import eval_perception
 from foldbot.commands.eval_perception import folded_towel, sample_garment_scene, sample_scene
+from foldbot.errors import ConfigError
 from foldbot.garments import GARMENT_KEYPOINTS
 from foldbot.garments.towel import TowelSpec
+from foldbot.sim.layout import DEFAULT_LAYOUT
 
 
 def _args(*argv: str) -> argparse.Namespace:
@@ -151,3 +154,35 @@ def test_garment_yaw_range_spreads_the_garments() -> None:
     ]
     offsets = [abs(s.yaw - math.pi / 2) for s in wide]
     assert max(offsets) <= math.pi and max(offsets) > math.radians(90)
+
+
+def test_the_arm_at_home_moves_nothing_else() -> None:
+    """`--arm-pose home` puts the gripper where the one-arm cell parks while it looks; every
+    other draw of the scene stays as it is with the arm anywhere."""
+    for i in range(10):
+        anywhere = sample_garment_scene(np.random.default_rng([5, i]), i, "pants", 1.0)
+        home = sample_garment_scene(np.random.default_rng([5, i]), i, "pants", 1.0, arm_pose="home")
+        assert anywhere.arm_target is not None and anywhere.arm_target != home.arm_target
+        assert home.arm_target == pytest.approx((0.45, 0.0, DEFAULT_LAYOUT.table_height + 0.25))
+        assert dataclasses.replace(home, arm_target=anywhere.arm_target) == anywhere
+    towel = sample_scene(np.random.default_rng([5, 0]), 0, 0.0, 1.0, "home")
+    assert towel.arm_target == home.arm_target
+    with pytest.raises(ConfigError, match=r"arm pose must be one of .*'elbow'"):
+        sample_garment_scene(np.random.default_rng(0), 0, "pants", 1.0, arm_pose="elbow")
+
+
+def test_pants_under_the_parked_arm(tmp_path: Path) -> None:
+    """The garment suites' first frame: pants with the gripper parked at home over the waist."""
+    out = tmp_path / "eval"
+    args = _args(
+        "--garment", "pants", "--scenes", "1", "--seed", "2", "--out", str(out),
+        "--width", "320", "--height", "240", "--edge-length", "0.04",
+        "--arm-fraction", "1", "--arm-pose", "home",
+    )  # fmt: skip
+    assert eval_perception.run(args) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["arm_fraction"] == 1.0 and summary["arm_pose"] == "home"
+    row = summary["rows"][0]
+    assert row["scene"]["arm_target"] == pytest.approx([0.45, 0.0, 1.0])
+    assert row["detected"] and row["missing"] == []
+    assert max(row["keypoint_error_mm"].values()) < 10.0  # 320×240: 2.5 mm pixels

@@ -15,6 +15,7 @@ from foldbot.planning.garment_recipes import (
     GarmentPlan,
     fold_outline,
     plan_garment,
+    recipe_keypoints,
 )
 from foldbot.planning.recipes import _signed_area
 
@@ -116,18 +117,34 @@ def test_pants_leg_over_leg():
     assert not half.moving_mask(kp["right_waist"][None, :2])[0]
 
 
+@pytest.mark.parametrize(
+    ("recipe", "uv", "unplanned"),
+    [
+        ("retail", "tshirt", ("neck", "left_armpit", "right_armpit")),
+        ("leg_over_leg", "pants", ("crotch",)),
+    ],
+)
+def test_keypoints_no_fold_is_planned_from_may_be_missing(recipe, uv, unplanned) -> None:
+    """The neck, armpits and crotch recognise a garment; no line or grasp is computed from them,
+    so a garment whose neck the parked arm hides is planned all the same, and alike."""
+    kp = placed(TSHIRT_UV if uv == "tshirt" else PANTS_UV, 0.3)
+    assert set(recipe_keypoints(recipe)) == set(kp) - set(unplanned)
+    fewer = {n: p for n, p in kp.items() if n not in unplanned}
+    assert plan_garment(recipe, fewer).as_dict() == plan_garment(recipe, kp).as_dict()
+
+
 def test_missing_and_degenerate_keypoints_are_named():
     kp = placed(TSHIRT_UV, 0.0)
-    del kp["left_armpit"]
-    with pytest.raises(ConfigError, match="left_armpit"):
+    del kp["left_sleeve"]
+    with pytest.raises(ConfigError, match="left_sleeve"):
         plan_garment("retail", kp)
     swapped = placed(TSHIRT_UV, 0.0)
     swapped["left_hem"], swapped["right_hem"] = swapped["right_hem"], swapped["left_hem"]
     with pytest.raises(ConfigError, match="left_hem is not left of right_hem"):
         plan_garment("retail", swapped)
     bad = placed(PANTS_UV, 0.0)
-    bad["crotch"] = np.array([np.nan, 0.0, Z])
-    with pytest.raises(ConfigError, match="crotch"):
+    bad["left_leg_inner"] = np.array([np.nan, 0.0, Z])
+    with pytest.raises(ConfigError, match="left_leg_inner"):
         plan_garment("leg_over_leg", bad)
     with pytest.raises(ConfigError, match="unknown garment recipe 'half'"):
         plan_garment("half", kp)

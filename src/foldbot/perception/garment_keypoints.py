@@ -33,11 +33,15 @@ Everything comes from the Observation (never from the simulator):
 4. 3-D: each keypoint is lifted back through its pixel to the table plane at the local cloth
    height (as `VisionEstimator` does for towel corners).
 
-Detection: the garment is detected (every keypoint of its kind given) only when it is recognised
-as a flat garment of its kind: its outline is mirror-symmetric within `max_residual` (judged on
-the outline the arm does not hide, nor its mirror partners) and every keypoint is found;
-otherwise detected=False and `reason` says what failed (a folded garment, a towel, a keypoint
-hidden by the arm), so a caller can fall back to the generic `VisionEstimator`.
+Detection: the garment is detected only when it is recognised as a flat garment of its kind:
+its outline is mirror-symmetric within `max_residual` (judged on the outline the arm does not
+hide, nor its mirror partners) and every keypoint is found; otherwise detected=False and
+`reason` says what failed (a folded garment, a towel, a keypoint hidden by the arm), so a caller
+can fall back to the generic `VisionEstimator`. Where the arm hides part of the outline (the
+outline there is the amodal mask's hull), a left or right keypoint there is its partner's mirror
+image, the crotch is where the inseams seen below the arm meet, and a T-shirt's neck, which no
+other outline gives, is left out of the keypoints (`reason` names it) rather than guessed; the
+recipes do not plan from it.
 A garment whose mask touches the image border is not detected either (its outline is cut).
 
 Confidence: a keypoint's confidence is the axis quality exp(−(r/`symmetry_scale`)²) (r: mirror
@@ -251,8 +255,10 @@ class _Found:
 class _Outline:
     """A closed outline in the garment frame (N×2 (u, v), counter-clockwise) and its arc lengths."""
 
-    def __init__(self, uv: np.ndarray) -> None:
+    def __init__(self, uv: np.ndarray, hidden: np.ndarray | None = None) -> None:
         self.p = uv
+        self.hidden = np.zeros(len(uv), bool) if hidden is None else np.asarray(hidden, bool)
+        """Bool per point: the arm hides the cloth's edge there (the hull's chord in its place)."""
         seg = np.linalg.norm(np.roll(uv, -1, axis=0) - uv, axis=1)
         self.s = np.r_[0.0, np.cumsum(seg)[:-1]]
         self.length = float(seg.sum())
@@ -333,6 +339,8 @@ class _Finder:
     def __init__(self, outline: _Outline, config: GarmentKeypointConfig) -> None:
         self.o = outline
         self.cfg = config
+        self.unseen: set[str] = set()
+        """Keypoints the arm hides that no other outline gives (they are left out, not lost)."""
 
     def corner(self, i: int, back: float | None = None, fwd: float | None = None) -> _Found:
         """Refine the corner at outline index i by intersecting lines fitted to the outline
@@ -377,10 +385,15 @@ class _Finder:
 
     def side_line(self, a: int, b: int) -> tuple[np.ndarray, np.ndarray] | None:
         """Line (point, unit direction) fitted to the outline from index a forward to b, its
-        ends (a corner's rounding and a fifth of the stretch) left out."""
+        ends (a corner's rounding and a fifth of the stretch) and what the arm hides left out
+        (the amodal hull bulges round a gripper beside the edge)."""
         idx = self.o.forward(a, b)
         k = max(3, len(idx) // 5)
-        fit = _fit_line(self.o.p[idx[k:-k]]) if len(idx) > 2 * k + 4 else None
+        if len(idx) <= 2 * k + 4:
+            return None
+        idx = idx[k:-k]
+        idx = idx[~self.o.hidden[idx]]
+        fit = _fit_line(self.o.p[idx]) if len(idx) >= 5 else None
         return None if fit is None else (fit[0], fit[1])
 
     # ---- T-shirt ------------------------------------------------------------------------------
@@ -405,6 +418,10 @@ class _Finder:
                 continue  # outline noise, not an armpit (a towel has none)
             if side not in dents or depth > dents[side][1]:
                 dents[side] = (far, depth)
+        if "neck" not in found and o.hidden[[i_neck, (i_neck + 1) % o.n]].any():
+            # The arm hides the neckline: the outline there is the hull's chord, whose crossing
+            # with the axis lay 25-45 mm off the neck; the neck is reported unseen, not guessed.
+            self.unseen.add("neck")
         armpit = {side: far for side, (far, _) in dents.items()}
         for side in ("left", "right"):
             found.update(self._tshirt_side(side, hem, armpit.get(side)))
@@ -559,7 +576,9 @@ class _Finder:
         """The crotch: where the inseams' straight lines meet. Near the crotch the legs nearly
         touch and the camera sees no gap, so the lines are fitted to the wider part of each inseam
         (at least `CROTCH_GAP_FRACTION` of the inner hem corner's distance from the axis); the
-        axis crossing is the fallback."""
+        axis crossing is the fallback. Where the arm hides the crossing, the outline there is the
+        hull's chord below the crotch: the lines are fitted to the inseams' seen points only and
+        may meet anywhere between the chord and the waist."""
         o = self.o
         i_c, p_c = crossing
         lines = []
@@ -569,13 +588,16 @@ class _Finder:
             near_corner = np.minimum(
                 (o.s[idx] - o.s[corner]) % o.length, (o.s[corner] - o.s[idx]) % o.length
             )
-            sel = idx[far & (near_corner >= 2 * self.cfg.corner_skip)]
+            sel = idx[far & (near_corner >= 2 * self.cfg.corner_skip) & ~o.hidden[idx]]
             lines.append(_fit_line(o.p[sel]) if len(sel) >= 10 else None)
         la, lb = lines
         if la is None or lb is None:
             return _Found(p_c, 0.3)
         p = _intersect(la[0], la[1], lb[0], lb[1])
-        if p is None or abs(p[0]) > 0.01 or not (p_c[1] - 0.005 <= p[1] <= p_c[1] + 0.06):
+        top = p_c[1] + 0.06
+        if o.hidden[[i_c, (i_c + 1) % o.n]].any():
+            top = float(o.p[:, 1].max()) - MIN_NOTCH
+        if p is None or abs(p[0]) > 0.01 or not (p_c[1] - 0.005 <= p[1] <= top):
             return _Found(p_c, 0.3)
         return _Found(p, math.exp(-((max(la[2], lb[2]) / self.cfg.fit_scale) ** 2)))
 
@@ -621,21 +643,27 @@ class GarmentEstimator:
         self.names = GARMENT_KEYPOINT_NAMES[kind]
         self.config = config or GarmentKeypointConfig()
 
-    def _keypoints(self, frame: GarmentFrame, outline_xy: np.ndarray) -> dict[str, _Found]:
-        """The keypoints found on the outline (N×2 world x, y) in `frame` (garment u, v)."""
+    def _keypoints(
+        self, frame: GarmentFrame, outline_xy: np.ndarray, hidden: np.ndarray | None = None
+    ) -> tuple[dict[str, _Found], set[str]]:
+        """The keypoints found on the outline (N×2 world x, y; `hidden`: bool per point, the arm
+        hides the edge there) in `frame` (garment u, v), and those the arm hides (unseen)."""
         uv = frame.to_frame(outline_xy)
+        hidden = np.zeros(len(uv), bool) if hidden is None else np.asarray(hidden, bool)
         area = 0.5 * float(
             np.sum(uv[:, 0] * np.roll(uv[:, 1], -1) - np.roll(uv[:, 0], -1) * uv[:, 1])
         )
         if area < 0:
-            uv = uv[::-1].copy()
-        finder = _Finder(_Outline(uv), self.config)
-        return finder.tshirt() if self.kind == "tshirt" else finder.pants()
+            uv, hidden = uv[::-1].copy(), hidden[::-1].copy()
+        finder = _Finder(_Outline(uv, hidden), self.config)
+        found = finder.tshirt() if self.kind == "tshirt" else finder.pants()
+        return found, finder.unseen
 
     def estimate(self, obs: Observation) -> ClothState:
-        """ClothState of `obs` with all of this garment's keypoints; detected=False (`reason` says
-        why) when there is no cloth, it reaches the image border or is not recognised as a flat
-        garment of this kind (not mirror-symmetric, a keypoint not found).
+        """ClothState of `obs` with this garment's keypoints (all of them, but a neck the arm
+        hides); detected=False (`reason` says why) when there is no cloth, it reaches the image
+        border or is not recognised as a flat garment of this kind (not mirror-symmetric, a
+        keypoint not found).
 
         Raises PerceptionError on malformed input (shapes, dtypes, empty images, bad K, no depth).
         """
@@ -666,13 +694,15 @@ class GarmentEstimator:
         if stats is None:
             return missing("cloth pixels have no depth")
         p5, h_med, p95 = stats
+        # Which outline pixels lie on the arm, read before the colour outline's half-pixel shift
+        # moves some of them off it.
+        hidden = outline_hidden(seg.occluder, contour)
         if seg.cue == "colour":
             contour = _edge_corrected(contour)
         outline, coverage = lift_outline(obs, pw, contour, h_med)
         if coverage < cfg.segmentation.min_area or not np.all(np.isfinite(outline)):
             return missing(NO_CLOTH)
 
-        hidden = outline_hidden(seg.occluder, contour)
         frame = symmetry_axis(outline[:, :2], cfg, hidden)
         if frame.residual > cfg.max_residual:
             where = " where the arm hides none of it" if hidden.any() else ""
@@ -680,32 +710,36 @@ class GarmentEstimator:
                 f"not a flat {self.kind}: the outline is {1000 * frame.residual:.1f} mm from "
                 f"mirror-symmetric{where} (at most {1000 * cfg.max_residual:.1f} mm)"
             )
-        # The top on the prior's side first; the other way round where that finds no garment.
+        # The top on the prior's side first; the other way round where that finds no garment, or
+        # one only with a keypoint the arm hides (the arm over a hem's middle reads as a hidden
+        # neck: a shirt lying the other way round, its neck in sight, was taken upside down).
         tries = []
         for way in (frame, frame.flipped()):
-            found = self._keypoints(way, outline[:, :2])
-            lost = [n for n in self.names if n not in found]
-            tries.append((len(lost), way, found, lost))
-            if not lost:
+            found, unseen = self._keypoints(way, outline[:, :2], hidden)
+            lost = [n for n in self.names if n not in found and n not in unseen]
+            tries.append(((len(lost), len(unseen)), way, found, lost, unseen))
+            if not lost and not unseen:
                 break
-        _, frame, found, lost = min(tries, key=lambda t: t[0])  # ties: the prior's way
+        _, frame, found, lost, unseen = min(tries, key=lambda t: t[0])  # ties: the prior's way
         if lost:
             return missing(f"not a flat {self.kind}: not found: {', '.join(lost)}")
+        names = [n for n in self.names if n in found]
         found = mirrored_where_hidden(found, frame, outline[hidden, :2], cfg.corner_reach)
 
         axis_q = math.exp(-((frame.residual / cfg.symmetry_scale) ** 2))
-        xy = frame.to_world(np.array([found[n].uv for n in self.names]))
+        xy = frame.to_world(np.array([found[n].uv for n in names]))
         px, _ = project_points(_on_plane(pw, xy, h_med), obs.intrinsics, obs.T_world_camera)
         heights = local_heights(seg, px, cfg.height_radius_px, h_med)
         xyz = lift_pixels(obs, pw, px, heights)
         near = _near_occluder(seg.occluder, px, 4 * BORDER_PX + cfg.height_radius_px)
         keypoints: dict[str, tuple[np.ndarray, float]] = {}
-        for k, n in enumerate(self.names):
+        for k, n in enumerate(names):
             conf = axis_q * found[n].quality * (0.3 if near[k] else 1.0)
             keypoints[n] = (xyz[k], float(np.clip(conf, 0.0, 1.0)))
+        hides = f"; the arm hides the {', '.join(sorted(unseen))}" if unseen else ""
         return ClothState(
             detected=True,
-            reason=f"segmented by {seg.cue}",
+            reason=f"segmented by {seg.cue}{hides}",
             keypoints=keypoints,
             mask=seg.mask,
             coverage_m2=float(coverage),

@@ -61,7 +61,12 @@ GARMENT_RECIPE_HELP = {
     "retail": "T-shirt: sleeves and sides in, then hem up (3 stages)",
     "leg_over_leg": "pants: left leg onto the right, then in half (2 stages)",
 }
-REQUIRED_KEYPOINTS = {"retail": TSHIRT_KEYPOINTS, "pants": PANTS_KEYPOINTS}
+PLANNED_FROM: dict[str, tuple[str, ...]] = {
+    "retail": tuple(n for n in TSHIRT_KEYPOINTS if n.endswith(("_shoulder", "_sleeve", "_hem"))),
+    "leg_over_leg": tuple(n for n in PANTS_KEYPOINTS if n != "crotch"),
+}
+"""The keypoints each garment recipe's lines and grasps are computed from (the neck, armpits and
+crotch help recognise a garment, but no fold is planned from them)."""
 STACK_INSET = 0.01
 """A grasp on a folded stack's corner is set this far (m) inside it, so the jaws close on every
 layer rather than on the bare table beside the crease."""
@@ -147,11 +152,10 @@ class GarmentPlan:
 
 
 def recipe_keypoints(recipe: str) -> tuple[str, ...]:
-    """Keypoints a garment recipe needs; ConfigError for an unknown recipe."""
-    if recipe == "retail":
-        return TSHIRT_KEYPOINTS
-    if recipe == "leg_over_leg":
-        return PANTS_KEYPOINTS
+    """Keypoints a garment recipe is planned from (PLANNED_FROM); ConfigError for an unknown
+    recipe."""
+    if recipe in PLANNED_FROM:
+        return PLANNED_FROM[recipe]
     allowed = ", ".join(r for rs in GARMENT_RECIPES.values() for r in rs)
     raise ConfigError(f"unknown garment recipe {recipe!r}; allowed: {allowed}")
 
