@@ -59,9 +59,9 @@ def test_garment_plan_is_the_library_plan(planner):
 
 def test_garment_plan_names_missing_keypoints(planner):
     kp = pants_keypoints()
-    del kp["crotch"]
+    del kp["left_leg_inner"]
     req = {"kind": "garment", "recipe": "leg_over_leg", "keypoints": kp}
-    with pytest.raises(FoldbotError, match="crotch"):
+    with pytest.raises(FoldbotError, match="left_leg_inner"):
         planner.handle({**req, "place_lift": 0.004, "thickness": 0.01})
 
 
