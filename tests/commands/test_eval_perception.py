@@ -186,3 +186,10 @@ def test_pants_under_the_parked_arm(tmp_path: Path) -> None:
     assert row["scene"]["arm_target"] == pytest.approx([0.45, 0.0, 1.0])
     assert row["detected"] and row["missing"] == []
     assert max(row["keypoint_error_mm"].values()) < 10.0  # 320×240: 2.5 mm pixels
+
+
+def test_a_worst_scene_says_what_was_not_found() -> None:
+    verdict = eval_perception._garment_verdict
+    assert verdict({"score": 4.25, "detected": True, "missing": []}) == "4.2 mm"
+    assert verdict({"score": None, "detected": False, "missing": ["neck"]}) == "not recognised"
+    assert verdict({"score": None, "detected": True, "missing": ["neck"]}) == "missing: neck"

@@ -982,15 +982,19 @@ def _print_garment_table(summary: dict[str, Any], worst: list[dict[str, Any]]) -
         f"(best of {TIMING_REPEATS}: {fmt(summary['ms_per_frame_best'], '.1f')})"
     )
     if worst:
-        items = [
-            f"#{r['index']} ("
-            + ("keypoint missing" if r["score"] is None else f"{r['score']:.1f} mm")
-            + ")"
-            for r in worst
-        ]
-        print("worst scenes: " + ", ".join(items))
+        print("worst scenes: " + ", ".join(f"#{r['index']} ({_garment_verdict(r)})" for r in worst))
     if summary["sim_failures"]:
         print(f"left out (physics diverged): {summary['sim_failures']}")
+
+
+def _garment_verdict(row: dict[str, Any]) -> str:
+    """One scene in a word or two: its largest error, or what was not found (recognised, but
+    a keypoint the arm hides left out; or not recognised at all)."""
+    if row["score"] is not None:
+        return f"{row['score']:.1f} mm"
+    if not row["detected"]:
+        return "not recognised"
+    return "missing: " + ", ".join(row["missing"])
 
 
 def _badness(row: dict[str, Any]) -> float:
