@@ -93,11 +93,11 @@ GARMENTS = ("towel", "tshirt", "pants")
 FOLDED_FRACTION = 0.3
 """Default share of folded towels (garments are always flat)."""
 ARM_FRACTION = {"towel": 0.4, "tshirt": 0.0, "pants": 0.0}
+"""Default share of scenes with the arm over the workspace, by garment."""
 ARM_POSES = ("anywhere", "home")
 """Where a scene's arm is (`--arm-pose`): its TCP anywhere over the workspace, 12–35 cm above
 the table, or at home, gripper down 25 cm over the workspace centre, where the one-arm cell
 parks while its camera looks at a garment."""
-"""Default share of scenes with the arm over the workspace, by garment."""
 GARMENT_YAW = (math.pi / 2, math.radians(15.0))
 """T-shirts and pants lie at yaw 90° ± 15° (top towards the robot), as the fold pipeline places them
 by default (`--garment-yaw-range` widens the spread, up to 180°: any direction)."""
