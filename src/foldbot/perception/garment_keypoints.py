@@ -278,6 +278,10 @@ class _Outline:
         d = (self.s[i] - self.s) % self.length
         return np.flatnonzero((d >= lo) & (d <= hi))
 
+    def segment_hidden(self, i: int) -> bool:
+        """The arm hides an end of the segment from point i to the next (a `crossings` index)."""
+        return bool(self.hidden[i] or self.hidden[(i + 1) % self.n])
+
     def arc(self, a: int, b: int) -> float:
         """Forward arc length (m) from index a to b."""
         return float((self.s[b] - self.s[a]) % self.length)
@@ -418,7 +422,7 @@ class _Finder:
                 continue  # outline noise, not an armpit (a towel has none)
             if side not in dents or depth > dents[side][1]:
                 dents[side] = (far, depth)
-        if "neck" not in found and o.hidden[[i_neck, (i_neck + 1) % o.n]].any():
+        if "neck" not in found and o.segment_hidden(i_neck):
             # The arm hides the neckline: the outline there is the hull's chord, whose crossing
             # with the axis lay 25-45 mm off the neck; the neck is reported unseen, not guessed.
             self.unseen.add("neck")
@@ -595,7 +599,7 @@ class _Finder:
             return _Found(p_c, 0.3)
         p = _intersect(la[0], la[1], lb[0], lb[1])
         top = p_c[1] + 0.06
-        if o.hidden[[i_c, (i_c + 1) % o.n]].any():
+        if o.segment_hidden(i_c):
             top = float(o.p[:, 1].max()) - MIN_NOTCH
         if p is None or abs(p[0]) > 0.01 or not (p_c[1] - 0.005 <= p[1] <= top):
             return _Found(p_c, 0.3)
