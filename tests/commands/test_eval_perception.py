@@ -53,6 +53,9 @@ def test_three_scenes_write_the_summary(tmp_path: Path, capsys: pytest.CaptureFi
         (["--scenes", "-2"], "--scenes must be > 0"),
         (["--save-overlays", "-1"], "--save-overlays"),
         (["--width", "8"], "width"),
+        (["--towel-sides", "0.5", "0.3"], "--towel-sides must be LO HI with 0.05 ≤ LO ≤ HI"),
+        (["--towel-sides", "0.3", "0.9"], "got 0.3 0.9"),
+        (["--garment", "pants", "--towel-sides", "0.3", "0.4"], "--towel-sides is for --garment"),
     ],
 )
 def test_bad_arguments_write_nothing(
@@ -82,6 +85,24 @@ def test_scene_sampling_is_reproducible_and_in_range() -> None:
         assert 0.2 <= s.towel_width <= 0.45 and 0.2 <= s.towel_height <= 0.45
         assert 0.15 <= s.x <= 0.75 and -0.3 <= s.y <= 0.3
     assert {s.state for s in a} == {"flat", "folded"}
+
+
+def test_towel_sides_range_draws_the_same_scene_otherwise() -> None:
+    """`--towel-sides` changes the sizes only: the same draws scaled into the other range."""
+    a = [sample_scene(np.random.default_rng([5, i]), i, 0.3, 0.4) for i in range(20)]
+    b = [
+        sample_scene(np.random.default_rng([5, i]), i, 0.3, 0.4, "anywhere", (0.5, 0.7))
+        for i in range(20)
+    ]
+    for s, t in zip(a, b, strict=True):
+        assert 0.5 <= t.towel_width <= 0.7 and 0.5 <= t.towel_height <= 0.7
+        assert (t.towel_width - 0.5) / 0.2 == pytest.approx((s.towel_width - 0.2) / 0.25)
+        assert (t.state, t.yaw, t.cloth_rgb, t.arm_target) == (
+            s.state,
+            s.yaw,
+            s.cloth_rgb,
+            s.arm_target,
+        )
 
 
 def test_folded_towel_mesh() -> None:

@@ -1,7 +1,8 @@
 """`foldbot eval-perception`: score the vision estimator against simulator ground truth.
 
 Renders N randomised scenes and compares `VisionEstimator` with the `GroundTruthOracle`:
-- Randomised per scene: towel size (0.2–0.45 m per side, independent, so the aspect varies),
+- Randomised per scene: towel size (0.2–0.45 m per side, independent, so the aspect varies;
+  `--towel-sides LO HI` draws from another range),
   position within the workspace, rotation over the full circle, cloth and table colour (a quarter
   of the scenes with a cloth colour close to the table's, where depth alone must find it),
   lighting (direction, colour, ambient/diffuse/specular, shadows), camera pose jitter (±3 cm
@@ -103,6 +104,10 @@ GARMENT_YAW = (math.pi / 2, math.radians(15.0))
 by default (`--garment-yaw-range` widens the spread, up to 180°: any direction)."""
 GARMENT_JITTER = 0.03
 """Largest shift (m) of a garment's centre from the workspace centre, as the pipeline's."""
+TOWEL_SIDES = (0.2, 0.45)
+"""Default range (m) each towel side is drawn from: the suites' 25–45 cm and smaller."""
+MAX_TOWEL_SIDE = 0.7
+"""Largest towel side (m) `--towel-sides` accepts: a 70 cm towel fills the camera's view."""
 TIMING_REPEATS = 3
 """Each frame is estimated this many times: `ms` is the first run, `ms_best` the fastest."""
 
@@ -143,6 +148,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="where those scenes' arm is: its gripper anywhere over the workspace, 12–35 cm up "
         "(default), or at home, 25 cm over the workspace centre, where the one-arm cell parks "
         "while it looks (`--arm-fraction 1 --arm-pose home`: the garment suites' first frames)",
+    )
+    parser.add_argument(
+        "--towel-sides",
+        type=float,
+        nargs=2,
+        default=list(TOWEL_SIDES),
+        metavar=("LO", "HI"),
+        help="each towel side drawn uniformly from LO to HI m (default %(default)s: the suites' "
+        f"25–45 cm and smaller; at most {MAX_TOWEL_SIDE} m, where a towel fills the view)",
     )
     parser.add_argument(
         "--resolution", type=int, default=16, help="towel mesh vertices per long side (default 16)"
@@ -275,11 +289,13 @@ def sample_scene(
     folded_fraction: float,
     arm_fraction: float,
     arm_pose: str = "anywhere",
+    towel_sides: tuple[float, float] = TOWEL_SIDES,
 ) -> Scene:
-    """Draw one scene's randomisation (see the module docstring)."""
+    """Draw one scene's randomisation (see the module docstring); each towel side uniform in
+    `towel_sides` (m)."""
     lay = DEFAULT_LAYOUT
     state = "folded" if rng.random() < folded_fraction else "flat"
-    w, h = rng.uniform(0.2, 0.45, size=2)
+    w, h = rng.uniform(*towel_sides, size=2)
     fold_axis = "x" if rng.random() < 0.5 else "y"
     yaw = float(rng.uniform(-math.pi, math.pi))
     # Footprint of the (possibly folded) towel once rotated, to keep it inside the workspace.
@@ -683,6 +699,16 @@ def _validate(args: argparse.Namespace) -> None:
             f"--garment-yaw-range must be in [0, 180] degrees, got {args.garment_yaw_range}",
         ),
         (
+            0.05 <= args.towel_sides[0] <= args.towel_sides[1] <= MAX_TOWEL_SIDE,
+            f"--towel-sides must be LO HI with 0.05 ≤ LO ≤ HI ≤ {MAX_TOWEL_SIDE} m, "
+            f"got {args.towel_sides[0]} {args.towel_sides[1]}",
+        ),
+        (
+            args.garment == "towel" or list(args.towel_sides) == list(TOWEL_SIDES),
+            f"--towel-sides is for --garment towel, got {args.towel_sides[0]} "
+            f"{args.towel_sides[1]} with --garment {args.garment}",
+        ),
+        (
             args.garment != "towel" or args.garment_yaw_range == math.degrees(GARMENT_YAW[1]),
             "--garment-yaw-range is for --garment tshirt or pants; towel scenes draw their own "
             f"yaw, got {args.garment_yaw_range}",
@@ -733,7 +759,9 @@ def _evaluate(args: argparse.Namespace, stage: Path) -> dict[str, Any]:
     worst_heap: list[tuple[float, int, Observation, ClothState, dict[str, np.ndarray]]] = []
     for i in tqdm(range(args.scenes), desc="eval-perception", unit="scene", file=sys.stderr):
         rng = np.random.default_rng([args.seed, i])
-        scene = sample_scene(rng, i, args.folded_fraction, args.arm_fraction, args.arm_pose)
+        scene = sample_scene(
+            rng, i, args.folded_fraction, args.arm_fraction, args.arm_pose, tuple(args.towel_sides)
+        )
         try:
             rendered = render_scene(
                 scene, args.width, args.height, args.resolution, seed=args.seed * 100003 + i
@@ -795,6 +823,7 @@ def _evaluate(args: argparse.Namespace, stage: Path) -> dict[str, Any]:
         "folded_fraction": args.folded_fraction,
         "arm_fraction": args.arm_fraction,
         "arm_pose": args.arm_pose,
+        "towel_sides_m": list(args.towel_sides),
         "corner_error_mm": headline["corner_error_mm"],
         "corner_error_scope": "flat scenes, vs mesh corners" if flat else "all scenes",
         "detection_rate": everything["detection_rate"],

@@ -56,6 +56,14 @@ class SegmentationConfig:
     """RANSAC inlier distance (m) for the table plane."""
     ransac_iterations: int = 48
     """RANSAC hypotheses for the table plane."""
+    max_below_fraction: float = 0.02
+    """A cloth that fills much of the view (a towel over ~50 cm) can outvote the table, and the
+    plane found then runs through the cloth, tilted, with table below it. Where more than this
+    share of the RANSAC sample lies clearly below the plane (past `plane_threshold` and four
+    times the depth noise, short of `max_below`), the table plane is fitted again on those
+    points."""
+    max_below: float = 0.05
+    """Depth below the first plane (m) past which a point is not table (the floor, a hole)."""
     block: int = 2
     """Block size (half-res px) of the averaged height/colour image for the coarse decisions."""
     occluder_height: float = 0.06
@@ -87,6 +95,8 @@ class SegmentationConfig:
             "refit_stride": integer(self.refit_stride, 1, 64),
             "plane_threshold": 0.0 < self.plane_threshold < 0.1,
             "ransac_iterations": integer(self.ransac_iterations, 1, 10000),
+            "max_below_fraction": 0.0 < self.max_below_fraction <= 1.0,
+            "max_below": self.plane_threshold < self.max_below < 1.0,
             "block": integer(self.block, 1, 16),
             "occluder_height": 0.0 < self.occluder_height < 1.0,
             "smooth_size": odd(self.smooth_size, 31),
@@ -248,6 +258,32 @@ def _block_grid(
     return u[None, :], v[:, None]
 
 
+def _lowest_plane(
+    plane: Plane,
+    pts: np.ndarray,
+    valid: np.ndarray,
+    cfg: SegmentationConfig,
+    rng: np.random.Generator,
+    up: np.ndarray,
+) -> Plane:
+    """The table is the lowest large surface in view: where more than `max_below_fraction` of
+    the valid points of the RANSAC sample (`pts`, a grid of camera-frame points, and `valid`)
+    lie clearly below `plane` (by more than `plane_threshold` and four times the depth noise,
+    less than `max_below`), the plane ran through a cloth that fills much of the view, and the
+    table is fitted again on those points (RANSAC as before); otherwise `plane` unchanged."""
+    h = plane.height(pts)
+    pairs = valid[:, 1:] & valid[:, :-1]
+    noise = _robust_sigma(np.diff(h, axis=1)[pairs]) / math.sqrt(2.0)  # neighbours' difference
+    hv = h[valid]
+    below = (hv < -max(cfg.plane_threshold, 4.0 * noise)) & (hv > -cfg.max_below)
+    if below.sum() < max(3, cfg.max_below_fraction * hv.size):
+        return plane
+    lower, _ = fit_plane_ransac(
+        pts[valid][below], cfg.plane_threshold, rng, cfg.ransac_iterations, up=up, max_tilt=0.45
+    )
+    return lower
+
+
 def _plane_gain(plane: Plane, xn: np.ndarray, yn: np.ndarray) -> np.ndarray:
     """g such that height = depth·g + offset at normalised image coordinates (xn, yn)."""
     n = plane.normal.astype(np.float32)
@@ -285,6 +321,7 @@ def segment_cloth(obs: Observation, config: SegmentationConfig | None = None) ->
     plane, _ = fit_plane_ransac(
         pts[vs], cfg.plane_threshold, rng, cfg.ransac_iterations, up=up_cam, max_tilt=0.45
     )
+    plane = _lowest_plane(plane, pts, vs, cfg, rng, up_cam)
     h2 = z2 * _plane_gain(plane, x2, y2) + np.float32(plane.offset)
     h2[~valid2] = 0.0  # heights are used with weight2, which is 0 there
 
