@@ -119,8 +119,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="0 (default): the cloth where the seed puts it; K > 0: the same cloth laid 0.1 mm "
         "from there, as a suite's replicate K (its episode id ends in -rK)",
     )
-    parser.add_argument("--width", type=float, default=0.30, help="towel width in m (0.05–1.0)")
-    parser.add_argument("--height", type=float, default=0.30, help="towel height in m (0.05–1.0)")
+    parser.add_argument(
+        "--width",
+        type=float,
+        default=0.30,
+        help="towel width in m (0.05–1.0; the camera sees a whole towel up to about 0.6 m, "
+        "a larger one is refused before the arm moves)",
+    )
+    parser.add_argument(
+        "--height", type=float, default=0.30, help="towel height in m (0.05–1.0; as --width)"
+    )
     parser.add_argument(
         "--resolution",
         type=int,
