@@ -27,6 +27,17 @@ def test_reported_error_keeps_the_reports_notes():
     assert exc.__notes__ == ["see x"]
 
 
+def test_reported_error_keeps_the_segment_it_failed_in():
+    # The planner node names the motion segment an infeasible pair failed in; the task node's
+    # flattening reads it (failed_segment) to skip hang margins that cannot help.
+    report = {"error": "no IK", "error_type": "UnreachableTargetError", "segment": "approach"}
+    exc = errors.reported_error(report, "planning together")
+    assert type(exc) is errors.UnreachableTargetError
+    assert errors.failed_segment(exc) == "approach"
+    unnamed = errors.reported_error({**report, "segment": None}, "planning together")
+    assert errors.failed_segment(unnamed) is None
+
+
 def test_failed_segment_is_found_through_the_errors_raised_from():
     inner = errors.UnreachableTargetError("segment 'approach': no IK")
     inner.segment = "approach"

@@ -24,10 +24,6 @@ from foldbot.commands.ros_fold import add_arguments, fold_args_text
             "start 'crumpled' is for towels",
         ),
         (
-            ["ros-fold", "--out", "{tmp}/e", "--start", "crumpled", "--arms", "2"],
-            "--start crumpled with --arms 2 is not available over ROS",
-        ),
-        (
             ["ros-fold", "--out", "{tmp}/e", "--garment", "pants", "--garment-edge-length", "1"],
             "garment_edge_length must be in [0.005, 0.1] m, got 1.0",
         ),
@@ -84,15 +80,12 @@ def test_garment_options_reach_the_nodes():
     assert words[words.index("--park") + 1] == "out_of_view"
 
 
-def test_the_nodes_refuse_a_two_arm_crumpled_start():
-    # The task and planner nodes parse the same options (node_args): refused there too.
-    from foldbot.errors import ConfigError
+def test_the_nodes_take_a_two_arm_crumpled_start():
+    # The two-arm cell flattens by spreads over ROS too (the planner node plans them).
     from foldbot.ros.node_args import parse_fold_args
 
-    with pytest.raises(ConfigError, match="no two-arm spread"):
-        parse_fold_args("--out e --start crumpled --arms 2")
-    _args, cfg = parse_fold_args("--out e --start crumpled")
-    assert cfg.start == "crumpled" and cfg.arms == 1
+    _args, cfg = parse_fold_args("--out e --start crumpled --arms 2")
+    assert cfg.start == "crumpled" and cfg.arms == 2
 
 
 def test_the_nodes_get_the_loop_options():

@@ -161,6 +161,27 @@ def test_sample_interpolates_and_holds_the_ends() -> None:
         traj.sample(float("nan"))
 
 
+def test_a_held_trajectory_stays_at_rest_at_its_end_for_the_dwell() -> None:
+    # A segment's dwell (a spread's hang), as the ROS planner node times it: the samples the
+    # in-process executor commands after a trajectory's end (its last position, at rest).
+    path = np.linspace(np.zeros(6), np.ones(6), 5)
+    traj = time_parametrize(path, UR5_VEL, UR5_ACC, UR5_JERK, DT)
+    held = traj.held(1.0, DT)
+    n, extra = len(traj.times), 360
+    assert len(held.times) == n + extra
+    assert np.allclose(np.diff(held.times), DT) and held.duration == pytest.approx(
+        traj.duration + 1.0
+    )
+    assert np.array_equal(held.positions[:n], traj.positions)
+    assert np.array_equal(held.positions[n:], np.repeat(traj.positions[-1:], extra, axis=0))
+    assert not held.velocities[n:].any() and not held.accelerations[n:].any()
+    assert np.array_equal(held.arc[n:], np.full(extra, traj.arc[-1]))
+    assert traj.held(0.0, DT) is traj
+    for bad in ((-1.0, DT), (float("nan"), DT), (1.0, 0.0)):
+        with pytest.raises(ConfigError, match="a hold needs seconds ≥ 0"):
+            traj.held(*bad)
+
+
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [

@@ -4,11 +4,15 @@ import pytest
 from foldbot.errors import ConfigError, FoldbotError
 from foldbot.perception.keypoints import CORNER_LABELS
 from foldbot.perception.state import ClothState
+from foldbot.planning.actions import FoldAction
 from foldbot.planning.flatten import FlattenConfig
 from foldbot.planning.motion import MotionConfig
 from foldbot.planning.spread import (
     MARGIN_FREE_SEGMENTS,
+    SpreadAction,
     SpreadConfig,
+    action_as_dict,
+    action_from_dict,
     corner_pairs,
     motion_segments,
     plan_spread,
@@ -229,3 +233,49 @@ def test_a_pair_just_missed_is_tried_last_after_the_edge_just_laid():
     # Points away from every corner change nothing.
     far = np.array([[0.0, 0.9, TABLE], [0.1, 0.9, TABLE]])
     assert corner_pairs(state, missed=far) == corner_pairs(state)
+
+
+def test_an_action_travels_as_data_and_comes_back_the_same():
+    # For a planner in another process (the ROS planner node): a spread's part with every speed
+    # and its hang, or a pick-and-place, named by kind.
+    cfg = SpreadConfig(hang_time=0.5, lay_speed=0.08)
+    plan = plan_spread(heap_state(HEAP, [0.9] * 4), (W, H), cfg, FlattenConfig())
+    for action in plan.actions:
+        d = action_as_dict(action)
+        assert d["kind"] == "spread" and d["hang_time"] == 0.5 and d["lay_speed"] == 0.08
+        back = action_from_dict(d)
+        assert isinstance(back, SpreadAction) and back.label == action.label
+        for k in ("grasp", "hold", "touch", "release"):
+            assert np.array_equal(getattr(back, k), getattr(action, k))
+        for k in ("hang_time", "descend_speed", "slow_descent", "lift_speed", "lay_speed"):
+            assert getattr(back, k) == getattr(action, k)
+        segs = [
+            spread_segments(a, np.array([0.45, 0.3, 1.0]), MotionConfig()) for a in (action, back)
+        ]
+        assert [(s.name, s.speed, s.dwell) for s in segs[0]] == [
+            (s.name, s.speed, s.dwell) for s in segs[1]
+        ]
+    fold = FoldAction(np.array([0.4, 0.1, 0.75]), np.array([0.6, 0.1, 0.75]), (0.5, 0, 0, 1), "c")
+    d = action_as_dict(fold)
+    assert d["kind"] == "fold"
+    back = action_from_dict(d)
+    assert isinstance(back, FoldAction) and np.array_equal(back.place, fold.place)
+    # No kind: a pick-and-place, as before spreads travelled.
+    assert isinstance(action_from_dict(fold.as_dict()), FoldAction)
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"kind": "fling"}, "unknown action kind 'fling'; allowed: fold, spread"),
+        ({"hold": None}, "spread action's 'hold' must be 3 finite numbers, got None"),
+        ({"touch": [0.6, 0.1]}, "'touch' must be 3 finite numbers"),
+        ({"release": [0.3, 0.1, float("nan")]}, "'release' must be 3 finite numbers"),
+        ({"hang_time": "long"}, "'hang_time' must be a finite number, got 'long'"),
+        ({"lay_speed": float("inf")}, "'lay_speed' must be a finite number, got inf"),
+    ],
+)
+def test_a_bad_action_is_named(change, match):
+    plan = plan_spread(heap_state(HEAP, [0.9] * 4), (W, H), SpreadConfig(), FlattenConfig())
+    with pytest.raises(FoldbotError, match=match):
+        action_from_dict({**action_as_dict(plan.actions[0]), **change})

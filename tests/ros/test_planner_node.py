@@ -188,3 +188,58 @@ def test_park_moves_only_the_arms_away_from_their_park(two_arm_planner):
     np.testing.assert_allclose(traj["positions"][-1], qs[1], atol=1e-6)
     with pytest.raises(FoldbotError, match="qs must give 2 arms"):
         p.handle({"kind": "park", "qs": qs[:1]})
+
+
+def _spread_part(y: float, label: str) -> dict:
+    """One arm's part of a spread (planning.spread), as the task node sends it."""
+    from foldbot.planning.spread import SpreadAction, action_as_dict
+
+    return action_as_dict(
+        SpreadAction(
+            grasp=np.array([0.50, y + 0.03, 0.77]),
+            hold=np.array([0.60, y, 1.15]),
+            touch=np.array([0.60, y, 1.055]),
+            release=np.array([0.30, y, 0.77]),
+            label=label,
+        )
+    )
+
+
+def test_a_spread_is_planned_together_and_hangs_still(two_arm_planner):
+    # A crumpled towel in the two-arm cell over ROS: both arms' parts of a spread planned
+    # together, the hang timed as the in-process executor holds it (SpreadAction.hang_time).
+    p = two_arm_planner
+    qs = _homes(p)
+    pairs = [
+        {"arm": 0, "action": _spread_part(0.15, "spread far_left")},
+        {"arm": 1, "action": _spread_part(-0.15, "spread far_right")},
+    ]
+    steps = p.handle({"kind": "together", "pairs": pairs, "qs": qs})["steps"]
+    names = ["approach", "come_down", "descend", "lift", "spread", "lower", "lay", "retreat"]
+    for arm_steps in steps:
+        assert [s["name"] for s in arm_steps] == names
+        assert [s["gripper"] for s in arm_steps][2] == "close"
+        assert [s["gripper"] for s in arm_steps][6] == "open"
+        assert [s["dwell"] for s in arm_steps] == [0, 0, 0, 0, 1.0, 0, 0, 0]
+    spread = [{"arm": arm, **arm_steps[4]} for arm, arm_steps in enumerate(steps)]
+    still = p.handle({"kind": "time", **spread[0], "dwell": 0.0})["trajectory"]
+    hung = p.handle({"kind": "time", **spread[0]})["trajectory"]
+    dt = p.world.time_step
+    n, extra = len(still["times"]), round(1.0 / dt)
+    assert len(hung["times"]) == n + extra
+    pos, vel = np.array(hung["positions"]), np.array(hung["velocities"])
+    np.testing.assert_allclose(pos[:n], still["positions"])
+    np.testing.assert_allclose(pos[n:], np.repeat(pos[n - 1 : n], extra, axis=0))
+    assert not vel[n:].any()
+    both = p.handle({"kind": "time_together", "name": "spread", "steps": spread})["trajectory"]
+    assert len(both["times"]) >= n + extra
+    with pytest.raises(FoldbotError, match="dwell must be a number of seconds"):
+        p.handle({"kind": "time", **spread[0], "dwell": "long"})
+
+
+def test_a_bad_spread_part_is_named(two_arm_planner):
+    p = two_arm_planner
+    bad = {k: v for k, v in _spread_part(0.15, "spread far_left").items() if k != "hold"}
+    pairs = [{"arm": 0, "action": bad}, {"arm": 1, "action": _spread_part(-0.15, "x")}]
+    with pytest.raises(FoldbotError, match="spread action's 'hold' must be 3 finite numbers"):
+        p.handle({"kind": "together", "pairs": pairs, "qs": _homes(p)})

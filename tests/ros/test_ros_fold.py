@@ -278,6 +278,40 @@ def test_crumpled_towel_is_flattened_over_topics(tmp_path):
     assert rescore(out).fold_error_mm == pytest.approx(result["fold_error_mm"])
 
 
+SPREAD = ["--start", "crumpled", "--arms", "2", "--seed", "9", "--width", "0.3", "--height", "0.3"]
+SPREAD += ["--resolution", "9", "--jaw-catch", "surface", "--video-fps", "0"]
+
+
+def test_two_arms_spread_a_crumpled_towel_over_topics(tmp_path):
+    """`--arms 2 --start crumpled`: the task node flattens by spreads (flatten.run_spreads), each
+    planned for both arms together by the planner node (its hang timed there) and moved by the
+    sim node on one clock, then folds."""
+    out = tmp_path / "episode"
+    proc = foldbot(
+        "ros-fold", *SPREAD, "--camera-rate", "2", "--out", str(out),
+        "--port", str(free_port()),
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    result = json.loads((out / "result.json").read_text())
+    assert result["transport"] == "ros" and result["arms"] == 2
+    assert result["jaw_catch"] == "surface"
+    f = result["flatten"]
+    ref = subprocess.run(
+        [sys.executable, "-c", CRUMPLE_SCRIPT, " ".join([*SPREAD, "--out", str(tmp_path / "x")])],
+        capture_output=True, text=True, timeout=600, check=True,
+    )  # fmt: skip
+    assert f["coverage_start"] == json.loads(ref.stdout.strip().splitlines()[-1]) < 0.85
+    spread = f["pulls"][0]
+    assert spread["kind"] == "flatten_spread" and spread["grasp_success"] is True
+    assert all(len(v) > 0 for v in spread["grasped_vertices"])  # each arm held the towel
+    left, right = spread["arms"]
+    assert left["hold"][1] - right["hold"][1] == pytest.approx(spread["spread_width_m"])
+    assert spread["coverage_after"] > spread["coverage_before"]
+    assert f["success"] == (f["coverage_end"] >= 0.9)
+    assert (out / "flatten.png").is_file() and (out / "overlay_flattened.png").is_file()
+    assert rescore(out).fold_error_mm == pytest.approx(result["fold_error_mm"])
+
+
 def test_two_arms_fold_over_topics(tmp_path):
     """`--arms 2`: each arm's joints and base frame named left_/right_, a pair of corners moved
     on one clock by one trajectory, each gripper commanded by its arm. `--cloth

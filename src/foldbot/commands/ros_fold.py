@@ -19,7 +19,6 @@ from pathlib import Path
 from foldbot import errors
 from foldbot.commands import fold
 from foldbot.errors import ConfigError, FoldbotError, OutputError
-from foldbot.ros.node_args import require_over_ros
 
 ROS_PACKAGE_DIR = Path(__file__).resolve().parents[3] / "ros"
 """The repository's ROS package folder (holds foldbot_ros/)."""
@@ -111,7 +110,7 @@ def run(args: argparse.Namespace) -> int:
             "is vision (RGB-D) only; use `foldbot fold --perception oracle` for the oracle"
         )
     # Bad values fail here, before anything starts.
-    require_over_ros(fold.config_from_args(args))
+    fold.config_from_args(args)
     if not (1 <= args.port <= 65535):
         raise ConfigError(f"--port must be in 1–65535, got {args.port}")
     rate = args.video_fps if args.camera_rate is None else args.camera_rate

@@ -37,7 +37,7 @@ import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Trajectory
 from scipy.interpolate import CubicSpline
 
-from foldbot.errors import ConfigError
+from foldbot.errors import ConfigError, require
 
 LIMIT_MARGIN = 0.995
 """Fraction of every limit the plan uses, leaving room for floating-point round-off."""
@@ -110,6 +110,25 @@ class JointTrajectory:
             return (1.0 - w) * a[k] + w * a[k1]
 
         return lerp(self.positions), lerp(self.velocities), lerp(self.accelerations)
+
+    def held(self, seconds: float, dt: float) -> JointTrajectory:
+        """This trajectory, then still at its last sample for `seconds` (round(seconds / dt) more
+        samples `dt` apart, at rest): a segment's dwell, as control.executor holds it."""
+        require(
+            math.isfinite(seconds) and seconds >= 0.0 and math.isfinite(dt) and dt > 0.0,
+            f"a hold needs seconds ≥ 0 and a sample period > 0, got {seconds!r} and {dt!r}",
+        )
+        n = round(seconds / dt)
+        if n == 0:
+            return self
+        zeros = np.zeros((n, self.positions.shape[1]))
+        return JointTrajectory(
+            times=np.concatenate([self.times, self.times[-1] + dt * np.arange(1, n + 1)]),
+            positions=np.vstack([self.positions, np.repeat(self.positions[-1:], n, axis=0)]),
+            velocities=np.vstack([self.velocities, zeros]),
+            accelerations=np.vstack([self.accelerations, zeros]),
+            arc=np.concatenate([self.arc, np.repeat(self.arc[-1:], n)]),
+        )
 
     def peaks(self) -> dict[str, float]:
         """Largest |velocity|, |acceleration| and |jerk| (from the accelerations) over all joints."""

@@ -120,14 +120,46 @@ class SpreadAction:
         return self.release
 
     def as_dict(self) -> dict:
-        return {
-            "label": self.label,
-            "grasp": [float(v) for v in self.grasp],
-            "hold": [float(v) for v in self.hold],
-            "touch": [float(v) for v in self.touch],
-            "release": [float(v) for v in self.release],
-            "hang_time": self.hang_time,
-        }
+        d: dict = {"label": self.label}
+        d.update({k: [float(v) for v in getattr(self, k)] for k in SPREAD_POINTS})
+        d.update({k: float(getattr(self, k)) for k in SPREAD_SCALARS})
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> SpreadAction:
+        """The action from its `as_dict()` form (a speed or length left out takes its default);
+        FoldbotError naming the field that is missing or not a finite number."""
+        points = {}
+        for k in SPREAD_POINTS:
+            v = np.asarray(d.get(k, ()), dtype=float).reshape(-1)
+            if v.shape != (3,) or not np.isfinite(v).all():
+                raise FoldbotError(
+                    f"a spread action's {k!r} must be 3 finite numbers, got {d.get(k)!r}"
+                )
+            points[k] = v
+        scalars = {}
+        for k in SPREAD_SCALARS:
+            if k in d:
+                v = d[k]
+                if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+                    raise FoldbotError(
+                        f"a spread action's {k!r} must be a finite number, got {v!r}"
+                    )
+                scalars[k] = float(v)
+        return cls(**points, label=str(d.get("label", "")), **scalars)
+
+
+SPREAD_POINTS = ("grasp", "hold", "touch", "release")
+"""SpreadAction's points (world xyz, m), as as_dict writes them."""
+SPREAD_SCALARS = (
+    "hang_time",
+    "descend_speed",
+    "slow_descent",
+    "lift_speed",
+    "lay_speed",
+    "first_lift",
+)
+"""SpreadAction's times (s), speeds (m/s) and lengths (m), as as_dict writes them."""
 
 
 @dataclass(frozen=True)
@@ -325,6 +357,25 @@ def spread_segments(
             motion.free_speed,
         ),
     ]
+
+
+ACTION_KINDS = ("fold", "spread")
+"""What one arm's part of a motion planned together is (action_as_dict's `kind`)."""
+
+
+def action_as_dict(action: FoldAction | SpreadAction) -> dict:
+    """One arm's action as JSON-ready data that names its kind, for a planner in another process
+    (the ROS planner node): a pick-and-place or a spread."""
+    return {"kind": "spread" if isinstance(action, SpreadAction) else "fold", **action.as_dict()}
+
+
+def action_from_dict(d: dict) -> FoldAction | SpreadAction:
+    """The action from its action_as_dict() form (no `kind`: a pick-and-place)."""
+    kind = d.get("kind", "fold")
+    if kind not in ACTION_KINDS:
+        raise FoldbotError(f"unknown action kind {kind!r}; allowed: {', '.join(ACTION_KINDS)}")
+    body = {k: v for k, v in d.items() if k != "kind"}
+    return SpreadAction.from_dict(body) if kind == "spread" else FoldAction.from_dict(body)
 
 
 def motion_segments(

@@ -8,7 +8,6 @@ import argparse
 import shlex
 
 from foldbot.commands import fold
-from foldbot.errors import ConfigError
 from foldbot.pipeline import EpisodeConfig
 
 FOLD_ARGS_PARAM = "/foldbot/fold_args"
@@ -27,16 +26,4 @@ def fold_parser() -> argparse.ArgumentParser:
 def parse_fold_args(text: str) -> tuple[argparse.Namespace, EpisodeConfig]:
     """Parse `foldbot fold` options (a shell-quoted string); raises ConfigError on bad values."""
     args = fold_parser().parse_args(shlex.split(text))
-    cfg = fold.config_from_args(args)
-    require_over_ros(cfg)
-    return args, cfg
-
-
-def require_over_ros(cfg: EpisodeConfig) -> None:
-    """ConfigError for an episode the ROS nodes cannot run: a crumpled start in the two-arm cell
-    (the planner node has no two-arm spread, planning.spread)."""
-    if cfg.arms == 2 and cfg.start == "crumpled":
-        raise ConfigError(
-            "--start crumpled with --arms 2 is not available over ROS: the planner node has no "
-            "two-arm spread (planning.spread); use `foldbot fold --arms 2 --start crumpled`"
-        )
+    return args, fold.config_from_args(args)

@@ -29,11 +29,12 @@ from std_msgs.msg import String
 from foldbot.control.bimanual import check_arms_clear, check_clear_of_still_arms
 from foldbot.control.executor import ArmExecutor, PlannedSegment
 from foldbot.control.trajectory import JointTrajectory
-from foldbot.errors import FoldbotError
+from foldbot.errors import FoldbotError, failed_segment
 from foldbot.planning.actions import FoldAction
 from foldbot.planning.garment_recipes import plan_garment
 from foldbot.planning.motion import Segment, action_segments, line_path
 from foldbot.planning.recipes import plan_stage, predicted_outline
+from foldbot.planning.spread import action_from_dict, motion_segments
 from foldbot.ros import TOPICS, arm_joint_names, convert
 from foldbot.ros.node_args import FOLD_ARGS_PARAM, parse_fold_args
 from foldbot.ros.publish import publish_when_heard
@@ -65,6 +66,7 @@ def _step_dict(ps: PlannedSegment) -> dict:
         "path": ps.joint_path.tolist(),
         "points": ps.points.tolist(),
         "speed": ps.segment.speed,
+        "dwell": ps.segment.dwell,
     }
 
 
@@ -123,11 +125,17 @@ class MotionPlanner:
         }
 
     def _timed(self, step: dict) -> JointTrajectory:
-        return self.executors[self._arm(step)].trajectory_for(
+        """A step's trajectory, then still for its dwell (a spread's hang), as in process."""
+        executor = self.executors[self._arm(step)]
+        traj = executor.trajectory_for(
             np.array(step["path"], dtype=float),
             np.array(step["points"], dtype=float),
             float(step["speed"]),
         )
+        dwell = step.get("dwell", 0.0)
+        if isinstance(dwell, bool) or not isinstance(dwell, int | float):
+            raise FoldbotError(f"a step's dwell must be a number of seconds, got {dwell!r}")
+        return traj.held(float(dwell), executor.world.time_step)
 
     def handle(self, req: dict) -> dict:
         """One request → its response payload (raises FoldbotError on bad or infeasible ones).
@@ -174,11 +182,12 @@ class MotionPlanner:
             return {"trajectory": self._stacked(req.get("name", ""), arms, trajs)}
         qs = self._qs(req)
         if kind == "together":
-            pairs = [(self._arm(p), FoldAction.from_dict(p["action"])) for p in req["pairs"]]
+            # Pick-and-places, or a spread's two parts (a crumpled towel in the two-arm cell).
+            pairs = [(self._arm(p), action_from_dict(p["action"])) for p in req["pairs"]]
             plans = [
                 self._plan(
                     arm,
-                    action_segments(action, self.robots[arm].fk_tcp(qs[arm])[0], self.cfg.motion),
+                    motion_segments(action, self.robots[arm].fk_tcp(qs[arm])[0], self.cfg.motion),
                     qs[arm],
                 )
                 for arm, action in pairs
@@ -259,6 +268,9 @@ class PlannerNode:
                 "ok": False,
                 "error": str(exc),
                 "error_type": type(exc).__name__,
+                # The segment an infeasible motion failed in: the task node's flattening tells
+                # a failure that another hang margin cannot fix by it (errors.failed_segment).
+                "segment": failed_segment(exc),
             }
         try:  # the task subscribed before it asked, but its connection to this node may lag
             publish_when_heard(self.pub, String(data=json.dumps(out)), self.wait_s)

@@ -3,7 +3,8 @@
 It runs the same closed loop as `foldbot fold` (foldbot.loop.run_fold) on `RosCell`, a FoldCell
 whose eyes are the perception node's outputs, whose planner is the planner node and whose arm
 (or two arms, `--arms 2`) is the sim node; a crumpled start (crumpled by the sim node) is first
-flattened on that cell by foldbot.flatten.run_flatten. At the end it scores the fold from the sim
+flattened on that cell by foldbot.flatten.run_flatten (pulls; with two arms, spreads the planner
+node plans for both arms together). At the end it scores the fold from the sim
 node's ground-truth topic (metrics only) and writes the episode output contract: result.json,
 cloth.npz, video.mp4 (the camera stream with the debug overlays) and the overlay pictures.
 """
@@ -47,6 +48,7 @@ from foldbot.pipeline import (
 )
 from foldbot.planning.actions import FoldAction, FoldPlan
 from foldbot.planning.garment_recipes import GarmentPlan
+from foldbot.planning.spread import SpreadAction, action_as_dict
 from foldbot.ros import CAMERA_FRAME, TOPICS, WORLD_FRAME, convert
 from foldbot.ros.node_args import ERROR_FILE_PARAM, FOLD_ARGS_PARAM, parse_fold_args
 from foldbot.ros.publish import publish_when_heard
@@ -380,8 +382,11 @@ class RosCell(FoldCell):
             ]
         )
 
-    def plan_together(self, actions: list[tuple[int, FoldAction]]) -> list[list[dict]]:
-        pairs = [{"arm": arm, "action": action.as_dict()} for arm, action in actions]
+    def plan_together(
+        self, actions: list[tuple[int, FoldAction | SpreadAction]]
+    ) -> list[list[dict]]:
+        # Pick-and-places, or a spread's two parts (each names its kind).
+        pairs = [{"arm": arm, "action": action_as_dict(action)} for arm, action in actions]
         return self._plan("together", pairs=pairs, qs=self._qs())["steps"]
 
     def run_together(self, steps: list[tuple[int, dict]]) -> list[StepLog]:
@@ -399,6 +404,7 @@ class RosCell(FoldCell):
                     "path": path.tolist(),
                     "points": step["points"],
                     "speed": step["speed"],
+                    "dwell": step.get("dwell", 0.0),
                 }
             )
         traj = self._plan("time_together", name=steps[0][1]["name"], steps=timed)["trajectory"]
@@ -438,6 +444,7 @@ class RosCell(FoldCell):
             path=path.tolist(),
             points=step["points"],
             speed=step["speed"],
+            dwell=step.get("dwell", 0.0),
         )["trajectory"]
         reply = self._follow(traj)
         grasp = None
