@@ -28,6 +28,47 @@ def test_images_round_trip(array, encoding):
     np.testing.assert_array_equal(convert.image_array(msg), array)
 
 
+def test_what_rgbd_drivers_publish_is_taken_as_the_sim_sends_it():
+    # A real camera's colour comes as bgr8 or with alpha, its depth in millimetres (REP 118's
+    # 16UC1, 0 = no reading), rows possibly padded: the perception node reads them as the sim's
+    # rgb8 and 32FC1 metres.
+    rgb = np.arange(2 * 3 * 3, dtype=np.uint8).reshape(2, 3, 3)
+    alpha = np.full((2, 3, 1), 255, np.uint8)
+    for encoding, array in (
+        ("rgb8", rgb),
+        ("bgr8", rgb[..., ::-1]),
+        ("rgba8", np.concatenate([rgb, alpha], axis=2)),
+        ("bgra8", np.concatenate([rgb[..., ::-1], alpha], axis=2)),
+    ):
+        msg = convert.image_msg(array, encoding, 0.0, "cam")
+        np.testing.assert_array_equal(convert.color_array(msg), rgb)
+    metres = np.array([[0.5, np.nan], [1.25, 0.0]], dtype=np.float32)
+    sim = convert.depth_array(convert.image_msg(metres, "32FC1", 0.0, "cam"))
+    np.testing.assert_array_equal(sim, metres)  # as sent: the sim's depth is not touched
+    mm = np.array([[500, 0], [1250, 65535]], dtype=np.uint16)
+    depth = convert.depth_array(convert.image_msg(mm, "16UC1", 0.0, "cam"))
+    assert depth.dtype == np.float32
+    np.testing.assert_allclose(depth, [[0.5, np.nan], [1.25, 65.535]])
+    # Big-endian data and rows padded to 8 bytes.
+    msg = convert.image_msg(mm, "16UC1", 0.0, "cam")
+    msg.is_bigendian, msg.step = 1, 8
+    msg.data = b"".join(row.astype(">u2").tobytes() + b"\0\0\0\0" for row in mm)
+    np.testing.assert_allclose(convert.depth_array(msg), [[0.5, np.nan], [1.25, 65.535]])
+
+
+def test_a_camera_image_of_the_wrong_kind_is_named():
+    depth = convert.image_msg(np.zeros((2, 2), np.float32), "32FC1", 0.0, "cam")
+    with pytest.raises(FoldbotError, match="colour image encoding '32FC1'; allowed: rgb8, bgr8"):
+        convert.color_array(depth)
+    color = convert.image_msg(np.zeros((2, 2, 3), np.uint8), "rgb8", 0.0, "cam")
+    with pytest.raises(FoldbotError, match="depth image encoding 'rgb8'; allowed: 32FC1, 16UC1"):
+        convert.depth_array(color)
+    short = convert.image_msg(np.zeros((2, 3), np.uint16), "16UC1", 0.0, "cam")
+    short.step = 4  # under the 6 bytes a row of three needs
+    with pytest.raises(FoldbotError, match="needs rows of at least 6 bytes"):
+        convert.depth_array(short)
+
+
 def test_unknown_encoding_is_named():
     with pytest.raises(FoldbotError, match="bgr16"):
         convert.image_msg(np.zeros((2, 2, 3), np.uint16), "bgr16", 0.0, "cam")

@@ -29,7 +29,8 @@ def run(args: argparse.Namespace) -> int:
     report = replay(args.bag, args.port, args.rate)
     print(
         f"replayed {report.frames_compared} of {report.frames_in_bag} frames through the "
-        f"perception node: largest keypoint difference {report.max_keypoint_difference_m:.3g} m, "
+        f"perception node: largest keypoint difference {report.max_keypoint_difference_m:.3g} m "
+        f"({report.max_sure_difference_m:.3g} m where the live run was sure of the keypoint), "
         f"labels {'equal' if report.labels_equal else 'DIFFER'}, "
         f"detections {'equal' if report.detected_equal else 'DIFFER'}"
     )

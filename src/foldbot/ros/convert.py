@@ -1,6 +1,7 @@
 """Conversions between foldbot's types and ROS 1 messages (sensor_msgs, geometry_msgs,
 trajectory_msgs, std_msgs), in one place so every node speaks the same conventions:
-images rgb8 / 32FC1 metres / mono8, camera_info from K with no distortion, world-frame keypoints
+images rgb8 / 32FC1 metres / mono8 (and, taken in, what RGB-D drivers publish: bgr8, rgba8,
+bgra8 colour, 16UC1 millimetre depth), camera_info from K with no distortion, world-frame keypoints
 as a PoseArray in CORNER_LABELS order, JSON on std_msgs/String for the control-plane reports."""
 
 from __future__ import annotations
@@ -22,7 +23,20 @@ from foldbot.perception.keypoints import CORNER_LABELS
 from foldbot.perception.state import ClothState
 from foldbot.types import CameraIntrinsics
 
-_ENCODINGS = {"rgb8": (np.uint8, 3), "mono8": (np.uint8, 1), "32FC1": (np.float32, 1)}
+_ENCODINGS = {
+    "rgb8": (np.uint8, 3),
+    "bgr8": (np.uint8, 3),
+    "rgba8": (np.uint8, 4),
+    "bgra8": (np.uint8, 4),
+    "mono8": (np.uint8, 1),
+    "32FC1": (np.float32, 1),
+    "16UC1": (np.uint16, 1),
+}
+COLOR_ENCODINGS = ("rgb8", "bgr8", "rgba8", "bgra8")
+"""Colour images the perception node takes (what RGB-D drivers publish); rgb8 from the sim."""
+DEPTH_ENCODINGS = ("32FC1", "16UC1")
+"""Depth images it takes (REP 118): 32FC1 metres (the sim's), or 16UC1 millimetres (0: no
+reading), as RealSense and OpenNI drivers publish them."""
 
 
 def stamp_of(seconds: float) -> genpy.Time:
@@ -53,17 +67,53 @@ def image_msg(array: np.ndarray, encoding: str, seconds: float, frame_id: str) -
 
 
 def image_array(msg: Image) -> np.ndarray:
-    """The array of a sensor_msgs/Image in one of the encodings above."""
+    """The array of a sensor_msgs/Image in one of the encodings above (rows `step` bytes apart,
+    padding dropped; either byte order)."""
     if msg.encoding not in _ENCODINGS:
         raise FoldbotError(
             f"unsupported image encoding {msg.encoding!r}; allowed: {list(_ENCODINGS)}"
         )
     dtype, channels = _ENCODINGS[msg.encoding]
-    a = np.frombuffer(
-        msg.data, dtype=np.dtype(dtype).newbyteorder(">" if msg.is_bigendian else "<")
+    row = msg.width * channels * np.dtype(dtype).itemsize
+    data = np.frombuffer(msg.data, dtype=np.uint8)
+    if msg.step < row or data.size < msg.height * msg.step:
+        raise FoldbotError(
+            f"a {msg.width} × {msg.height} {msg.encoding} image needs rows of at least {row} "
+            f"bytes and {msg.height} of them; got step {msg.step} and {data.size} bytes"
+        )
+    rows = data[: msg.height * msg.step].reshape(msg.height, msg.step)[:, :row]
+    a = np.ascontiguousarray(rows).view(
+        np.dtype(dtype).newbyteorder(">" if msg.is_bigendian else "<")
     )
     shape = (msg.height, msg.width, channels) if channels > 1 else (msg.height, msg.width)
     return a.reshape(shape).astype(dtype)
+
+
+def color_array(msg: Image) -> np.ndarray:
+    """H×W×3 uint8 RGB of a colour image in any of COLOR_ENCODINGS."""
+    if msg.encoding not in COLOR_ENCODINGS:
+        raise FoldbotError(
+            f"unsupported colour image encoding {msg.encoding!r}; allowed: "
+            f"{', '.join(COLOR_ENCODINGS)}"
+        )
+    a = image_array(msg)[..., :3]
+    return np.ascontiguousarray(a[..., ::-1] if msg.encoding.startswith("bgr") else a)
+
+
+def depth_array(msg: Image) -> np.ndarray:
+    """H×W float32 depth in metres of a depth image in either of DEPTH_ENCODINGS; a 16UC1
+    image's 0 (no reading) becomes NaN."""
+    if msg.encoding not in DEPTH_ENCODINGS:
+        raise FoldbotError(
+            f"unsupported depth image encoding {msg.encoding!r}; allowed: "
+            f"{', '.join(DEPTH_ENCODINGS)} (REP 118: metres, or millimetres)"
+        )
+    a = image_array(msg)
+    if msg.encoding == "32FC1":
+        return a
+    out = a.astype(np.float32) * np.float32(0.001)
+    out[a == 0] = np.nan
+    return out
 
 
 def camera_info_msg(intr: CameraIntrinsics, seconds: float, frame_id: str) -> CameraInfo:

@@ -73,8 +73,8 @@ class PerceptionNode:
     def _estimate(self, color: Image, depth: Image, info: CameraInfo, T: np.ndarray) -> None:
         stamp = color.header.stamp.to_sec()
         obs = Observation(
-            rgb=convert.image_array(color),
-            depth=convert.image_array(depth),
+            rgb=convert.color_array(color),
+            depth=convert.depth_array(depth),
             intrinsics=convert.intrinsics_of(info),
             T_world_camera=T,
             stamp=stamp,

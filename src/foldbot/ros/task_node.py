@@ -187,7 +187,7 @@ class RosCell(FoldCell):
         if self.video is None:
             return
         # The video: every camera frame, with the newest perceived state and planned points.
-        frame = convert.image_array(msg)
+        frame = convert.color_array(msg)
         info = self._infos.get(round(stamp, 6))
         state = self.latest_state
         if (
@@ -323,8 +323,8 @@ class RosCell(FoldCell):
             state = convert.state_from(self.states[key], self.masks[key])
             color, info, depth = self.frames[key], self._infos[key], self.depths[key]
         obs = Observation(
-            rgb=convert.image_array(color),
-            depth=convert.image_array(depth),
+            rgb=convert.color_array(color),
+            depth=convert.depth_array(depth),
             intrinsics=convert.intrinsics_of(info),
             T_world_camera=self.camera_transform(),
             stamp=self.rest_stamp,
