@@ -56,6 +56,32 @@ def test_what_rgbd_drivers_publish_is_taken_as_the_sim_sends_it():
     np.testing.assert_allclose(convert.depth_array(msg), [[0.5, np.nan], [1.25, 65.535]])
 
 
+def test_a_frame_with_lens_distortion_is_rectified_for_perception():
+    # camera_info's D (a real camera's) is taken out before perception; the sim's zeros leave
+    # the images as they are (perception.rectify, tests/perception/test_rectify.py).
+    intr = CameraIntrinsics(
+        K=np.array([[60.0, 0, 15.5], [0, 60.0, 11.5], [0, 0, 1]]), width=32, height=24
+    )
+    rng = np.random.default_rng(0)
+    rgb = rng.integers(0, 255, (24, 32, 3), dtype=np.uint8)
+    depth = rng.uniform(0.9, 1.1, (24, 32)).astype(np.float32)
+    color_msg = convert.image_msg(rgb, "rgb8", 0.0, "cam")
+    depth_msg = convert.image_msg(depth, "32FC1", 0.0, "cam")
+    info = convert.camera_info_msg(intr, 0.0, "cam")
+    out_rgb, out_depth, out_intr = convert.camera_images(color_msg, depth_msg, info)
+    np.testing.assert_array_equal(out_rgb, rgb)
+    np.testing.assert_array_equal(out_depth, depth)
+    np.testing.assert_array_equal(out_intr.K, intr.K)
+    info.D = [-0.3, 0.1, 0.0, 0.0, 0.0]
+    out_rgb, out_depth, out_intr = convert.camera_images(color_msg, depth_msg, info)
+    assert not np.array_equal(out_rgb, rgb)
+    assert np.isin(out_depth[np.isfinite(out_depth)], depth).all()  # picked, not blended
+    np.testing.assert_array_equal(out_intr.K, intr.K)  # the same K, now without distortion
+    info.distortion_model = "equidistant"
+    with pytest.raises(FoldbotError, match="cannot rectify distortion model 'equidistant'"):
+        convert.camera_images(color_msg, depth_msg, info)
+
+
 def test_a_camera_image_of_the_wrong_kind_is_named():
     depth = convert.image_msg(np.zeros((2, 2), np.float32), "32FC1", 0.0, "cam")
     with pytest.raises(FoldbotError, match="colour image encoding '32FC1'; allowed: rgb8, bgr8"):

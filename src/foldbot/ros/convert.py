@@ -20,6 +20,7 @@ from trajectory_msgs.msg import JointTrajectoryPoint
 
 from foldbot.errors import FoldbotError
 from foldbot.perception.keypoints import CORNER_LABELS
+from foldbot.perception.rectify import rectify
 from foldbot.perception.state import ClothState
 from foldbot.types import CameraIntrinsics
 
@@ -87,6 +88,19 @@ def image_array(msg: Image) -> np.ndarray:
     )
     shape = (msg.height, msg.width, channels) if channels > 1 else (msg.height, msg.width)
     return a.reshape(shape).astype(dtype)
+
+
+def camera_images(
+    color: Image, depth: Image | None, info: CameraInfo
+) -> tuple[np.ndarray, np.ndarray | None, CameraIntrinsics]:
+    """A camera frame as perception takes it: RGB, depth in metres (None: none given) and K,
+    rectified when camera_info carries lens distortion (perception.rectify); the simulated
+    camera's come through as they are."""
+    rgb = color_array(color)
+    z = None if depth is None else depth_array(depth)
+    intr = intrinsics_of(info)
+    rgb, z = rectify(rgb, z, intr.K, list(info.D), info.distortion_model)
+    return rgb, z, intr
 
 
 def color_array(msg: Image) -> np.ndarray:

@@ -72,10 +72,11 @@ class PerceptionNode:
 
     def _estimate(self, color: Image, depth: Image, info: CameraInfo, T: np.ndarray) -> None:
         stamp = color.header.stamp.to_sec()
+        rgb, z, intrinsics = convert.camera_images(color, depth, info)
         obs = Observation(
-            rgb=convert.color_array(color),
-            depth=convert.depth_array(depth),
-            intrinsics=convert.intrinsics_of(info),
+            rgb=rgb,
+            depth=z,
+            intrinsics=intrinsics,
             T_world_camera=T,
             stamp=stamp,
         )

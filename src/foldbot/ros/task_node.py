@@ -187,8 +187,11 @@ class RosCell(FoldCell):
         if self.video is None:
             return
         # The video: every camera frame, with the newest perceived state and planned points.
-        frame = convert.color_array(msg)
         info = self._infos.get(round(stamp, 6))
+        if info is None:
+            frame = convert.color_array(msg)
+        else:  # rectified as perception sees it, so the overlays land where they belong
+            frame, _, intrinsics = convert.camera_images(msg, None, info)
         state = self.latest_state
         if (
             state is not None
@@ -199,7 +202,7 @@ class RosCell(FoldCell):
             obs = Observation(
                 frame,
                 np.ones(frame.shape[:2], np.float32),  # drawing needs no depth
-                convert.intrinsics_of(info),
+                intrinsics,
                 self.T_world_camera,
             )
             frame = draw_overlay(obs, state, **self.overlay)
@@ -322,10 +325,11 @@ class RosCell(FoldCell):
         with self.perceived:
             state = convert.state_from(self.states[key], self.masks[key])
             color, info, depth = self.frames[key], self._infos[key], self.depths[key]
+        rgb, z, intrinsics = convert.camera_images(color, depth, info)
         obs = Observation(
-            rgb=convert.color_array(color),
-            depth=convert.depth_array(depth),
-            intrinsics=convert.intrinsics_of(info),
+            rgb=rgb,
+            depth=z,
+            intrinsics=intrinsics,
             T_world_camera=self.camera_transform(),
             stamp=self.rest_stamp,
         )
