@@ -285,25 +285,31 @@ CRUMPLED = ["--start", "crumpled", "--seed", "2", "--width", "0.26", "--height",
 CRUMPLED += ["--resolution", "8", "--video-fps", "0"]
 
 
-def test_crumpled_towel_is_flattened_over_topics(tmp_path):
-    # The coarse towel of the in-process test (tests/test_pipeline_garments.py): other seeds of
-    # it diverge while crumpled, over topics as in process.
+def crumpled_over_topics(episode: list[str], tmp_path) -> tuple[object, dict]:
+    """`ros-fold` a crumpled start; its episode folder and result.json, after checking that the
+    sim node crumpled the towel exactly as an in-process fold of that seed does."""
     out = tmp_path / "episode"
     proc = foldbot(
-        "ros-fold", *CRUMPLED, "--camera-rate", "2", "--out", str(out),
+        "ros-fold", *episode, "--camera-rate", "2", "--out", str(out),
         "--port", str(free_port()),
     )  # fmt: skip
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     result = json.loads((out / "result.json").read_text())
     assert result["transport"] == "ros"
-    f = result["flatten"]
-    # The sim node crumpled the towel exactly as an in-process fold of that seed does.
     ref = subprocess.run(
-        [sys.executable, "-c", CRUMPLE_SCRIPT, " ".join([*CRUMPLED, "--out", str(tmp_path / "x")])],
+        [sys.executable, "-c", CRUMPLE_SCRIPT, " ".join([*episode, "--out", str(tmp_path / "x")])],
         capture_output=True, text=True, timeout=600, check=True,
     )  # fmt: skip
-    assert f["coverage_start"] == json.loads(ref.stdout.strip().splitlines()[-1])
-    assert f["coverage_start"] < 0.85
+    start = result["flatten"]["coverage_start"]
+    assert start == json.loads(ref.stdout.strip().splitlines()[-1]) and start < 0.85
+    return out, result
+
+
+def test_crumpled_towel_is_flattened_over_topics(tmp_path):
+    # The coarse towel of the in-process test (tests/test_pipeline_garments.py): other seeds of
+    # it diverge while crumpled, over topics as in process.
+    out, result = crumpled_over_topics(CRUMPLED, tmp_path)
+    f = result["flatten"]
     # The task node flattened it with pulls planned from the perception node's outputs, then
     # folded; the fold is scored from the flattened cloth.
     assert 1 <= f["actions"] <= f["max_actions"] == 6 and len(f["pulls"]) >= f["actions"]
@@ -324,21 +330,9 @@ def test_two_arms_spread_a_crumpled_towel_over_topics(tmp_path):
     """`--arms 2 --start crumpled`: the task node flattens by spreads (flatten.run_spreads), each
     planned for both arms together by the planner node (its hang timed there) and moved by the
     sim node on one clock, then folds."""
-    out = tmp_path / "episode"
-    proc = foldbot(
-        "ros-fold", *SPREAD, "--camera-rate", "2", "--out", str(out),
-        "--port", str(free_port()),
-    )  # fmt: skip
-    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
-    result = json.loads((out / "result.json").read_text())
-    assert result["transport"] == "ros" and result["arms"] == 2
-    assert result["jaw_catch"] == "surface"
+    out, result = crumpled_over_topics(SPREAD, tmp_path)
+    assert result["arms"] == 2 and result["jaw_catch"] == "surface"
     f = result["flatten"]
-    ref = subprocess.run(
-        [sys.executable, "-c", CRUMPLE_SCRIPT, " ".join([*SPREAD, "--out", str(tmp_path / "x")])],
-        capture_output=True, text=True, timeout=600, check=True,
-    )  # fmt: skip
-    assert f["coverage_start"] == json.loads(ref.stdout.strip().splitlines()[-1]) < 0.85
     spread = f["pulls"][0]
     assert spread["kind"] == "flatten_spread" and spread["grasp_success"] is True
     assert all(len(v) > 0 for v in spread["grasped_vertices"])  # each arm held the towel
