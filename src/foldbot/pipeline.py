@@ -196,7 +196,8 @@ class EpisodeConfig:
             )
         require(
             math.isfinite(self.garment_yaw) and abs(self.garment_yaw) <= 2 * math.pi,
-            f"garment_yaw must be in [-2π, 2π] rad, got {self.garment_yaw!r}",
+            f"garment_yaw must be within ±360° (±2π rad), got {math.degrees(self.garment_yaw):g}° "
+            f"({self.garment_yaw!r} rad)",
         )
         require(
             self.garment != "towel" or math.isclose(self.garment_yaw, GARMENT_YAW, abs_tol=1e-9),
