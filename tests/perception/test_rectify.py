@@ -10,7 +10,7 @@ import pytest
 from foldbot.commands.eval_perception import default_scene, render_scene
 from foldbot.errors import PerceptionError
 from foldbot.perception.estimator import VisionEstimator
-from foldbot.perception.rectify import rectify
+from foldbot.perception.rectify import rectify, rectify_depth
 from foldbot.types import Observation
 
 # Barrel distortion (k1 k2 p1 p2 k3), about 20 px at the image corners with the cell's K.
@@ -80,3 +80,15 @@ def test_a_distortion_it_cannot_take_is_named(distortion, model, match):
 def test_colour_and_depth_of_different_sizes_are_refused():
     with pytest.raises(PerceptionError, match="differ in size"):
         rectify(np.zeros((4, 6, 3), np.uint8), np.ones((5, 6), np.float32), np.eye(3), D)
+
+
+def test_a_depth_image_alone_is_rectified_as_with_its_colour():
+    # A depth sensor with its own camera_info is rectified on its own (then registered).
+    rng = np.random.default_rng(1)
+    K = np.array([[60.0, 0, 15.5], [0, 60.0, 11.5], [0, 0, 1]])
+    rgb = rng.integers(0, 255, (24, 32, 3), dtype=np.uint8)
+    depth = rng.uniform(0.9, 1.1, (24, 32)).astype(np.float32)
+    _, with_colour = rectify(rgb, depth, K, D)
+    alone = rectify_depth(depth, K, D)
+    np.testing.assert_array_equal(alone, with_colour)
+    assert rectify_depth(depth, K, [0.0] * 5) is depth

@@ -82,6 +82,46 @@ def test_a_frame_with_lens_distortion_is_rectified_for_perception():
         convert.camera_images(color_msg, depth_msg, info)
 
 
+def test_a_depth_camera_beside_the_colour_one_is_registered_onto_it():
+    # A wall 0.1 m ahead. The depth sensor sits 25 mm to the colour camera's left (its own
+    # frame, a coarser K and image size, as a real RGB-D camera's): registered, every colour
+    # pixel it reaches reads the wall's depth, and the right-hand strip it cannot see (25 mm at
+    # 60 px / 0.1 m: 15 px) reads NaN. perception.register's own tests use rendered towels.
+    color_intr = CameraIntrinsics(
+        K=np.array([[60.0, 0, 15.5], [0, 60.0, 11.5], [0, 0, 1]]), width=32, height=24
+    )
+    depth_intr = CameraIntrinsics(
+        K=np.array([[30.0, 0, 7.5], [0, 30.0, 5.5], [0, 0, 1]]), width=16, height=12
+    )
+    rgb = np.full((24, 32, 3), 200, np.uint8)
+    color_msg = convert.image_msg(rgb, "rgb8", 0.0, "color")
+    depth_msg = convert.image_msg(np.full((12, 16), 100, np.uint16), "16UC1", 0.0, "depth")
+    info = convert.camera_info_msg(color_intr, 0.0, "color")
+    depth_info = convert.camera_info_msg(depth_intr, 0.0, "depth")
+    T_color_depth = np.eye(4)
+    T_color_depth[0, 3] = -0.025
+    _, z, intr = convert.camera_images(color_msg, depth_msg, info, depth_info, T_color_depth)
+    assert z.shape == (24, 32) and intr.width == 32
+    np.testing.assert_allclose(z[:, :16], 0.1, atol=1e-6)
+    assert np.isnan(z[:, 18:]).all()
+    # Another frame and no transform known: named, not guessed.
+    with pytest.raises(FoldbotError, match="frame 'depth' is not the colour camera's 'color'"):
+        convert.camera_images(color_msg, depth_msg, info, depth_info)
+    # The same camera_info for both (the simulated camera): the depth is taken as it is.
+    same = convert.image_msg(np.full((24, 32), 0.7, np.float32), "32FC1", 0.0, "color")
+    _, z, _ = convert.camera_images(
+        color_msg, same, info, convert.camera_info_msg(color_intr, 0.0, "color")
+    )
+    assert np.all(z == np.float32(0.7))
+    assert convert.same_camera(info, convert.camera_info_msg(color_intr, 5.0, "color"))
+    assert not convert.same_camera(info, depth_info)
+    # A depth camera_info describes the depth images of its own frame only: a driver's depth
+    # already aligned to the colour frame is not registered again by the raw sensor's.
+    assert convert.info_for(depth_msg, depth_info) is depth_info
+    assert convert.info_for(same, depth_info) is None
+    assert convert.info_for(depth_msg, None) is None
+
+
 def test_a_camera_image_of_the_wrong_kind_is_named():
     depth = convert.image_msg(np.zeros((2, 2), np.float32), "32FC1", 0.0, "cam")
     with pytest.raises(FoldbotError, match="colour image encoding '32FC1'; allowed: rgb8, bgr8"):

@@ -65,7 +65,21 @@ def rectify(
     color = cv2.remap(rgb, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
     if depth is None:
         return color, None
-    z = cv2.remap(
+    return color, rectify_depth(depth, K, d, model)
+
+
+def rectify_depth(
+    depth: np.ndarray, K: np.ndarray, distortion: np.ndarray | list[float], model: str = "plumb_bob"
+) -> np.ndarray:
+    """A depth image alone rectified onto the same K (nearest: every value one the camera
+    measured), as for a depth sensor with its own camera_info; unchanged (the same array) when
+    every distortion coefficient is 0."""
+    d = _coefficients(distortion, model)
+    if not d.any():
+        return depth
+    h, w = depth.shape[:2]
+    mx, my = _maps(tuple(np.asarray(K, float).ravel()), tuple(d), w, h)
+    return cv2.remap(
         np.asarray(depth, dtype=np.float32),
         mx,
         my,
@@ -73,4 +87,3 @@ def rectify(
         borderMode=cv2.BORDER_CONSTANT,
         borderValue=float("nan"),
     )
-    return color, z

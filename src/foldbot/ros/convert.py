@@ -20,7 +20,8 @@ from trajectory_msgs.msg import JointTrajectoryPoint
 
 from foldbot.errors import FoldbotError
 from foldbot.perception.keypoints import CORNER_LABELS
-from foldbot.perception.rectify import rectify
+from foldbot.perception.rectify import rectify, rectify_depth
+from foldbot.perception.register import register_depth
 from foldbot.perception.state import ClothState
 from foldbot.types import CameraIntrinsics
 
@@ -91,16 +92,65 @@ def image_array(msg: Image) -> np.ndarray:
 
 
 def camera_images(
-    color: Image, depth: Image | None, info: CameraInfo
+    color: Image,
+    depth: Image | None,
+    info: CameraInfo,
+    depth_info: CameraInfo | None = None,
+    T_color_depth: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None, CameraIntrinsics]:
-    """A camera frame as perception takes it: RGB, depth in metres (None: none given) and K,
-    rectified when camera_info carries lens distortion (perception.rectify); the simulated
-    camera's come through as they are."""
+    """A camera frame as perception takes it: RGB, depth in metres (None: none given) and the
+    colour camera's K, rectified when camera_info carries lens distortion (perception.rectify).
+    A depth image whose own camera_info (`depth_info`) differs from the colour camera's (frame,
+    size, K or distortion) is rectified with it and registered onto the colour camera
+    (perception.register), T_color_depth mapping its frame into the colour one (identity where
+    both name one frame); the simulated camera's come through as they are."""
     rgb = color_array(color)
     z = None if depth is None else depth_array(depth)
     intr = intrinsics_of(info)
-    rgb, z = rectify(rgb, z, intr.K, list(info.D), info.distortion_model)
+    if z is None or depth_info is None or same_camera(info, depth_info):
+        rgb, z = rectify(rgb, z, intr.K, list(info.D), info.distortion_model)
+        return rgb, z, intr
+    if T_color_depth is None:
+        if depth_info.header.frame_id != info.header.frame_id:
+            raise FoldbotError(
+                f"the depth camera's frame {depth_info.header.frame_id!r} is not the colour "
+                f"camera's {info.header.frame_id!r}, and no transform between them is known "
+                "(publish both on /tf_static, or register the depth in the driver)"
+            )
+        T_color_depth = np.eye(4)
+    if z.shape != (depth_info.height, depth_info.width):
+        raise FoldbotError(
+            f"depth image is {z.shape[1]} × {z.shape[0]} px, its camera_info says "
+            f"{depth_info.width} × {depth_info.height}"
+        )
+    d_intr = intrinsics_of(depth_info)
+    z = rectify_depth(z, d_intr.K, list(depth_info.D), depth_info.distortion_model)
+    z = register_depth(z, d_intr.K, intr.K, T_color_depth, (intr.width, intr.height))
+    rgb, _ = rectify(rgb, None, intr.K, list(info.D), info.distortion_model)
     return rgb, z, intr
+
+
+def info_for(image: Image, info: CameraInfo | None) -> CameraInfo | None:
+    """`info` where it describes `image` (the same frame), else None: a depth image already
+    registered to the colour camera (a driver's aligned depth, in the colour frame) is not
+    registered again by a camera_info of the raw depth sensor's."""
+    if info is None or info.header.frame_id != image.header.frame_id:
+        return None
+    return info
+
+
+def same_camera(a: CameraInfo, b: CameraInfo) -> bool:
+    """Whether two camera_infos describe one camera's images (frame, size, K, distortion): a
+    depth image that shares its colour image's needs no registering."""
+    return (
+        a.header.frame_id == b.header.frame_id
+        and (a.width, a.height) == (b.width, b.height)
+        and np.allclose(a.K, b.K, rtol=0, atol=1e-9)
+        and np.array_equal(
+            np.trim_zeros(np.asarray(a.D, dtype=float), "b"),
+            np.trim_zeros(np.asarray(b.D, dtype=float), "b"),
+        )
+    )
 
 
 def color_array(msg: Image) -> np.ndarray:

@@ -21,6 +21,7 @@ from foldbot.errors import ConfigError
 from foldbot.garments import GARMENTS
 from foldbot.perception.fallback import vision_estimator
 from foldbot.ros import CAMERA_FRAME, TOPICS, WORLD_FRAME, convert
+from foldbot.ros.frames import StaticFrames
 from foldbot.ros.node_args import FOLD_ARGS_PARAM, parse_fold_args
 from foldbot.types import Observation
 
@@ -32,9 +33,14 @@ class PerceptionNode:
     def __init__(self, garment: str = "towel", queue_size: int = 200) -> None:
         self.estimator = vision_estimator(garment)
         self.T_world_camera: np.ndarray | None = None
+        self.frames = StaticFrames()
+        self.depth_info: CameraInfo | None = None
+        """The depth camera's newest camera_info: where it is not the colour camera's, the depth
+        image is registered onto the colour camera (convert.camera_images)."""
         self._lock = threading.Lock()
         self._pending: list[tuple[Image, Image, CameraInfo]] = []
-        """Frames that came before the camera pose; estimated once it arrives."""
+        """Frames that came before the camera pose (or, for a depth image in its own frame,
+        before its camera_info and transform); estimated once they arrive."""
         # Latched: a planner node that subscribes late still gets the newest frame's corners.
         self.pub_keypoints = rospy.Publisher(
             TOPICS["keypoints"], PoseArray, queue_size=50, latch=True
@@ -42,6 +48,7 @@ class PerceptionNode:
         self.pub_mask = rospy.Publisher(TOPICS["mask"], Image, queue_size=50)
         self.pub_state = rospy.Publisher(TOPICS["state"], String, queue_size=50)
         rospy.Subscriber(TOPICS["tf_static"], TFMessage, self._on_tf)
+        rospy.Subscriber(TOPICS["depth_info"], CameraInfo, self._on_depth_info, queue_size=5)
         subs = [
             message_filters.Subscriber(
                 TOPICS["color"], Image, queue_size=queue_size, buff_size=2**26
@@ -53,26 +60,73 @@ class PerceptionNode:
         ]
         message_filters.TimeSynchronizer(subs, queue_size).registerCallback(self._on_frame)
 
+    def _on_depth_info(self, msg: CameraInfo) -> None:
+        with self._lock:
+            self.depth_info = msg
+        self._flush()
+
     def _on_tf(self, msg: TFMessage) -> None:
-        for t in msg.transforms:
-            if t.header.frame_id == WORLD_FRAME and t.child_frame_id == CAMERA_FRAME:
-                with self._lock:
-                    self.T_world_camera = convert.matrix_of(t)
-                    pending, self._pending = self._pending, []
-                for frame in pending:
-                    self._estimate(*frame, self.T_world_camera)
+        with self._lock:
+            self.frames.add(msg)
+            # The camera's pose: world → camera_color_optical_frame, given directly (the sim) or
+            # through the camera's own frames (a driver's camera_link under a calibrated pose).
+            T = self.frames.transform(WORLD_FRAME, CAMERA_FRAME)
+            if T is not None:
+                self.T_world_camera = T
+        self._flush()
+
+    def _waiting_for(self, depth: Image, info: CameraInfo) -> str | None:
+        """What a frame still needs before it can be estimated (None: nothing): the camera's
+        pose and, for a depth image in another frame than the colour one, its camera_info and
+        the transform between the two."""
+        if self.T_world_camera is None:
+            return f"the camera's pose ({WORLD_FRAME} → {CAMERA_FRAME} on /tf_static)"
+        if depth.header.frame_id == info.header.frame_id:
+            return None
+        if convert.info_for(depth, self.depth_info) is None:
+            return (
+                f"the depth camera's camera_info ({TOPICS['depth_info']}): its images are in "
+                f"{depth.header.frame_id!r}, the colour images in {info.header.frame_id!r}"
+            )
+        if self.frames.transform(info.header.frame_id, self.depth_info.header.frame_id) is None:
+            return (
+                f"a transform from {self.depth_info.header.frame_id!r} to "
+                f"{info.header.frame_id!r} on /tf_static"
+            )
+        return None
+
+    def _ready(self, depth: Image, info: CameraInfo) -> bool:
+        return self._waiting_for(depth, info) is None
+
+    def _flush(self) -> None:
+        with self._lock:
+            ready = [f for f in self._pending if self._ready(f[1], f[2])]
+            self._pending = [f for f in self._pending if not self._ready(f[1], f[2])]
+            T = self.T_world_camera
+        for frame in ready:
+            self._estimate(*frame, T)
 
     def _on_frame(self, color: Image, depth: Image, info: CameraInfo) -> None:
         with self._lock:
             T = self.T_world_camera
-            if T is None:
+            waiting_for = self._waiting_for(depth, info)
+            if waiting_for is not None:
                 self._pending = [*self._pending[-20:], (color, depth, info)]
-                return
+        if waiting_for is not None:
+            rospy.logwarn_throttle(10.0, f"perception holds its frames until it has {waiting_for}")
+            return
         self._estimate(color, depth, info, T)
 
     def _estimate(self, color: Image, depth: Image, info: CameraInfo, T: np.ndarray) -> None:
         stamp = color.header.stamp.to_sec()
-        rgb, z, intrinsics = convert.camera_images(color, depth, info)
+        with self._lock:
+            depth_info = convert.info_for(depth, self.depth_info)
+            T_color_depth = (
+                None
+                if depth_info is None
+                else self.frames.transform(info.header.frame_id, depth_info.header.frame_id)
+            )
+        rgb, z, intrinsics = convert.camera_images(color, depth, info, depth_info, T_color_depth)
         obs = Observation(
             rgb=rgb,
             depth=z,

@@ -22,6 +22,11 @@ INPUT_TOPICS = (
     "/camera/color/camera_info",
     "/camera/depth/image_raw",
 )
+"""What a frame needs to be replayed (after /tf_static)."""
+
+PLAYED_TOPICS = (*INPUT_TOPICS, "/camera/depth/camera_info")
+"""What is played to the perception node: the inputs and, where the bag holds it, the depth
+camera's own camera_info (a depth sensor beside the colour one is registered onto it)."""
 
 
 SURE_CONFIDENCE = 0.5
@@ -155,7 +160,7 @@ def replay(
         play = subprocess.run(
             [
                 *("rosbag", "play", "-q", "--wait-for-subscribers", "-r", str(rate)),
-                *(str(bag_path), "--topics", *INPUT_TOPICS),
+                *(str(bag_path), "--topics", *PLAYED_TOPICS),
             ],
             env=env,
             stdout=log,

@@ -50,6 +50,7 @@ from foldbot.planning.actions import FoldAction, FoldPlan
 from foldbot.planning.garment_recipes import GarmentPlan
 from foldbot.planning.spread import SpreadAction, action_as_dict
 from foldbot.ros import CAMERA_FRAME, TOPICS, WORLD_FRAME, convert
+from foldbot.ros.frames import StaticFrames
 from foldbot.ros.node_args import ERROR_FILE_PARAM, FOLD_ARGS_PARAM, parse_fold_args
 from foldbot.ros.publish import publish_when_heard
 from foldbot.sim.layout import CellLayout
@@ -121,6 +122,10 @@ class RosCell(FoldCell):
         self.depths: OrderedDict[float, Image] = OrderedDict()
         self.perceived = threading.Condition()
         self.T_world_camera: np.ndarray | None = None
+        self.static_frames = StaticFrames()
+        self.depth_info: CameraInfo | None = None
+        """The depth camera's newest camera_info (a depth image not registered to the colour
+        camera is registered onto it, as the perception node does)."""
         self.latest_state: ClothState | None = None
         self.overlay: dict = {}
         self.rest_stamp = 0.0
@@ -147,6 +152,7 @@ class RosCell(FoldCell):
         rospy.Subscriber(TOPICS["mask"], Image, self._on_mask, queue_size=200, buff_size=2**24)
         rospy.Subscriber(TOPICS["color"], Image, self._on_color, queue_size=200, buff_size=2**26)
         rospy.Subscriber(TOPICS["color_info"], CameraInfo, self._on_info, queue_size=200)
+        rospy.Subscriber(TOPICS["depth_info"], CameraInfo, self._on_depth_info, queue_size=5)
         rospy.Subscriber(
             TOPICS["depth"],
             Image,
@@ -159,10 +165,14 @@ class RosCell(FoldCell):
     def _on_clock(self, msg: Clock) -> None:
         self._clock = max(self._clock, msg.clock.to_sec())
 
+    def _on_depth_info(self, msg: CameraInfo) -> None:
+        self.depth_info = msg
+
     def _on_tf(self, msg: TFMessage) -> None:
-        for t in msg.transforms:
-            if t.header.frame_id == WORLD_FRAME and t.child_frame_id == CAMERA_FRAME:
-                self.T_world_camera = convert.matrix_of(t)
+        self.static_frames.add(msg)
+        T = self.static_frames.transform(WORLD_FRAME, CAMERA_FRAME)  # directly or via the camera's
+        if T is not None:  # own frames, as in the perception node
+            self.T_world_camera = T
 
     def _remember(self, store: OrderedDict, stamp: float, value: Any, keep: int = 64) -> None:
         with self.perceived:
@@ -325,7 +335,19 @@ class RosCell(FoldCell):
         with self.perceived:
             state = convert.state_from(self.states[key], self.masks[key])
             color, info, depth = self.frames[key], self._infos[key], self.depths[key]
-        rgb, z, intrinsics = convert.camera_images(color, depth, info)
+        depth_info = convert.info_for(depth, self.depth_info)
+        if depth_info is None and depth.header.frame_id != info.header.frame_id:
+            raise errors.FoldbotError(
+                f"the depth images are in {depth.header.frame_id!r}, the colour images in "
+                f"{info.header.frame_id!r}, and no camera_info for the depth camera came on "
+                f"{TOPICS['depth_info']}: cannot register the depth onto the colour image"
+            )
+        T_color_depth = (
+            None
+            if depth_info is None
+            else self.static_frames.transform(info.header.frame_id, depth_info.header.frame_id)
+        )
+        rgb, z, intrinsics = convert.camera_images(color, depth, info, depth_info, T_color_depth)
         obs = Observation(
             rgb=rgb,
             depth=z,
