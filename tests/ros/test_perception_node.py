@@ -1,6 +1,6 @@
 """The perception node with a camera laid out as a real RGB-D camera's: its colour and depth
 optical frames under the camera's own link on /tf_static, the depth sensor beside the colour one
-with its own camera_info, depth in millimetres. The node finds the camera's pose through the
+with its own camera_info, depth in millimetres, stamped a few milliseconds after the colour. The node finds the camera's pose through the
 frames, registers the depth onto the colour image and sees the corners a registered camera gives."""
 
 from __future__ import annotations
@@ -49,6 +49,8 @@ def _camera_bag(path, with_depth_info: bool = True) -> None:
         ]
     )
     stamp = color.stamp
+    # The depth sensor stamps its frame 7 ms after the colour sensor's, as a real camera's do.
+    depth_stamp = stamp + 0.007
     mm = np.nan_to_num(np.round(depth.depth * 1000.0), nan=0.0).astype(np.uint16)
     messages = [
         ("/tf_static", tf),
@@ -60,11 +62,11 @@ def _camera_bag(path, with_depth_info: bool = True) -> None:
             "/camera/color/image_raw",
             convert.image_msg(color.rgb[..., ::-1], "bgr8", stamp, CAMERA_FRAME),
         ),
-        ("/camera/depth/image_raw", convert.image_msg(mm, "16UC1", stamp, DEPTH_FRAME)),
+        ("/camera/depth/image_raw", convert.image_msg(mm, "16UC1", depth_stamp, DEPTH_FRAME)),
         ("/cloth/state", String(data=convert.state_json(live))),
     ]
     if with_depth_info:
-        info = convert.camera_info_msg(depth.intrinsics, stamp, DEPTH_FRAME)
+        info = convert.camera_info_msg(depth.intrinsics, depth_stamp, DEPTH_FRAME)
         messages.insert(1, ("/camera/depth/camera_info", info))
     with rosbag.Bag(str(path), "w") as bag:
         for i, (topic, msg) in enumerate(messages):

@@ -38,6 +38,13 @@ TOPICS = {
 }
 """Every topic the nodes use (relative names resolve in the launch namespace)."""
 
+SYNC_SLOP_S = 0.015
+"""How far apart (s) a frame's colour image, depth image and camera_info may be stamped and still
+be read as one frame (the perception node's private parameter ~sync_slop): a real RGB-D camera's colour and
+depth sensors, synchronised, stamp their frames a few milliseconds apart, under half a frame at
+30 frames a second."""
+
+
 ARM_PREFIXES = {1: ("",), 2: ("left_", "right_")}
 """Name prefixes of each arm's joints and base frame, arm 0 first: one arm keeps the URDF's names;
 two arms side by side are left (arm 0, +y) and right, as ROS names a bimanual cell's arms."""

@@ -20,7 +20,7 @@ from tf2_msgs.msg import TFMessage
 from foldbot.errors import ConfigError
 from foldbot.garments import GARMENTS
 from foldbot.perception.fallback import vision_estimator
-from foldbot.ros import CAMERA_FRAME, TOPICS, WORLD_FRAME, convert
+from foldbot.ros import CAMERA_FRAME, SYNC_SLOP_S, TOPICS, WORLD_FRAME, convert
 from foldbot.ros.frames import StaticFrames
 from foldbot.ros.node_args import FOLD_ARGS_PARAM, parse_fold_args
 from foldbot.types import Observation
@@ -30,7 +30,9 @@ class PerceptionNode:
     """Runs the vision estimator for `garment` on every synchronised frame (images in, values
     out)."""
 
-    def __init__(self, garment: str = "towel", queue_size: int = 200) -> None:
+    def __init__(
+        self, garment: str = "towel", queue_size: int = 200, sync_slop: float = SYNC_SLOP_S
+    ) -> None:
         self.estimator = vision_estimator(garment)
         self.T_world_camera: np.ndarray | None = None
         self.frames = StaticFrames()
@@ -58,7 +60,11 @@ class PerceptionNode:
             ),
             message_filters.Subscriber(TOPICS["color_info"], CameraInfo, queue_size=queue_size),
         ]
-        message_filters.TimeSynchronizer(subs, queue_size).registerCallback(self._on_frame)
+        # A real camera stamps its colour and depth frames apart by a few milliseconds; the sim
+        # stamps them alike, and the nearest stamps are paired first.
+        message_filters.ApproximateTimeSynchronizer(subs, queue_size, sync_slop).registerCallback(
+            self._on_frame
+        )
 
     def _on_depth_info(self, msg: CameraInfo) -> None:
         with self._lock:
@@ -159,6 +165,9 @@ def node_garment() -> str:
 
 def main(argv: list[str] | None = None) -> int:
     rospy.init_node("foldbot_perception", argv=argv if argv is not None else sys.argv)
-    PerceptionNode(node_garment())
+    slop = float(rospy.get_param("~sync_slop", SYNC_SLOP_S))
+    if not 0.0 <= slop <= 1.0:
+        raise ConfigError(f"~sync_slop must be in [0, 1] s, got {slop!r}")
+    PerceptionNode(node_garment(), sync_slop=slop)
     rospy.spin()
     return 0

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from foldbot.errors import FoldbotError
+from foldbot.ros import SYNC_SLOP_S
 
 INPUT_TOPICS = (
     "/tf_static",
@@ -70,9 +71,17 @@ def recorded_states(bag_path: Path) -> dict[float, dict]:
                 out[round(d["stamp"], 6)] = d
             else:
                 inputs[topic].add(round(msg.header.stamp.to_sec(), 6))
-    # Only frames whose inputs the bag holds can be replayed (the recorder may join late).
-    replayable = set.intersection(*inputs.values())
-    return {k: v for k, v in out.items() if k in replayable}
+    # Only frames whose inputs the bag holds can be replayed (the recorder may join late); a real
+    # camera's depth may be stamped a few milliseconds from its colour (the node pairs them).
+    stamps = {t: np.array(sorted(s)) for t, s in inputs.items()}
+
+    def has(topic: str, stamp: float) -> bool:
+        a = stamps[topic]
+        i = int(np.searchsorted(a, stamp))
+        near = a[max(i - 1, 0) : i + 1]
+        return near.size > 0 and float(np.abs(near - stamp).min()) <= SYNC_SLOP_S + 1e-9
+
+    return {k: v for k, v in out.items() if all(has(t, k) for t in stamps)}
 
 
 def recorded_garment(states: dict[float, dict]) -> str:
