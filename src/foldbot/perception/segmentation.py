@@ -6,8 +6,10 @@ Method (each step is what makes it robust to one nuisance):
    within ~25° of world up, then least squares on table pixels only, so the cloth does not lift
    the plane). Every pixel gets a height above the table (m).
 2. Arm and gripper: anything higher than `occluder_height` above the table is an occluder, not
-   cloth (a flat or folded towel lies within a few cm of the table). Occluders are left out of
-   the depth smoothing so they do not bleed into their surroundings.
+   cloth (a flat or folded towel lies within a few cm of the table), and so is unknown depth
+   joined to it (a depth sensor beside the colour camera does not see what lies just beside
+   the arm). Occluders are left out of the depth smoothing so they do not bleed into their
+   surroundings.
 3. Depth cue: heights averaged over 4×4 blocks and smoothed give a rough cloth mask against a
    threshold set from the measured depth noise. This finds the cloth whatever its colour, even on
    a table of the same colour (a settled flat cloth lies only ~1–2 mm above the table here).
@@ -68,6 +70,11 @@ class SegmentationConfig:
     """Block size (half-res px) of the averaged height/colour image for the coarse decisions."""
     occluder_height: float = 0.06
     """Anything higher than this above the table (m) is arm/gripper, never cloth."""
+    occluder_shadow: int = 12
+    """How far (half-res px) unknown depth joined to an occluder counts as hidden by it: a depth
+    sensor beside the colour camera cannot see the cloth just beside the arm (its shadow, NaN
+    once registered), which the colour camera sees; 12 covers the arm 35 cm over the cloth
+    with a 5 cm baseline at 640 × 480."""
     smooth_size: int = 3
     """Smallest side (half-res px, odd) of the box filter smoothing heights for depth edges."""
     max_smooth_size: int = 11
@@ -99,6 +106,7 @@ class SegmentationConfig:
             "max_below": self.plane_threshold < self.max_below < 1.0,
             "block": integer(self.block, 1, 16),
             "occluder_height": 0.0 < self.occluder_height < 1.0,
+            "occluder_shadow": integer(self.occluder_shadow, 0, 64),
             "smooth_size": odd(self.smooth_size, 31),
             "max_smooth_size": odd(self.max_smooth_size, 63)
             and self.max_smooth_size >= self.smooth_size,
@@ -193,6 +201,23 @@ def cloth_region(
         cv2.fillConvexPoly(hull, cv2.convexHull(np.concatenate(keep)), 1)
         out |= occluder.view(np.uint8) & hull
     return out.view(bool)
+
+
+def _with_shadow(occluder: np.ndarray, unknown: np.ndarray, reach: int) -> np.ndarray:
+    """`occluder` grown into the `unknown` pixels joined to it, up to `reach` pixels away: what
+    a depth sensor beside the colour camera cannot see past the arm is hidden by the arm (where
+    the depth is the colour camera's own, no unknown pixels border the arm and nothing changes)."""
+    if reach <= 0 or not occluder.any() or not unknown.any():
+        return occluder
+    kernel = np.ones((3, 3), np.uint8)
+    free = unknown.view(np.uint8)
+    grown = occluder.view(np.uint8)
+    for _ in range(reach):
+        step = cv2.dilate(grown, kernel) & (free | grown)
+        if np.array_equal(step, grown):
+            break
+        grown = step
+    return grown.view(bool)
 
 
 def _normalised_blur(values: np.ndarray, weight: np.ndarray, size: int) -> np.ndarray:
@@ -326,7 +351,7 @@ def segment_cloth(obs: Observation, config: SegmentationConfig | None = None) ->
     h2[~valid2] = 0.0  # heights are used with weight2, which is 0 there
 
     # 2. Occluders, and block means of what is left (smoothing that ignores the arm and holes).
-    occ2 = valid2 & (h2 > cfg.occluder_height)
+    occ2 = _with_shadow(valid2 & (h2 > cfg.occluder_height), ~valid2, cfg.occluder_shadow)
     weight2 = (valid2 & ~occ2).astype(np.float32)
     b = cfg.block
     hl, _ = _weighted_block_mean(h2, weight2, b)
