@@ -126,3 +126,15 @@ def test_ros_fold_hands_the_nodes_every_option_that_shapes_the_episode(tmp_path)
     assert node_cfg.loop_options == {"stack_edge_carry": False, "pair_descent": 0.02}
     assert (node_cfg.cloth.mass, node_cfg.cloth.friction) == (0.2, 0.8)
     assert node_cfg.cloth.margin_divisor == 6.5
+
+
+def test_a_replay_that_misses_frames_says_where_to_look():
+    from foldbot.commands.ros_replay import report_lines
+    from foldbot.ros.replay import ReplayReport
+
+    held = report_lines(ReplayReport(1, 0, 0.0, True, True))
+    assert held[0].startswith("replayed 0 of 1 frames")
+    assert "gave no keypoints for 1 frame(s)" in held[1] and "depth camera_info" in held[1]
+    assert held[-1] == "NOT the same as the live run"
+    same = report_lines(ReplayReport(5, 5, 0.0, True, True))
+    assert len(same) == 2 and same[-1] == "same keypoints as the live run"

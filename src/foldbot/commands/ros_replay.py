@@ -6,8 +6,12 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from foldbot.errors import ConfigError, FoldbotError
+
+if TYPE_CHECKING:
+    from foldbot.ros.replay import ReplayReport
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -27,12 +31,29 @@ def run(args: argparse.Namespace) -> int:
     from foldbot.ros.replay import replay
 
     report = replay(args.bag, args.port, args.rate)
-    print(
+    for line in report_lines(report):
+        print(line)
+    return 0 if report.same else 1
+
+
+def report_lines(report: ReplayReport) -> list[str]:
+    """What `ros-replay` prints of a replay: the comparison, a hint where frames went without
+    keypoints, and the verdict."""
+    lines = [
         f"replayed {report.frames_compared} of {report.frames_in_bag} frames through the "
         f"perception node: largest keypoint difference {report.max_keypoint_difference_m:.3g} m "
         f"({report.max_sure_difference_m:.3g} m where the live run was sure of the keypoint), "
         f"labels {'equal' if report.labels_equal else 'DIFFER'}, "
         f"detections {'equal' if report.detected_equal else 'DIFFER'}"
+    ]
+    missing = report.frames_in_bag - report.frames_compared
+    if missing > 0:
+        lines.append(
+            f"the perception node gave no keypoints for {missing} frame(s): its warnings above "
+            "say what it waited for (the camera's pose on /tf_static, or for depth in its own "
+            "frame the depth camera_info and the transform to the colour frame)"
+        )
+    lines.append(
+        "same keypoints as the live run" if report.same else "NOT the same as the live run"
     )
-    print("same keypoints as the live run" if report.same else "NOT the same as the live run")
-    return 0 if report.same else 1
+    return lines
