@@ -5,9 +5,11 @@
 from __future__ import annotations
 
 import numpy as np
+from sensor_msgs.msg import CameraInfo, Image
 from tf2_msgs.msg import TFMessage
 
-from foldbot.ros.convert import matrix_of
+from foldbot.ros import convert
+from foldbot.types import CameraIntrinsics
 
 
 class StaticFrames:
@@ -21,7 +23,7 @@ class StaticFrames:
         for t in msg.transforms:
             child, parent = t.child_frame_id.lstrip("/"), t.header.frame_id.lstrip("/")
             if child and parent and child != parent:
-                self._parent[child] = (parent, matrix_of(t))
+                self._parent[child] = (parent, convert.matrix_of(t))
 
     def _to_root(self, frame: str) -> tuple[str, np.ndarray]:
         T = np.eye(4)
@@ -46,3 +48,17 @@ class StaticFrames:
         if root_t != root_s:
             return None
         return np.linalg.inv(T_root_target) @ T_root_source
+
+    def camera_images(
+        self, color: Image, depth: Image, info: CameraInfo, depth_info: CameraInfo | None
+    ) -> tuple[np.ndarray, np.ndarray | None, CameraIntrinsics]:
+        """convert.camera_images with the depth camera placed through these frames: `depth_info`
+        where it describes `depth` (its frame), and the transform from that frame to the colour
+        one (the perception and task nodes read a frame alike)."""
+        depth_info = convert.info_for(depth, depth_info)
+        T_color_depth = (
+            None
+            if depth_info is None
+            else self.transform(info.header.frame_id, depth_info.header.frame_id)
+        )
+        return convert.camera_images(color, depth, info, depth_info, T_color_depth)

@@ -126,13 +126,8 @@ class PerceptionNode:
     def _estimate(self, color: Image, depth: Image, info: CameraInfo, T: np.ndarray) -> None:
         stamp = color.header.stamp.to_sec()
         with self._lock:
-            depth_info = convert.info_for(depth, self.depth_info)
-            T_color_depth = (
-                None
-                if depth_info is None
-                else self.frames.transform(info.header.frame_id, depth_info.header.frame_id)
-            )
-        rgb, z, intrinsics = convert.camera_images(color, depth, info, depth_info, T_color_depth)
+            depth_info = self.depth_info
+        rgb, z, intrinsics = self.frames.camera_images(color, depth, info, depth_info)
         obs = Observation(
             rgb=rgb,
             depth=z,

@@ -335,19 +335,16 @@ class RosCell(FoldCell):
         with self.perceived:
             state = convert.state_from(self.states[key], self.masks[key])
             color, info, depth = self.frames[key], self._infos[key], self.depths[key]
-        depth_info = convert.info_for(depth, self.depth_info)
-        if depth_info is None and depth.header.frame_id != info.header.frame_id:
+        if (
+            convert.info_for(depth, self.depth_info) is None
+            and depth.header.frame_id != info.header.frame_id
+        ):
             raise errors.FoldbotError(
                 f"the depth images are in {depth.header.frame_id!r}, the colour images in "
                 f"{info.header.frame_id!r}, and no camera_info for the depth camera came on "
                 f"{TOPICS['depth_info']}: cannot register the depth onto the colour image"
             )
-        T_color_depth = (
-            None
-            if depth_info is None
-            else self.static_frames.transform(info.header.frame_id, depth_info.header.frame_id)
-        )
-        rgb, z, intrinsics = convert.camera_images(color, depth, info, depth_info, T_color_depth)
+        rgb, z, intrinsics = self.static_frames.camera_images(color, depth, info, self.depth_info)
         obs = Observation(
             rgb=rgb,
             depth=z,
