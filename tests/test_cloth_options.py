@@ -22,6 +22,10 @@ from foldbot.sim.cloth import ClothConfig
 def test_every_option_is_a_numeric_cloth_field():
     fields = {f.name: f for f in dataclasses.fields(ClothConfig)}
     for name in CLOTH_OPTIONS:
+        if name == "layer_friction":  # unset by default: cloth–cloth friction follows friction²
+            assert cloth_option_default(name) is None
+            assert fields[name].type == "float | None"
+            continue
         assert isinstance(cloth_option_default(name), float), name
         assert fields[name].type == "float", name
 
@@ -44,6 +48,7 @@ def test_options_are_checked_and_kept_in_their_order():
         ({"mass": 0.0}, "cloth mass must be in (0, 5] kg, got 0.0"),
         ({"margin_divisor": 1.5}, "cloth margin_divisor must be in [2, 20]"),
         ({"damping_stiffness": -1}, "cloth damping_stiffness must be ≥ 0, got -1.0"),
+        ({"layer_friction": 0}, "cloth layer_friction must be in (0, 4] (or unset: friction²)"),
     ],
 )
 def test_a_bad_option_names_itself_and_what_is_allowed(options, needle):
@@ -73,9 +78,13 @@ def test_applied_and_recorded_only_where_they_differ_from_the_defaults():
     assert cloth.margin_divisor == 6.5 and cloth.mass == 0.1
     assert changed_cloth_options(cloth) == {"margin_divisor": 6.5}  # mass 0.1 is the default
     assert changed_cloth_options(ClothConfig()) == {}
+    layers = apply_cloth_options(ClothConfig(), {"layer_friction": 0.25})
+    assert changed_cloth_options(layers) == {"layer_friction": 0.25}
 
 
 def test_the_help_names_every_option_with_its_default():
     text = cloth_options_help()
     for name in CLOTH_OPTIONS:
-        assert f"{name} (default {cloth_option_default(name):g})" in text
+        default = cloth_option_default(name)
+        shown = "friction²" if default is None else f"{default:g}"
+        assert f"{name} (default {shown})" in text

@@ -6,6 +6,7 @@ import sys
 
 import imageio.v3 as iio
 import numpy as np
+import pybullet as p
 import pytest
 from scipy.spatial import cKDTree
 
@@ -464,3 +465,21 @@ def test_a_cloth_option_reaches_the_simulated_cloth_and_the_record(tmp_path):
     edge = make_towel(config_from_args(build_parser().parse_args(args)).towel).edge_length
     thickness = float(np.load(tmp_path / "ep" / "cloth.npz")["thickness"])
     assert thickness == pytest.approx(edge / 4)
+
+
+def test_a_cloth_whose_layers_slide_keeps_the_tables_grip():
+    """layer_friction 0.25 lowers the soft body's coefficient to 0.5, which Bullet multiplies into
+    cloth–table friction too: the cell raises the table's friction 2× to keep it."""
+    from foldbot.pipeline import build_sim_cell
+    from foldbot.sim.cloth import ClothConfig
+    from foldbot.sim.world import SimWorld
+
+    for cloth, table in [(ClothConfig(), 1.0), (ClothConfig(layer_friction=0.25), 2.0)]:
+        cfg = EpisodeConfig(towel=TowelSpec(0.2, 0.2, 6), video_fps=0, cloth=cloth)
+        with SimWorld(cfg.sim) as world:
+            parts = build_sim_cell(cfg, world)
+            try:
+                info = p.getDynamicsInfo(world.table_id, -1, physicsClientId=world.client)
+                assert info[1] == pytest.approx(table)
+            finally:
+                parts.model_world.close()

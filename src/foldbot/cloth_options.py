@@ -1,11 +1,11 @@
 """The cloth's physical parameters a user may set by name: `foldbot fold --cloth NAME=VALUE`,
 `foldbot bench --cloth NAME=VALUE`, a suite's `[cloth]` table.
 
-They are sim.cloth.ClothConfig's physics fields (mass, spring stiffnesses, friction, the
-collision margin's share of a mesh edge). Each was measured at its default, and most physics
-trials in docs/experiments.md change one of them: setting it reproduces such a trial from the
-command line instead of a patched copy of the code. result.json records the ones that differ
-from the defaults (`cloth_options`).
+They are sim.cloth.ClothConfig's physics fields (mass, spring stiffnesses, friction with the
+table and between layers, the collision margin's share of a mesh edge). Each was measured at its
+default, and most physics trials in docs/experiments.md change one of them: setting it
+reproduces such a trial from the command line instead of a patched copy of the code. result.json
+records the ones that differ from the defaults (`cloth_options`).
 """
 
 from __future__ import annotations
@@ -23,13 +23,14 @@ CLOTH_OPTIONS = (
     "damping_stiffness",
     "bending_stiffness",
     "friction",
+    "layer_friction",
     "margin_divisor",
 )
 """The names allowed (see each field's docstring in ClothConfig; every value is a number)."""
 
 
-def cloth_option_default(name: str) -> float:
-    """ClothConfig's default for an option."""
+def cloth_option_default(name: str) -> float | None:
+    """ClothConfig's default for an option (None: layer_friction unset, friction²)."""
     return {f.name: f.default for f in dataclasses.fields(ClothConfig)}[name]
 
 
@@ -90,4 +91,9 @@ def cloth_options_from_args(texts: list[str]) -> dict[str, float]:
 
 def cloth_options_help() -> str:
     """One line for --help: each name with its default."""
-    return "; ".join(f"{n} (default {cloth_option_default(n):g})" for n in CLOTH_OPTIONS)
+    return "; ".join(f"{n} (default {_default_text(n)})" for n in CLOTH_OPTIONS)
+
+
+def _default_text(name: str) -> str:
+    default = cloth_option_default(name)
+    return "friction²" if default is None else f"{default:g}"

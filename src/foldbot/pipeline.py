@@ -48,7 +48,7 @@ from foldbot.planning.motion import MotionConfig, Segment, action_segments, line
 from foldbot.planning.recipes import RECIPES, folded_as
 from foldbot.planning.spread import SpreadAction, motion_segments
 from foldbot.sim.camera import CameraConfig, RGBDCamera
-from foldbot.sim.cloth import ClothConfig, DivergenceMonitor, SoftCloth, settle
+from foldbot.sim.cloth import ClothConfig, DivergenceMonitor, SoftCloth, keep_table_grip, settle
 from foldbot.sim.crumple import crumple
 from foldbot.sim.flatten_oracle import CornerPullOracle
 from foldbot.sim.garment_oracle import GarmentOracleEstimator
@@ -571,6 +571,7 @@ def build_sim_cell(cfg: EpisodeConfig, world: SimWorld) -> SimCellParts:
     center, yaw = seeded_pose(cfg, layout.workspace_center_xy)
     spec, mesh = seeded_garment(cfg)
     cloth = SoftCloth(world.client, mesh, cfg.cloth, layout.table_height, center, yaw)
+    keep_table_grip(world, cfg.cloth)  # a layer_friction of its own leaves cloth–table as it was
     monitor = DivergenceMonitor(cloth, layout.workspace_center_xy, radius=1.0)
     world.add_step_hook(monitor)
     camera = RGBDCamera(world.client, cfg.camera)

@@ -6,7 +6,8 @@ import pytest
 
 from foldbot.errors import ConfigError, SimulationDivergedError
 from foldbot.garments.towel import TowelSpec, make_towel
-from foldbot.sim.cloth import ClothConfig, DivergenceMonitor, SoftCloth, settle
+from foldbot.sim.cloth import ClothConfig, DivergenceMonitor, SoftCloth, keep_table_grip, settle
+from foldbot.sim.world import SimWorld
 
 
 def test_cloth_is_a_soft_body_in_mesh_order(world):
@@ -131,6 +132,9 @@ def test_default_thickness_is_two_margins(world):
         ({"margin_divisor": 1.0}, "margin_divisor"),
         ({"margin_divisor": float("nan")}, "margin_divisor"),
         ({"thickness": 1.0}, "thickness"),
+        ({"layer_friction": 0.0}, "layer_friction"),
+        ({"layer_friction": float("inf")}, "layer_friction"),
+        ({"layer_friction": 5.0}, "layer_friction"),
     ],
 )
 def test_bad_cloth_config(kwargs, needle):
@@ -145,3 +149,44 @@ def test_a_larger_margin_divisor_makes_a_thinner_cloth(world):
     )
     assert cloth.margin == pytest.approx(mesh.edge_length / 8)
     assert cloth.thickness == pytest.approx(mesh.edge_length / 4)
+
+
+def test_layer_friction_sets_the_body_coefficient_and_the_table_gain():
+    assert ClothConfig().body_friction == 1.0 and ClothConfig().table_friction_gain == 1.0
+    assert ClothConfig(friction=0.5).body_friction == 0.5  # unset: cloth–cloth follows friction²
+    assert ClothConfig(friction=0.0).table_friction_gain == 1.0  # frictionless cloth, as before
+    layers = ClothConfig(layer_friction=0.25)
+    assert layers.body_friction == pytest.approx(0.5)
+    assert layers.table_friction_gain == pytest.approx(2.0)
+    assert ClothConfig(friction=0.8, layer_friction=0.16).table_friction_gain == pytest.approx(2.0)
+
+
+def _slides_down_a_tilted_table(config: ClothConfig, tan_tilt: float) -> tuple[float, float]:
+    """A 12 cm cloth on the table and an 8 cm one on top of it, gravity tilted to tan_tilt along
+    +x (the table a slope): how far (m) the lower and the upper cloth slide in 1 s."""
+    with SimWorld() as world:
+        g, tilt = world.config.gravity, math.atan(tan_tilt)
+        # Set before the soft bodies load: the deformable world gives each its gravity then.
+        p.setGravity(g * math.sin(tilt), 0, -g * math.cos(tilt), physicsClientId=world.client)
+        z = world.layout.table_height
+        lower = SoftCloth(world.client, make_towel(TowelSpec(0.12, 0.12, 6)), config, z, (0.45, 0))
+        keep_table_grip(world, config)
+        upper_mesh = make_towel(TowelSpec(0.08, 0.08, 5))
+        upper = SoftCloth(world.client, upper_mesh, config, z + 2.5 * lower.margin, (0.45, 0))
+        start = [c.sim_vertices()[:, 0].mean() for c in (lower, upper)]
+        world.step(round(1.0 / world.time_step))
+        return tuple(
+            c.sim_vertices()[:, 0].mean() - x0 for c, x0 in zip((lower, upper), start, strict=True)
+        )
+
+
+def test_layer_friction_lets_layers_slide_while_the_table_still_grips():
+    """On a slope of 0.7 (cloth–table friction 1.0): at the defaults neither layer moves; with
+    layers at 0.25 the upper slides off the lower, which the table still holds (its friction raised
+    2×); lowering the cloth's friction instead (0.5) lets the whole cloth slide off the table."""
+    lower, upper = _slides_down_a_tilted_table(ClothConfig(), 0.7)
+    assert lower < 0.02 and upper < 0.03
+    lower, upper = _slides_down_a_tilted_table(ClothConfig(layer_friction=0.25), 0.7)
+    assert lower < 0.02 and upper > 0.1
+    lower, upper = _slides_down_a_tilted_table(ClothConfig(friction=0.5), 0.7)
+    assert lower > 0.3

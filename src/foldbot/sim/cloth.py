@@ -31,7 +31,15 @@ class ClothConfig:
     bending_stiffness: float = 0.2
     """Bending-spring stiffness (PyBullet `springBendingStiffness`), the real bending control."""
     friction: float = 1.0
-    """Cloth friction coefficient (the binding's default of 0 is frictionless cloth)."""
+    """Cloth friction coefficient (the binding's default of 0 is frictionless cloth). Bullet
+    multiplies it by a rigid body's friction (the table's 1.0) for cloth–rigid contact, and by
+    itself for cloth–cloth contact unless `layer_friction` is set."""
+    layer_friction: float | None = None
+    """Friction between two layers of the cloth (cloth–cloth contact); None = friction², Bullet's
+    product of the two bodies' coefficients. Set, the soft body's coefficient becomes
+    √layer_friction and the table's friction is raised by friction / √layer_friction, so the
+    cloth still meets the table at friction × the table's friction (`table_friction_gain`). The
+    gripper's pads, which hold by anchors, meet the cloth at √layer_friction × theirs."""
     collision_margin: float | None = None
     """Collision margin (m); None = the mesh's mean edge length / `margin_divisor`."""
     margin_divisor: float = 5.0
@@ -64,6 +72,12 @@ class ClothConfig:
         for name in ("damping_stiffness", "friction", "drop_height"):
             v = getattr(self, name)
             require(math.isfinite(v) and v >= 0.0, f"cloth {name} must be ≥ 0, got {v!r}")
+        if self.layer_friction is not None:
+            require(
+                math.isfinite(self.layer_friction) and 0.0 < self.layer_friction <= 4.0,
+                f"cloth layer_friction must be in (0, 4] (or unset: friction²), "
+                f"got {self.layer_friction!r}",
+            )
         if self.thickness is not None:
             require(
                 0.0 <= self.thickness <= 0.05,
@@ -74,6 +88,22 @@ class ClothConfig:
                 0.0 < self.collision_margin <= 0.02,
                 f"cloth collision_margin must be in (0, 0.02] m, got {self.collision_margin!r}",
             )
+
+    @property
+    def body_friction(self) -> float:
+        """The soft body's own friction coefficient (PyBullet `frictionCoeff`): `friction`, or
+        √layer_friction where the layers' friction is set apart."""
+        if self.layer_friction is None:
+            return self.friction
+        return math.sqrt(self.layer_friction)
+
+    @property
+    def table_friction_gain(self) -> float:
+        """What the table's friction is multiplied by so that cloth–table friction stays
+        friction × the table's: 1 unless `layer_friction` is set."""
+        if self.layer_friction is None:
+            return 1.0
+        return self.friction / self.body_friction
 
 
 def yaw_rotation(yaw: float) -> np.ndarray:
@@ -120,7 +150,7 @@ class SoftCloth:
                 springDampingAllDirections=0,
                 springBendingStiffness=config.bending_stiffness,
                 useSelfCollision=int(config.self_collision),
-                frictionCoeff=config.friction,
+                frictionCoeff=config.body_friction,
                 collisionMargin=self.margin,
                 useFaceContact=1,
                 physicsClientId=client,
@@ -198,6 +228,14 @@ class SoftCloth:
                 "(allowed −0.05..+1.5 m)"
             )
         return v
+
+
+def keep_table_grip(world, config: ClothConfig) -> None:
+    """Raise the table's friction by `config.table_friction_gain` (nothing to do unless
+    `layer_friction` is set): the soft body's own coefficient scales cloth–table friction as
+    well as cloth–cloth, and this keeps cloth–table at friction × the world's table friction."""
+    if config.table_friction_gain != 1.0:
+        world.set_table_friction(world.config.table_friction * config.table_friction_gain)
 
 
 MAX_SLIDE_SPEED = 0.6

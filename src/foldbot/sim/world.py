@@ -99,6 +99,12 @@ class SimWorld:
     def time_step(self) -> float:
         return self.config.time_step
 
+    def set_table_friction(self, friction: float) -> None:
+        """Set the table top's lateral friction coefficient (the cloth's `layer_friction` raises it
+        to keep cloth–table friction)."""
+        require(friction >= 0.0, f"table friction must be ≥ 0, got {friction!r}")
+        p.changeDynamics(self.table_id, -1, lateralFriction=friction, physicsClientId=self.client)
+
     def set_table_color(self, rgba: tuple[float, float, float, float]) -> None:
         """Recolour the table top (used by scene randomisation)."""
         p.changeVisualShape(self.table_id, -1, rgbaColor=list(rgba), physicsClientId=self.client)
