@@ -72,6 +72,29 @@ def test_smoke_suite_end_to_end(smoke_run):
     assert (out / "errors.png").read_bytes()[:4] == b"\x89PNG"
 
 
+def test_fold_runs_one_suite_episode_as_bench_did(smoke_run, tmp_path):
+    """`foldbot fold --suite smoke --episode ID` gives the episode the bench wrote, value for
+    value (each in a fresh process), with a video the suite leaves out."""
+    out, _ = smoke_run
+    ep = "towel-half-vision-open-s0000"
+    proc = subprocess.run(
+        [sys.executable, "-m", "foldbot.cli", "fold", "--suite", "smoke", "--episode", ep,
+         "--video-fps", "5", "--out", str(tmp_path / "ep")],
+        capture_output=True, text=True, timeout=900,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    mine = json.loads((tmp_path / "ep" / "result.json").read_text())
+    bench_s = json.loads((out / "episodes" / ep / "result.json").read_text())
+    for key in ("success", "fold_error_mm", "normalized_performance", "coverage", "sim_seconds"):
+        assert mine[key] == bench_s[key], key
+    wall = "wall_seconds"  # the only figure a video (and the machine's load) changes
+    assert [{k: v for k, v in a.items() if k != wall} for a in mine["actions"]] == [
+        {k: v for k, v in a.items() if k != wall} for a in bench_s["actions"]
+    ]
+    assert (tmp_path / "ep" / "video.mp4").is_file()
+    assert not (out / "episodes" / ep / "video.mp4").exists()
+
+
 def test_smoke_suite_resumes_without_rerunning(smoke_run):
     out, _ = smoke_run
     stamps = {p: p.stat().st_mtime_ns for p in out.glob("episodes/*/result.json")}

@@ -1,6 +1,7 @@
 """`foldbot fold` from the command line: help, and clear errors for bad input."""
 
 import argparse
+import dataclasses
 import json
 import math
 import os
@@ -59,6 +60,17 @@ def test_subcommand_help(cmd, capsys):
             ["--garment", "tshirt", "--loop-option", "crease_band=0.03"],
             "crease_band acts on towel folds only; the tshirt loop reads top_layer_first",
         ),
+        (["--suite", "smoke", "--arms", "2"], "--suite smoke sets the episode; drop --arms"),
+        (["--suite", "smoke", "--cloth", "mass=0.2"], "drop --cloth"),
+        (["--suite", "nosuch"], "unknown suite 'nosuch'"),
+        (["--suite", "smoke", "--seed", "7"], "suite 'smoke' has no episode with seed 7"),
+        (["--suite", "smoke"], "runs 2 episodes for seed 0: towel-half-vision-closed-s0000, "),
+        (["--suite", "smoke", "--episode", "towel-half"], "has no episode 'towel-half'; its ids"),
+        (
+            ["--suite", "smoke", "--episode", "towel-half-vision-open-s0000", "--seed", "1"],
+            "drop --seed",
+        ),
+        (["--episode", "towel-half-vision-open-s0000"], "give --suite too"),
     ],
 )
 def test_bad_arguments_get_a_clear_error(tmp_path, capsys, args, needle):
@@ -224,3 +236,33 @@ def test_arms_option_reaches_the_cell(tmp_path):
     assert config_from_args(parser.parse_args([*out, "--arms", "2"])).arms == 2
     with pytest.raises(SystemExit):
         parser.parse_args([*out, "--arms", "3"])
+
+
+def test_a_suite_episode_is_the_one_bench_runs_with_a_video():
+    """`--suite NAME --seed N` builds what `foldbot bench` runs for that seed (the towel's drawn
+    size and pose, start, arms, cloth), only with this command's video rate and GUI."""
+    from foldbot.bench.suite import load_suite
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    args = ["--out", "x", "--suite", "towel_crumpled_two_arms", "--seed", "3"]
+    cfg = config_from_args(parser.parse_args(args))
+    (spec,) = [e for e in load_suite("towel_crumpled_two_arms").episodes if e.seed == 3]
+    assert cfg == dataclasses.replace(spec.to_config(), video_fps=10.0)
+    assert cfg.arms == 2 and cfg.cloth.layer_friction == 0.25 and cfg.start == "crumpled"
+    args = ["--out", "x", "--suite", "smoke", "--episode", "towel-half-oracle-open-s0000"]
+    cfg = config_from_args(parser.parse_args([*args, "--video-fps", "0"]))
+    assert (cfg.perception, cfg.closed_loop, cfg.video_fps) == ("oracle", False, 0.0)
+    cfg = config_from_args(parser.parse_args(["--out", "x", "--suite", "towel_loop", "--seed", "4",
+                                              "--recipe", "thirds"]))  # fmt: skip
+    assert (cfg.recipe, cfg.seed) == ("thirds", 4)
+
+
+def test_ros_fold_takes_no_suite():
+    """The ROS nodes build their episode from the episode options; --suite is `foldbot fold`'s."""
+    from foldbot.commands import ros_fold
+
+    parser = argparse.ArgumentParser()
+    ros_fold.add_arguments(parser)
+    with pytest.raises(SystemExit):
+        parser.parse_args(["--out", "x", "--suite", "smoke"])

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 from pathlib import Path
 
@@ -78,7 +79,37 @@ def add_cloth_option(parser: argparse.ArgumentParser, where: str) -> None:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Options of `foldbot fold`."""
+    """Options of `foldbot fold`: an episode's, and `--suite`."""
+    add_episode_arguments(parser)
+    parser.add_argument(
+        "--suite",
+        default=None,
+        metavar="NAME",
+        help="run the episode a benchmark suite runs for --seed (suites/NAME.toml, or a .toml "
+        "path): its towel size and pose draws, start, arms, cloth and loop, exactly as `foldbot "
+        "bench` runs it, but with a video (--video-fps) and optionally --gui. --recipe and "
+        "--perception pick among the suite's where it has several, --replicate its replicate; "
+        "other episode options are refused beside it",
+    )
+    parser.add_argument(
+        "--episode",
+        default=None,
+        metavar="ID",
+        help="with --suite: the episode by its id (as summary.md and the run's episodes/ folder "
+        "name it, e.g. towel-half-vision-open-s0000) instead of --seed, --recipe, --perception "
+        "and --replicate",
+    )
+
+
+SUITE_PICKS = ("suite", "episode", "seed", "replicate", "recipe", "perception")
+"""With --suite, the options that pick one of its episodes."""
+SUITE_FREE = ("video_fps", "out", "overwrite", "gui")
+"""With --suite, the options that do not change the episode's physics or plan."""
+
+
+def add_episode_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options that define one fold episode (`foldbot fold`, `foldbot ros-fold`, the ROS
+    nodes)."""
     parser.add_argument(
         "--garment",
         default="towel",
@@ -199,6 +230,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
     """Build the episode config (validated) from parsed options."""
+    if getattr(args, "suite", None) is not None:
+        return suite_episode_config(args)
+    if getattr(args, "episode", None) is not None:
+        raise ConfigError(f"--episode {args.episode} names a suite's episode: give --suite too")
     base = EpisodeConfig()
     cloth_options = cloth_options_from_args(args.cloth)
     if args.mass is not None:
@@ -255,3 +290,72 @@ def run(args: argparse.Namespace) -> int:
     )
     print(f"episode written to {result['out_dir']}")
     return 0
+
+
+def suite_episode_config(args: argparse.Namespace) -> EpisodeConfig:
+    """The EpisodeConfig `foldbot bench --suite args.suite` runs for args.seed (and replicate,
+    recipe, perception), with this command's video and GUI; ConfigError where another episode
+    option is given beside --suite, or where the suite has no such episode or several."""
+    from foldbot.bench.suite import load_suite
+
+    defaults = argparse.ArgumentParser(add_help=False)
+    add_arguments(defaults)
+    given = [
+        "--" + name.replace("_", "-")
+        for name, default in vars(defaults.parse_args(["--out", "-"])).items()
+        if name not in SUITE_PICKS + SUITE_FREE and getattr(args, name, default) != default
+    ]
+    if given:
+        raise ConfigError(
+            f"--suite {args.suite} sets the episode; drop {', '.join(given)} (beside --suite only "
+            "--seed, --replicate, --recipe, --perception, --video-fps, --out, --overwrite and "
+            "--gui are allowed)"
+        )
+    suite = load_suite(args.suite)
+    if args.episode is not None:
+        picks = [
+            "--" + name
+            for name in ("seed", "replicate", "recipe", "perception")
+            if getattr(args, name) != defaults.get_default(name)
+        ]
+        if picks:
+            raise ConfigError(f"--episode names the episode; drop {', '.join(picks)}")
+        picked = [e for e in suite.episodes if e.id == args.episode]
+        if not picked:
+            ids = [e.id for e in suite.episodes]
+            shown = ", ".join(ids[:4]) + (f", … ({len(ids)} in all)" if len(ids) > 4 else "")
+            raise ConfigError(
+                f"suite {suite.name!r} has no episode {args.episode!r}; its ids: {shown}"
+            )
+        return _with_video_and_gui(picked[0].to_config(), args)
+    picked = [
+        e
+        for e in suite.episodes
+        if e.seed == args.seed
+        and e.replicate == args.replicate
+        and (args.recipe is None or e.recipe == args.recipe)
+        and e.perception == args.perception
+    ]
+    if not picked:
+        have = sorted({(e.recipe, e.perception) for e in suite.episodes})
+        seeds = sorted({e.seed for e in suite.episodes})
+        raise ConfigError(
+            f"suite {suite.name!r} has no episode with seed {args.seed}, replicate "
+            f"{args.replicate}, recipe {args.recipe or 'any'} and perception {args.perception}; "
+            f"its seeds: {seeds[0]}–{seeds[-1]} ({len(seeds)}), its recipe and perception pairs: "
+            + ", ".join(f"{r}/{p}" for r, p in have)
+        )
+    if len(picked) > 1:
+        raise ConfigError(
+            f"suite {suite.name!r} runs {len(picked)} episodes for seed {args.seed}: "
+            + ", ".join(e.id for e in picked)
+            + "; pick one with --recipe, or by its id with --episode"
+        )
+    return _with_video_and_gui(picked[0].to_config(), args)
+
+
+def _with_video_and_gui(cfg: EpisodeConfig, args: argparse.Namespace) -> EpisodeConfig:
+    """A suite's episode with this command's video rate and GUI (neither changes its physics)."""
+    return dataclasses.replace(
+        cfg, video_fps=args.video_fps, sim=dataclasses.replace(cfg.sim, gui=args.gui)
+    )

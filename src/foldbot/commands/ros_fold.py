@@ -56,7 +56,7 @@ def ros_env(port: int) -> dict[str, str]:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """`foldbot fold`'s options, plus the ROS ones."""
-    fold.add_arguments(parser)
+    fold.add_episode_arguments(parser)
     parser.add_argument("--record", type=Path, default=None, help="record the run to this .bag")
     parser.add_argument(
         "--camera-rate",
