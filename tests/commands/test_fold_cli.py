@@ -256,13 +256,3 @@ def test_a_suite_episode_is_the_one_bench_runs_with_a_video():
     cfg = config_from_args(parser.parse_args(["--out", "x", "--suite", "towel_loop", "--seed", "4",
                                               "--recipe", "thirds"]))  # fmt: skip
     assert (cfg.recipe, cfg.seed) == ("thirds", 4)
-
-
-def test_ros_fold_takes_no_suite():
-    """The ROS nodes build their episode from the episode options; --suite is `foldbot fold`'s."""
-    from foldbot.commands import ros_fold
-
-    parser = argparse.ArgumentParser()
-    ros_fold.add_arguments(parser)
-    with pytest.raises(SystemExit):
-        parser.parse_args(["--out", "x", "--suite", "smoke"])

@@ -27,6 +27,19 @@ from foldbot.commands.ros_fold import add_arguments, fold_args_text
             ["ros-fold", "--out", "{tmp}/e", "--garment", "pants", "--garment-edge-length", "1"],
             "garment_edge_length must be in [0.005, 0.1] m, got 1.0",
         ),
+        (
+            [
+                "ros-fold",
+                "--out",
+                "{tmp}/e",
+                "--suite",
+                "smoke",
+                "--episode",
+                "towel-half-oracle-open-s0000",
+            ],
+            "--perception 'oracle' is not available over ROS",
+        ),
+        (["ros-fold", "--out", "{tmp}/e", "--suite", "smoke", "--arms", "2"], "drop --arms"),
         (["ros-replay", "{tmp}/missing.bag", "--rate", "0"], "--rate"),
         (["export-bag", "{tmp}", "--out", "{tmp}/x.txt"], "must end in .bag"),
     ],
@@ -138,3 +151,27 @@ def test_a_replay_that_misses_frames_says_where_to_look():
     assert held[-1] == "NOT the same as the live run"
     same = report_lines(ReplayReport(5, 5, 0.0, True, True))
     assert len(same) == 2 and same[-1] == "same keypoints as the live run"
+
+
+def test_ros_fold_hands_the_nodes_a_suite_episode(tmp_path, monkeypatch):
+    """`ros-fold --suite NAME --seed N` gives the nodes the suite's file by its absolute path
+    (they run in another folder) and the options that pick the episode: their EpisodeConfig is
+    the one `foldbot fold --suite` builds, the suite's drawn towel size among it."""
+    import argparse
+
+    from foldbot.commands import fold, ros_fold
+    from foldbot.ros.node_args import parse_fold_args
+
+    parser = argparse.ArgumentParser()
+    ros_fold.add_arguments(parser)
+    out = str(tmp_path / "e")
+    args = parser.parse_args(["--out", out, "--suite", "towel_crumpled_two_arms", "--seed", "5"])
+    text = ros_fold.fold_args_text(args)
+    monkeypatch.chdir(tmp_path)  # where suites/ is not
+    _node_args, node_cfg = parse_fold_args(text)
+    assert node_cfg == fold.config_from_args(args)
+    assert node_cfg.towel_size_range == (0.25, 0.45) and node_cfg.cloth.layer_friction == 0.25
+    args = parser.parse_args(["--out", out, "--suite", "smoke", "--episode",
+                              "towel-half-vision-open-s0000", "--video-fps", "2"])  # fmt: skip
+    _node_args, node_cfg = parse_fold_args(ros_fold.fold_args_text(args))
+    assert node_cfg == fold.config_from_args(args) and not node_cfg.closed_loop

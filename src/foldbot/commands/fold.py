@@ -108,8 +108,8 @@ SUITE_FREE = ("video_fps", "out", "overwrite", "gui")
 
 
 def add_episode_arguments(parser: argparse.ArgumentParser) -> None:
-    """The options that define one fold episode (`foldbot fold`, `foldbot ros-fold`, the ROS
-    nodes)."""
+    """The options that define one fold episode (`foldbot fold` and `foldbot ros-fold` add
+    `--suite` and `--episode`)."""
     parser.add_argument(
         "--garment",
         default="towel",

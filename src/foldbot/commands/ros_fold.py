@@ -55,8 +55,8 @@ def ros_env(port: int) -> dict[str, str]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """`foldbot fold`'s options, plus the ROS ones."""
-    fold.add_episode_arguments(parser)
+    """`foldbot fold`'s options (`--suite` among them), plus the ROS ones."""
+    fold.add_arguments(parser)
     parser.add_argument("--record", type=Path, default=None, help="record the run to this .bag")
     parser.add_argument(
         "--camera-rate",
@@ -71,7 +71,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def fold_args_text(args: argparse.Namespace) -> str:
     """The episode's `foldbot fold` options as one shell-quoted string (the nodes parse it): every
-    option that shapes the episode, so the nodes' EpisodeConfig is the command's."""
+    option that shapes the episode, so the nodes' EpisodeConfig is the command's. With --suite,
+    the suite (its file's absolute path: the nodes run elsewhere) and the options that pick its
+    episode."""
+    if args.suite is not None:
+        return shlex.join(suite_args_words(args))
     words = [
         *("--garment", args.garment, "--recipe", args.recipe or fold.DEFAULT_RECIPES[args.garment]),
         *("--robot", args.robot, "--arms", str(args.arms)),
@@ -100,17 +104,35 @@ def fold_args_text(args: argparse.Namespace) -> str:
     return shlex.join(words)
 
 
+def suite_args_words(args: argparse.Namespace) -> list[str]:
+    """`--suite PATH` and the options that pick its episode, its video rate and output folder."""
+    from foldbot.bench.suite import resolve_suite_path
+
+    words = ["--suite", str(resolve_suite_path(args.suite).resolve())]
+    if args.episode is not None:
+        words += ["--episode", args.episode]
+    else:
+        words += ["--seed", str(args.seed), "--replicate", str(args.replicate)]
+        words += ["--perception", args.perception]
+        if args.recipe is not None:
+            words += ["--recipe", args.recipe]
+    words += ["--video-fps", repr(args.video_fps), "--out", str(Path(args.out).resolve())]
+    if args.overwrite:
+        words.append("--overwrite")
+    return words
+
+
 def run(args: argparse.Namespace) -> int:
     """Validate, roslaunch the fold, then report from the episode folder the task node wrote."""
     if args.gui:
         raise ConfigError("--gui is not available over ROS; use `foldbot fold --gui`")
-    if args.perception != "vision":
+    # Bad values fail here, before anything starts.
+    cfg = fold.config_from_args(args)
+    if cfg.perception != "vision":
         raise ConfigError(
-            f"--perception {args.perception!r} is not available over ROS: the perception node "
+            f"--perception {cfg.perception!r} is not available over ROS: the perception node "
             "is vision (RGB-D) only; use `foldbot fold --perception oracle` for the oracle"
         )
-    # Bad values fail here, before anything starts.
-    fold.config_from_args(args)
     if not (1 <= args.port <= 65535):
         raise ConfigError(f"--port must be in 1–65535, got {args.port}")
     rate = args.video_fps if args.camera_rate is None else args.camera_rate
