@@ -6,6 +6,7 @@ import argparse
 import dataclasses
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from foldbot.cloth_options import apply_cloth_options, cloth_options_from_args, cloth_options_help
 from foldbot.errors import ConfigError
@@ -26,6 +27,9 @@ from foldbot.planning.recipes import RECIPE_HELP, RECIPES
 from foldbot.sim.grasp import JAW_CATCHES
 from foldbot.sim.robots import ROBOT_NAMES
 from foldbot.sim.world import SimConfig
+
+if TYPE_CHECKING:
+    from foldbot.bench.suite import EpisodeSpec
 
 DEFAULT_RECIPES = {"towel": "half", **{g: rs[0] for g, rs in GARMENT_RECIPES.items()}}
 """The recipe `--recipe` defaults to, per garment."""
@@ -293,9 +297,19 @@ def run(args: argparse.Namespace) -> int:
 
 
 def suite_episode_config(args: argparse.Namespace) -> EpisodeConfig:
-    """The EpisodeConfig `foldbot bench --suite args.suite` runs for args.seed (and replicate,
-    recipe, perception), with this command's video and GUI; ConfigError where another episode
-    option is given beside --suite, or where the suite has no such episode or several."""
+    """The EpisodeConfig `foldbot bench --suite args.suite` runs for the episode the options
+    pick (pick_suite_episode), with this command's video rate and GUI (neither changes its
+    physics)."""
+    cfg = pick_suite_episode(args).to_config()
+    return dataclasses.replace(
+        cfg, video_fps=args.video_fps, sim=dataclasses.replace(cfg.sim, gui=args.gui)
+    )
+
+
+def pick_suite_episode(args: argparse.Namespace) -> EpisodeSpec:
+    """The episode of suite `args.suite` that --episode, or --seed (and replicate, recipe,
+    perception), picks; ConfigError where another episode option is given beside --suite, or
+    where the suite has no such episode or several."""
     from foldbot.bench.suite import load_suite
 
     defaults = argparse.ArgumentParser(add_help=False)
@@ -327,7 +341,7 @@ def suite_episode_config(args: argparse.Namespace) -> EpisodeConfig:
             raise ConfigError(
                 f"suite {suite.name!r} has no episode {args.episode!r}; its ids: {shown}"
             )
-        return _with_video_and_gui(picked[0].to_config(), args)
+        return picked[0]
     picked = [
         e
         for e in suite.episodes
@@ -351,11 +365,4 @@ def suite_episode_config(args: argparse.Namespace) -> EpisodeConfig:
             + ", ".join(e.id for e in picked)
             + "; pick one with --recipe, or by its id with --episode"
         )
-    return _with_video_and_gui(picked[0].to_config(), args)
-
-
-def _with_video_and_gui(cfg: EpisodeConfig, args: argparse.Namespace) -> EpisodeConfig:
-    """A suite's episode with this command's video rate and GUI (neither changes its physics)."""
-    return dataclasses.replace(
-        cfg, video_fps=args.video_fps, sim=dataclasses.replace(cfg.sim, gui=args.gui)
-    )
+    return picked[0]

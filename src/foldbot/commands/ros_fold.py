@@ -105,17 +105,12 @@ def fold_args_text(args: argparse.Namespace) -> str:
 
 
 def suite_args_words(args: argparse.Namespace) -> list[str]:
-    """`--suite PATH` and the options that pick its episode, its video rate and output folder."""
+    """`--suite PATH --episode ID` (the episode the options pick), the video rate and output
+    folder."""
     from foldbot.bench.suite import resolve_suite_path
 
     words = ["--suite", str(resolve_suite_path(args.suite).resolve())]
-    if args.episode is not None:
-        words += ["--episode", args.episode]
-    else:
-        words += ["--seed", str(args.seed), "--replicate", str(args.replicate)]
-        words += ["--perception", args.perception]
-        if args.recipe is not None:
-            words += ["--recipe", args.recipe]
+    words += ["--episode", fold.pick_suite_episode(args).id]
     words += ["--video-fps", repr(args.video_fps), "--out", str(Path(args.out).resolve())]
     if args.overwrite:
         words.append("--overwrite")
