@@ -88,7 +88,51 @@ def vision_corners(camera, v: np.ndarray) -> tuple[int, int]:
     return picks[0], picks[1]
 
 
-def measure(seed: int, grasp: str = "corners", stretch: float = 0.0, arms: int = 2) -> dict:
+def side_view(client: int, centre: np.ndarray, table: float) -> np.ndarray:
+    """An RGB picture of the workspace from the +y side, level with the hold (for --frames)."""
+    import pybullet as p
+
+    target = [float(centre[0]), float(centre[1]), table + 0.25]
+    view = p.computeViewMatrix([target[0], target[1] + 1.3, table + 0.35], target, [0, 0, 1])
+    proj = p.computeProjectionMatrixFOV(50, 4 / 3, 0.05, 5.0)
+    img = p.getCameraImage(
+        320, 240, view, proj, renderer=p.ER_TINY_RENDERER, physicsClientId=client
+    )[2]
+    return np.asarray(img, dtype=np.uint8).reshape(240, 320, 4)[:, :, :3]
+
+
+def save_sheet(shots: list[np.ndarray], path: Path) -> None:
+    """The pictures in rows of six, as one PNG."""
+    import imageio.v3 as iio
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    rows = [shots[k : k + 6] for k in range(0, len(shots), 6)]
+    rows = [np.hstack(r + [np.zeros_like(shots[0])] * (6 - len(r))) for r in rows]
+    iio.imwrite(path, np.vstack(rows))
+
+
+def shake_offsets(amplitude: float, frequency: float, axis: str, dt: float) -> np.ndarray:
+    """Offsets (m) at every physics step of a shake: `amplitude` × sin(2π f t) along `axis`
+    (x: towards and away from the camera's near side, across the hanging towel; z: up and
+    down) for a whole number of periods (at least 1 s), so the grippers end where they began."""
+    if amplitude <= 0.0:
+        return np.zeros((0, 3))
+    periods = max(1, round(1.0 * frequency))
+    t = np.arange(round(periods / frequency / dt)) * dt
+    out = np.zeros((len(t), 3))
+    out[:, "xyz".index(axis)] = amplitude * np.sin(2 * np.pi * frequency * t)
+    return out
+
+
+def measure(
+    seed: int,
+    grasp: str = "corners",
+    stretch: float = 0.0,
+    arms: int = 2,
+    shake: tuple[float, float, str] = (0.0, 0.0, "z"),
+    suite: str = "towel_crumpled",
+    frames: str | None = None,
+) -> dict:
     """One seed (runs in the calling process: the first simulation in it)."""
     import pybullet as p
 
@@ -99,11 +143,13 @@ def measure(seed: int, grasp: str = "corners", stretch: float = 0.0, arms: int =
     from foldbot.sim.cloth import settle
     from foldbot.sim.world import SimWorld
 
-    spec = next(e for e in load_suite("towel_crumpled").episodes if e.seed == seed)
+    spec = next(e for e in load_suite(suite).episodes if e.seed == seed)
     cfg = spec.to_config()
     flat = FlattenConfig()
     out: dict = {"seed": seed, "grasp": grasp, "stretch": stretch, "arms": arms, "coverage": []}
+    out.update(shake=list(shake), suite=suite)
     wall = time.perf_counter()
+    shots: list[np.ndarray] = []
     with SimWorld(cfg.sim) as world:
         parts = build_sim_cell(cfg, world)
         parts.model_world.close()
@@ -148,8 +194,7 @@ def measure(seed: int, grasp: str = "corners", stretch: float = 0.0, arms: int =
                             ),
                         ]
                     )
-                    tools[0].move_to(path[0], teleport=True)
-                    tools[0].hold(np.array([a]))
+                    tools[0].hold(np.array([a]), path[0])
                     for q in path:
                         tools[0].move_to(q)
                         world.step()
@@ -194,6 +239,7 @@ def measure(seed: int, grasp: str = "corners", stretch: float = 0.0, arms: int =
                         np.array([now, [now[0], now[1], table + lift], top]), LIFT_SPEED, dt
                     )
                     hang = np.repeat(np.array([top]), round(HANG_S / dt), axis=0)
+                    jiggle = np.asarray(top) + shake_offsets(*shake, dt)
                     lay = _timed_path(
                         np.array(
                             [
@@ -205,14 +251,16 @@ def measure(seed: int, grasp: str = "corners", stretch: float = 0.0, arms: int =
                         LAY_SPEED,
                         dt,
                     )
-                    paths.append(np.vstack([up, hang, lay]))
+                    paths.append(np.vstack([up, jiggle, hang, lay]))
                 for tool, vertex, path in zip(tools, (a, b), paths, strict=True):
-                    tool.move_to(path[0], teleport=True)
-                    tool.hold(np.array([vertex]))
-                for k in range(max(len(q) for q in paths)):
+                    tool.hold(np.array([vertex]), path[0])
+                steps = max(len(q) for q in paths)
+                for k in range(steps):
                     for tool, path in zip(tools, paths, strict=True):
                         tool.move_to(path[min(k, len(path) - 1)])
                     world.step()
+                    if frames and k % max(1, round(0.5 / dt)) == 0:
+                        shots.append(side_view(world.client, centre, table))
                 for tool in tools:
                     tool.release()
                     tool.move_to(np.array([0.0, 0.0, 2.0]), teleport=True)
@@ -220,6 +268,10 @@ def measure(seed: int, grasp: str = "corners", stretch: float = 0.0, arms: int =
                 actions += 1
                 coverage = metrics.coverage(oracle.cloth_vertices(), mesh.faces, mesh.area)
                 out["coverage"].append(round(coverage, 3))
+                if frames:
+                    shots.append(side_view(world.client, centre, table))
+                    save_sheet(shots, Path(frames) / f"seed{seed}_spread{actions}.png")
+                    shots.clear()
             out.update(actions=actions, flattened=bool(coverage >= flat.target_coverage))
         except Exception as exc:  # a diverged cloth is a result here, not a crash
             out["error"] = f"{type(exc).__name__}: {exc}"[:200]
@@ -249,14 +301,33 @@ def main() -> int:
         "turn), at most 0.5 m up, and lays it along its diagonal towards the near side "
         "(default 2)",
     )  # fmt: skip
+    ap.add_argument(
+        "--shake", nargs=3, metavar=("AMPLITUDE", "HZ", "AXIS"), default=("0", "0", "z"),
+        help="before the still hang, shake both grippers AMPLITUDE m at HZ along AXIS (x or z) "
+        "for a whole number of periods, at least 1 s (default: none)",
+    )  # fmt: skip
+    ap.add_argument(
+        "--suite", default="towel_crumpled", help="whose towels (default towel_crumpled)"
+    )
+    ap.add_argument("--frames", default=None, help="a side-view picture sheet per spread, in DIR")
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)  # child process: one seed
     args = ap.parse_args()
     if not 0.0 <= args.stretch <= 0.5:
         ap.error(f"--stretch must be in [0, 0.5], got {args.stretch}")
+    amp, hz, axis = float(args.shake[0]), float(args.shake[1]), args.shake[2]
+    if not (0.0 <= amp <= 0.1 and (amp == 0.0 or 0.2 <= hz <= 10.0) and axis in ("x", "z")):
+        ap.error(
+            f"--shake needs AMPLITUDE in [0, 0.1] m, HZ in [0.2, 10], AXIS x or z; got {args.shake}"
+        )
     if args.one is not None:
-        print(json.dumps(measure(args.one, args.grasp, args.stretch, args.arms)), flush=True)
+        row = measure(
+            args.one, args.grasp, args.stretch, args.arms, (amp, hz, axis), args.suite, args.frames
+        )
+        print(json.dumps(row), flush=True)
         return 0
     extra = ["--grasp", args.grasp, "--stretch", str(args.stretch), "--arms", str(args.arms)]
+    extra += ["--shake", *args.shake, "--suite", args.suite]
+    extra += ["--frames", args.frames] if args.frames else []
     rows = run_each_seed(__file__, parse_seeds(args.seeds), extra)
     ok = [r for r in rows if "error" not in r]
     print(

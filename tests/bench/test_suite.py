@@ -50,6 +50,20 @@ def test_the_full_suites_first_20_seeds_are_the_loop_acceptance_suites_episodes(
     assert {e.seed for e in full.episodes} == set(range(50))
 
 
+def test_a_suite_over_other_seeds_draws_each_as_its_own_seeds(tmp_path):
+    """load_suite(name, seeds): the suite's episodes for those seeds, each drawn alone: towel_full
+    over seeds 3 and 30 is its own episodes for them; a bad seed is named."""
+    full = load_suite("towel_full")
+    picked = load_suite("towel_full", [30, 3])
+    assert list(picked.episodes) == [e for e in full.episodes if e.seed in (3, 30)]
+    assert picked.axes["seeds"] == [3, 30]
+    bare = tmp_path / "bare.toml"
+    bare.write_text('name = "bare"\n')  # no [axes] at all: the seeds are the only axis given
+    assert [e.seed for e in load_suite(str(bare), [5]).episodes] == [5]
+    with pytest.raises(ConfigError, match=r"axes\.seeds must name at least one seed"):
+        load_suite("smoke", [])
+
+
 def test_compare_suite_pairs_every_cell():
     suite = load_suite("towel_compare")
     cells = {(e.recipe, e.perception, e.loop) for e in suite.episodes}

@@ -6,6 +6,7 @@ import sys
 
 import pytest
 
+from foldbot.bench.suite import load_suite
 from foldbot.cli import build_parser, main
 from foldbot.commands.bench import suite_from_args
 
@@ -117,6 +118,25 @@ def test_suite_and_one_recipe_options_do_not_mix(tmp_path, capsys):
         main(["bench", "--suite", "smoke", "--recipe", "half", "--out", str(tmp_path / "b")]) == 2
     )
     assert "--recipe cannot be combined with --suite" in capsys.readouterr().err
+
+
+def test_seeds_run_a_suite_over_other_seeds(tmp_path):
+    """`--suite NAME --seeds S`: the suite's episodes for those seeds, and the summary's command
+    says so."""
+    args = build_parser().parse_args(
+        ["bench", "--suite", "towel_loop", "--seeds", "25,40", "--out", "x"]
+    )
+    suite = suite_from_args(args)
+    assert list(suite.episodes) == [
+        e for e in load_suite("towel_full").episodes if e.seed in (25, 40)
+    ]
+    out = tmp_path / "r"
+    assert (
+        main(["bench", "--suite", "smoke", "--seeds", "5", "--out", str(out), "--report-only"]) == 0
+    )
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["command"].endswith(f"--suite smoke --seeds 5 --out {out}")
+    assert summary["episodes_planned"] == 4
 
 
 def test_one_recipe_options_build_a_suite():

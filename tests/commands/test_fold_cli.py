@@ -63,7 +63,17 @@ def test_subcommand_help(cmd, capsys):
         (["--suite", "smoke", "--arms", "2"], "--suite smoke sets the episode; drop --arms"),
         (["--suite", "smoke", "--cloth", "mass=0.2"], "drop --cloth"),
         (["--suite", "nosuch"], "unknown suite 'nosuch'"),
-        (["--suite", "smoke", "--seed", "7"], "suite 'smoke' has no episode with seed 7"),
+        (["--suite", "smoke", "--seed", "-1"], "--seed must be an integer ≥ 0, got -1"),
+        (
+            ["--suite", "smoke", "--seed", "3", "--replicate", "2"],
+            "suite 'smoke' has no episode with replicate 2, recipe any and perception vision; "
+            "its replicates: 0–0",
+        ),
+        (
+            ["--suite", "smoke", "--episode", "towel-half-vision-open-s0099-r3"],
+            "has no episode 'towel-half-vision-open-s0099-r3'; its ids: towel-half-vision-closed-"
+            "s0000,",
+        ),
         (["--suite", "smoke"], "runs 2 episodes for seed 0: towel-half-vision-closed-s0000, "),
         (["--suite", "smoke", "--episode", "towel-half"], "has no episode 'towel-half'; its ids"),
         (
@@ -256,3 +266,20 @@ def test_a_suite_episode_is_the_one_bench_runs_with_a_video():
     cfg = config_from_args(parser.parse_args(["--out", "x", "--suite", "towel_loop", "--seed", "4",
                                               "--recipe", "thirds"]))  # fmt: skip
     assert (cfg.recipe, cfg.seed) == ("thirds", 4)
+
+
+def test_a_suite_episode_for_a_seed_the_suite_does_not_list():
+    """A seed outside the suite's own (smoke lists 0–1) is the episode `bench --suite NAME
+    --seeds N` runs: drawn as the suite draws it, by --seed or by the id such a run names."""
+    from foldbot.bench.suite import load_suite
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    base = ["--out", "x", "--suite", "towel_crumpled_two_arms", "--video-fps", "0"]
+    by_seed = config_from_args(parser.parse_args([*base, "--seed", "24"]))
+    episode = "towel-half-vision-closed-crumpled-s0024"
+    by_id = config_from_args(parser.parse_args([*base, "--episode", episode]))
+    (spec,) = load_suite("towel_crumpled_two_arms", [20, 24, 31]).episodes[1:2]
+    assert spec.id == episode and by_seed == by_id == spec.to_config()
+    assert 24 not in load_suite("towel_crumpled_two_arms").axes["seeds"]
+    assert (by_seed.seed, by_seed.towel_size_range) == (24, (0.25, 0.45))  # drawn when it runs

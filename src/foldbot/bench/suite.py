@@ -335,13 +335,18 @@ def resolve_suite_path(name: str) -> Path:
     return path
 
 
-def load_suite(name: str) -> Suite:
-    """Load and validate a suite by name (suites/NAME.toml) or path."""
+def load_suite(name: str, seeds: list[int] | None = None) -> Suite:
+    """Load and validate a suite by name (suites/NAME.toml) or path; with `seeds`, its episodes
+    for those seeds instead of its own axes.seeds (each seed draws its towel alone, so seed N's
+    episode is the same whichever seeds run beside it)."""
     path = resolve_suite_path(name)
     try:
         data = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"suite file {path}: not valid TOML: {exc}") from None
+    if seeds is not None:
+        axes = data.get("axes")
+        data["axes"] = {**(axes if isinstance(axes, dict) else {}), "seeds": list(seeds)}
     suite = suite_from_dict(data, source=str(path))
     if path.parent.resolve() == SUITES_DIR and suite.name != path.stem:
         raise ConfigError(f"suite file {path}: name = {suite.name!r} must match the file name")

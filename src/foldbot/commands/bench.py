@@ -1,10 +1,12 @@
 """`foldbot bench`: run a benchmark suite of fold episodes and summarise them.
 
-    foldbot bench --suite NAME --out DIR [--workers N] [--ray ADDRESS] [--loop-option NAME=VALUE]
+    foldbot bench --suite NAME --out DIR [--seeds S] [--workers N] [--ray ADDRESS]
+                  [--loop-option NAME=VALUE] [--cloth NAME=VALUE]
     foldbot bench --recipe R --seeds 0-19 [--perception P] [--size-range LO HI] --out DIR
 
 A suite (suites/NAME.toml, or a path to one) is the grid garment × recipe × perception × loop ×
-seed and states what the seed randomises; the second form is a one-recipe suite built from the
+seed and states what the seed randomises (`--seeds` runs it over other seeds, each drawn as the
+suite draws it); the second form is a one-recipe suite built from the
 options, on the towel `foldbot fold` folds (odd vertex counts, 17 along the longer side). Each
 episode runs in a fresh process and writes its own folder, DIR/episodes/<id>/; finished episodes
 are not run again, so an interrupted run resumes. `--ray auto` (a running
@@ -78,6 +80,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=DEFAULT_TIMEOUT_S,
         help=f"stop an episode after this many wall seconds (default {DEFAULT_TIMEOUT_S:g})",
     )
+    parser.add_argument(
+        "--seeds",
+        default=None,
+        help="seeds to run, e.g. 0-19 or 0,4,7: with --suite, instead of the suite's own (each "
+        "drawn as the suite draws it); for a one-recipe suite, default 0-9",
+    )
     add_loop_option(parser, "in every episode, over the suite's [loop_options]")
     add_cloth_option(parser, "in every episode, over the suite's [cloth]")
     one = parser.add_argument_group("one-recipe suite (instead of --suite)")
@@ -94,7 +102,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         choices=PERCEPTION_MODES,
         help="keypoints from the RGB-D image (vision, default) or simulator ground truth (oracle)",
     )
-    one.add_argument("--seeds", default=None, help="seeds to run, e.g. 0-19 or 0,4,7 (default 0-9)")
     one.add_argument(
         "--size-range",
         nargs=2,
@@ -139,12 +146,14 @@ def with_options(suite: Suite, loop: dict, cloth: dict) -> Suite:
 def _suite_from_args(args: argparse.Namespace) -> Suite:
     given = [f"--{k.replace('_', '-')}" for k in _LEGACY if getattr(args, k) is not None]
     if args.suite is not None:
+        given = [g for g in given if g != "--seeds"]
         if given:
             raise ConfigError(
                 f"{', '.join(given)} cannot be combined with --suite; "
-                "a suite file states its recipes, perception, seeds and ranges"
+                "a suite file states its recipes, perception and ranges (--seeds may replace "
+                "its seeds)"
             )
-        return load_suite(args.suite)
+        return load_suite(args.suite, None if args.seeds is None else parse_seeds(args.seeds))
     recipe = args.recipe or "half"
     perception = args.perception or "vision"
     data: dict = {
@@ -211,6 +220,8 @@ def run(args: argparse.Namespace) -> int:
     cmd = ["foldbot", "bench"]
     if args.suite is not None:
         cmd += ["--suite", args.suite]
+        if args.seeds is not None:
+            cmd += ["--seeds", args.seeds]
     else:
         cmd += ["--recipe", suite.axes["recipe"][0], "--perception", suite.axes["perception"][0]]
         cmd += ["--seeds", args.seeds or "0-9"]

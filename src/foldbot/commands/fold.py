@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
+import re
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -91,7 +92,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="NAME",
         help="run the episode a benchmark suite runs for --seed (suites/NAME.toml, or a .toml "
         "path): its towel size and pose draws, start, arms, cloth and loop, exactly as `foldbot "
-        "bench` runs it, but with a video (--video-fps) and optionally --gui. --recipe and "
+        "bench` runs it (a seed outside the suite's own as `bench --seeds` runs it), but with a "
+        "video (--video-fps) and optionally --gui. --recipe and "
         "--perception pick among the suite's where it has several, --replicate its replicate; "
         "other episode options are refused beside it",
     )
@@ -325,7 +327,6 @@ def pick_suite_episode(args: argparse.Namespace) -> EpisodeSpec:
             "--seed, --replicate, --recipe, --perception, --video-fps, --out, --overwrite and "
             "--gui are allowed)"
         )
-    suite = load_suite(args.suite)
     if args.episode is not None:
         picks = [
             "--" + name
@@ -334,14 +335,22 @@ def pick_suite_episode(args: argparse.Namespace) -> EpisodeSpec:
         ]
         if picks:
             raise ConfigError(f"--episode names the episode; drop {', '.join(picks)}")
+        # An id's seed may lie outside the suite's own (a run with `bench --seeds`).
+        seed = re.search(r"-s(\d+)(?:-r\d+)?$", args.episode)
+        suite = own = load_suite(args.suite)
+        if seed and int(seed[1]) not in own.axes["seeds"]:
+            suite = load_suite(args.suite, [int(seed[1])])
         picked = [e for e in suite.episodes if e.id == args.episode]
         if not picked:
-            ids = [e.id for e in suite.episodes]
+            ids = [e.id for e in own.episodes]
             shown = ", ".join(ids[:4]) + (f", … ({len(ids)} in all)" if len(ids) > 4 else "")
             raise ConfigError(
                 f"suite {suite.name!r} has no episode {args.episode!r}; its ids: {shown}"
             )
         return picked[0]
+    if args.seed < 0:
+        raise ConfigError(f"--seed must be an integer ≥ 0, got {args.seed}")
+    suite = load_suite(args.suite, [args.seed])  # any seed, drawn as the suite draws it
     picked = [
         e
         for e in suite.episodes
@@ -352,11 +361,11 @@ def pick_suite_episode(args: argparse.Namespace) -> EpisodeSpec:
     ]
     if not picked:
         have = sorted({(e.recipe, e.perception) for e in suite.episodes})
-        seeds = sorted({e.seed for e in suite.episodes})
+        reps = suite.axes["replicates"]
         raise ConfigError(
-            f"suite {suite.name!r} has no episode with seed {args.seed}, replicate "
-            f"{args.replicate}, recipe {args.recipe or 'any'} and perception {args.perception}; "
-            f"its seeds: {seeds[0]}–{seeds[-1]} ({len(seeds)}), its recipe and perception pairs: "
+            f"suite {suite.name!r} has no episode with replicate {args.replicate}, recipe "
+            f"{args.recipe or 'any'} and perception {args.perception}; its replicates: "
+            f"0–{reps - 1}, its recipe and perception pairs: "
             + ", ".join(f"{r}/{p}" for r, p in have)
         )
     if len(picked) > 1:
