@@ -89,11 +89,12 @@ def vision_corners(camera, v: np.ndarray) -> tuple[int, int]:
 
 
 def side_view(client: int, centre: np.ndarray, table: float) -> np.ndarray:
-    """An RGB picture of the workspace from the +y side, level with the hold (for --frames)."""
+    """An RGB picture of the workspace from beyond its far (+x) side, facing the hanging towel
+    (for --frames)."""
     import pybullet as p
 
     target = [float(centre[0]), float(centre[1]), table + 0.25]
-    view = p.computeViewMatrix([target[0], target[1] + 1.3, table + 0.35], target, [0, 0, 1])
+    view = p.computeViewMatrix([target[0] + 1.0, target[1], table + 0.35], target, [0, 0, 1])
     proj = p.computeProjectionMatrixFOV(50, 4 / 3, 0.05, 5.0)
     img = p.getCameraImage(
         320, 240, view, proj, renderer=p.ER_TINY_RENDERER, physicsClientId=client
@@ -164,6 +165,9 @@ def measure(
             corners = [mesh.keypoints[k] for k in CORNERS]
             coverage = metrics.coverage(oracle.cloth_vertices(), mesh.faces, mesh.area)
             out["coverage"].append(round(coverage, 3))
+            out["crossings"] = [
+                ["crumpled", metrics.self_crossings(oracle.cloth_vertices(), mesh.faces)]
+            ]
             actions = 0
             while coverage < flat.target_coverage and actions < flat.max_actions:
                 v = oracle.cloth_vertices()
@@ -255,7 +259,12 @@ def measure(
                 for tool, vertex, path in zip(tools, (a, b), paths, strict=True):
                     tool.hold(np.array([vertex]), path[0])
                 steps = max(len(q) for q in paths)
+                marks = {len(up) - 1: "lifted", len(up) + len(jiggle) + len(hang) - 1: "hung"}
                 for k in range(steps):
+                    if k in marks:
+                        out.setdefault("crossings", []).append(
+                            [marks[k], metrics.self_crossings(oracle.cloth_vertices(), mesh.faces)]
+                        )
                     for tool, path in zip(tools, paths, strict=True):
                         tool.move_to(path[min(k, len(path) - 1)])
                     world.step()
@@ -268,6 +277,9 @@ def measure(
                 actions += 1
                 coverage = metrics.coverage(oracle.cloth_vertices(), mesh.faces, mesh.area)
                 out["coverage"].append(round(coverage, 3))
+                out.setdefault("crossings", []).append(
+                    ["laid", metrics.self_crossings(oracle.cloth_vertices(), mesh.faces)]
+                )
                 if frames:
                     shots.append(side_view(world.client, centre, table))
                     save_sheet(shots, Path(frames) / f"seed{seed}_spread{actions}.png")

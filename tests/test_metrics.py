@@ -20,6 +20,7 @@ from foldbot.metrics import (
     perfect_fold_error_mm,
     physical_layers,
     score_episode,
+    self_crossings,
     softgym_performance,
     success,
 )
@@ -221,6 +222,26 @@ def test_coverage_rejects_coarse_raster() -> None:
     verts, faces = grid()
     with pytest.raises(ConfigError, match="resolution"):
         coverage(verts, faces, 0.09, resolution=0.005)
+
+
+def test_self_crossings_count_a_cloth_through_itself_only() -> None:
+    verts, faces = grid()
+    assert self_crossings(verts, faces) == 0  # flat
+    half, _ = fold_goal(verts, [HALF], 0.002)
+    assert self_crossings(half, faces) == 0  # folded in half, one layer 2 mm on the other
+    # Crumpled: the sheet bent into waves without touching itself.
+    wavy = verts.copy()
+    wavy[:, 2] = 0.05 * np.sin(wavy[:, 0] * 40)
+    assert self_crossings(wavy, faces) == 0
+    # The folded half's middle vertex pushed 1 cm down, through the layer beneath: the edges
+    # round it now pass through that layer's triangles.
+    through = half.copy()
+    top = np.flatnonzero(half[:, 2] > 0.001)
+    k = top[np.argmin(np.linalg.norm(half[top, :2] - [0.075, 0.0], axis=1))]
+    through[k, 2] = -0.01
+    assert self_crossings(through, faces) > 0
+    with pytest.raises(ConfigError, match="vertices"):
+        self_crossings(verts[:, :2], faces)
 
 
 # --- success ----------------------------------------------------------------------------------

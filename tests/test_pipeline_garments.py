@@ -17,6 +17,7 @@ from foldbot.garments import GARMENT_KEYPOINTS
 from foldbot.garments.pants import PantsSpec
 from foldbot.garments.towel import TowelSpec
 from foldbot.garments.tshirt import TShirtSpec
+from foldbot.metrics import self_crossings
 from foldbot.perception.overlay import GRASP_RGB, PLACE_RGB
 from foldbot.pipeline import (
     GARMENT_YAW,
@@ -191,6 +192,11 @@ def test_crumpled_towel_is_flattened_then_folded(tmp_path):
     assert 1 <= f["actions"] <= f["max_actions"] == 6
     assert f["success"] == (f["coverage_end"] >= 0.9)
     assert f["policy"] == "vision"
+    # whether the cloth passed through itself, crumpled and flattened: recomputed from the
+    # flattened cloth the fold started from (cloth.npz's initial)
+    cloth = np.load(out / "cloth.npz")
+    assert f["self_crossings_end"] == self_crossings(cloth["initial"], cloth["faces"])
+    assert isinstance(f["self_crossings_start"], int) and f["self_crossings_start"] >= 0
     assert len(f["pulls"]) >= f["actions"]
     assert (out / "overlay_flattened.png").is_file()
     assert (out / "flatten.png").is_file()  # every pull pictured

@@ -209,7 +209,19 @@ def flatten_and_score(
     entry = record.result_entry(
         start, end, cfg.max_actions, "vision" if oracle is None else "oracle"
     )
-    log(f"flattened: coverage {start:.2f} → {end:.2f} in {entry['actions']} actions")
+    # Ground truth, for the record only: a simulated cloth that has passed through itself is
+    # tangled, which a real one never is and no flattening undoes (docs/experiments.md).
+    entry["self_crossings_start"] = metrics.self_crossings(crumpled, faces)
+    entry["self_crossings_end"] = metrics.self_crossings(flattened, faces)
+    log(
+        f"flattened: coverage {start:.2f} → {end:.2f} in {entry['actions']} actions"
+        + (
+            f"; the simulated cloth has passed through itself ({entry['self_crossings_end']} "
+            "edges cross it)"
+            if entry["self_crossings_end"]
+            else ""
+        )
+    )
     return entry, flattened
 
 

@@ -430,6 +430,42 @@ def coverage(
     return float(cells * res * res / area)
 
 
+def self_crossings(vertices: np.ndarray, faces: np.ndarray) -> int:
+    """How many (edge, triangle) pairs of the mesh, sharing no vertex, cross: the edge passes
+    through the triangle. A real cloth never does (it cannot pass through itself); a simulated
+    one that has is tangled, and no flattening lays it flat. 0 for any untangled cloth, folded or
+    crumpled; a diagnostic on ground truth, not a metric of metrics.md."""
+    pts = _points("vertices", vertices)
+    tris = _faces(faces, pts.shape[0])
+    if tris.shape[0] == 0:
+        return 0
+    edges = np.unique(np.sort(tris[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1), axis=0)
+    p, q, r = (pts[tris[:, k]][None] for k in range(3))
+    normal = np.cross(q - p, r - p)
+    count = 0
+    for lo in range(0, edges.shape[0], 256):  # chunks keep the edge × triangle arrays small
+        e = edges[lo : lo + 256]
+        a, b = pts[e[:, 0]][:, None], pts[e[:, 1]][:, None]
+        # a and b on opposite sides of the triangle's plane …
+        sides = np.einsum("...i,...i->...", normal, a - p) * np.einsum(
+            "...i,...i->...", normal, b - p
+        )
+        # … and the line ab passing inside the triangle: the same turn round all three sides
+        d = b - a
+        turns = [
+            np.einsum("...i,...i->...", np.cross(d, u - a), w - a)
+            for u, w in ((p, q), (q, r), (r, p))
+        ]
+        inside = ((turns[0] > 0) & (turns[1] > 0) & (turns[2] > 0)) | (
+            (turns[0] < 0) & (turns[1] < 0) & (turns[2] < 0)
+        )
+        shared = (e[:, :1, None] == tris[None]).any(axis=2) | (e[:, 1:, None] == tris[None]).any(
+            axis=2
+        )
+        count += int(((sides < 0) & inside & ~shared).sum())
+    return count
+
+
 def fold_error_limit_mm(flat_area_m2: float) -> float:
     """Largest fold error (mm) a successful fold may have: 0.05 · √(flat area), in mm."""
     area = float(flat_area_m2)

@@ -120,7 +120,16 @@ def test_markdown_shows_the_flattening_with_intervals_over_the_towels(tiny_suite
     assert "## Flattening" in md
     # Coverage after: towel means 0.96 and 0.65, Student's t over the two towels, not four folds.
     lo, hi = mean_interval([0.96, 0.65])
-    assert f"| 0.80 / 0.82 / 0.97 | {lo:.2f}–{hi:.2f} |" in md
+    assert f"| 0.80 / 0.82 / 0.97 | {lo:.2f}–{hi:.2f} | – |" in md  # crossings not recorded
+    # With the crossings recorded: towel 1 crumpled through itself and stayed so, towel 0's
+    # second run passed through itself while flattening.
+    crossings = iter(((0, 0), (0, 3), (12, 9), (12, 14)))
+    for r in records:
+        start, end = next(crossings)
+        r["result"]["flatten"].update(self_crossings_start=start, self_crossings_end=end)
+    md = markdown(summarise(suite, records))
+    assert f"| {lo:.2f}–{hi:.2f} | 2 / 3 of 4 (2 of 2) |" in md
+    assert "*cloth passed through itself*" in md
 
 
 def test_markdown_shows_the_first_frames_perception(tiny_suite_data):

@@ -380,6 +380,25 @@ def flatten_stats(records: list[dict]) -> dict[str, Any] | None:
         "actions": towel_stats(crumpled, "flatten.actions"),
         "coverage_start": towel_stats(crumpled, "flatten.coverage_start"),
         "coverage_end": towel_stats(crumpled, "flatten.coverage_end"),
+        **_tangled(flat),
+    }
+
+
+def _tangled(flat: list[dict]) -> dict[str, int | None]:
+    """Of the finished flattenings that recorded it (metrics.self_crossings, ground truth): how
+    many crumpled cloths had passed through themselves, how many flattened ones, and how many of
+    the towels left unflattened had; None where none recorded it (runs before it was)."""
+    known = [f for f in flat if "self_crossings_end" in f]
+    if not known:
+        return {"tangled_start": None, "tangled_end": None, "unflattened_tangled": None}
+    return {
+        "tangled_start": sum(f["self_crossings_start"] > 0 for f in known),
+        "tangled_end": sum(f["self_crossings_end"] > 0 for f in known),
+        "unflattened": sum(not f.get("success") for f in known),
+        "unflattened_tangled": sum(
+            not f.get("success") and f["self_crossings_end"] > 0 for f in known
+        ),
+        "recorded": len(known),
     }
 
 
