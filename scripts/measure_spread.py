@@ -14,9 +14,15 @@ estimator sees on the heap (the cell's camera, the arm out of the world), also s
 true distance apart. Each pick's distance along the flat towel to the nearest true corner is
 recorded (`pick_to_corner_mm`). With `--arms 1`, what one gripper can do instead: hang the
 towel by one true corner (the corners in turn), at most 0.5 m up, still for 1 s, then lay it
-along its diagonal towards the near side. One JSON line per seed on stdout.
+along its diagonal towards the near side. `--shake A F AXIS` shakes both grippers before the
+hang, `--drag D` runs the lay on past the towel's length by D × the hang, `--frames DIR` saves a
+side-view picture sheet per spread, `--suite` takes another suite's towels. Each row records the
+cloth's self-crossings (metrics.self_crossings) crumpled, lifted, hung and laid. One JSON line
+per seed on stdout.
 
     .venv/bin/python scripts/measure_spread.py --seeds 0-19
+    .venv/bin/python scripts/measure_spread.py --seeds 0-19 --drag 0.3
+    .venv/bin/python scripts/measure_spread.py --seeds 6 --shake 0.03 3 z --frames runs/frames
     .venv/bin/python scripts/measure_spread.py --seeds 0-11 --grasp extremes
     .venv/bin/python scripts/measure_spread.py --seeds 0-19 --grasp vision
     .venv/bin/python scripts/measure_spread.py --seeds 0-19 --stretch 0.08
@@ -133,6 +139,7 @@ def measure(
     shake: tuple[float, float, str] = (0.0, 0.0, "z"),
     suite: str = "towel_crumpled",
     frames: str | None = None,
+    drag: float = 0.0,
 ) -> dict:
     """One seed (runs in the calling process: the first simulation in it)."""
     import pybullet as p
@@ -148,7 +155,7 @@ def measure(
     cfg = spec.to_config()
     flat = FlattenConfig()
     out: dict = {"seed": seed, "grasp": grasp, "stretch": stretch, "arms": arms, "coverage": []}
-    out.update(shake=list(shake), suite=suite)
+    out.update(shake=list(shake), suite=suite, drag=drag)
     wall = time.perf_counter()
     shots: list[np.ndarray] = []
     with SimWorld(cfg.sim) as world:
@@ -249,7 +256,11 @@ def measure(
                             [
                                 top,
                                 [top[0], top[1], table + depth * (1 + stretch) + 0.005],
-                                [centre[0] - depth * (0.5 + stretch), centre[1] + y, table + 0.02],
+                                [
+                                    centre[0] - depth * (0.5 + stretch + drag),
+                                    centre[1] + y,
+                                    table + 0.02,
+                                ],
                             ]
                         ),
                         LAY_SPEED,
@@ -321,6 +332,11 @@ def main() -> int:
     ap.add_argument(
         "--suite", default="towel_crumpled", help="whose towels (default towel_crumpled)"
     )
+    ap.add_argument(
+        "--drag", type=float, default=0.0,
+        help="the lay ends this fraction of the hang further towards the near side than the "
+        "towel's length asks: the last of it is dragged along the table, taut (default 0)",
+    )  # fmt: skip
     ap.add_argument("--frames", default=None, help="a side-view picture sheet per spread, in DIR")
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)  # child process: one seed
     args = ap.parse_args()
@@ -333,13 +349,21 @@ def main() -> int:
         )
     if args.one is not None:
         row = measure(
-            args.one, args.grasp, args.stretch, args.arms, (amp, hz, axis), args.suite, args.frames
+            args.one,
+            args.grasp,
+            args.stretch,
+            args.arms,
+            (amp, hz, axis),
+            args.suite,
+            args.frames,
+            args.drag,
         )
         print(json.dumps(row), flush=True)
         return 0
     extra = ["--grasp", args.grasp, "--stretch", str(args.stretch), "--arms", str(args.arms)]
     extra += ["--shake", *args.shake, "--suite", args.suite]
     extra += ["--frames", args.frames] if args.frames else []
+    extra += ["--drag", str(args.drag)]
     rows = run_each_seed(__file__, parse_seeds(args.seeds), extra)
     ok = [r for r in rows if "error" not in r]
     print(
