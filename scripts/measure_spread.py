@@ -140,6 +140,7 @@ def measure(
     suite: str = "towel_crumpled",
     frames: str | None = None,
     drag: float = 0.0,
+    lay_speed: float = LAY_SPEED,
 ) -> dict:
     """One seed (runs in the calling process: the first simulation in it)."""
     import pybullet as p
@@ -155,7 +156,7 @@ def measure(
     cfg = spec.to_config()
     flat = FlattenConfig()
     out: dict = {"seed": seed, "grasp": grasp, "stretch": stretch, "arms": arms, "coverage": []}
-    out.update(shake=list(shake), suite=suite, drag=drag)
+    out.update(shake=list(shake), suite=suite, drag=drag, lay_speed=lay_speed)
     wall = time.perf_counter()
     shots: list[np.ndarray] = []
     with SimWorld(cfg.sim) as world:
@@ -200,7 +201,7 @@ def measure(
                                         [centre[0] - depth / 2, centre[1], table + 0.02],
                                     ]
                                 ),
-                                LAY_SPEED,
+                                lay_speed,
                                 dt,
                             ),
                         ]
@@ -263,7 +264,7 @@ def measure(
                                 ],
                             ]
                         ),
-                        LAY_SPEED,
+                        lay_speed,
                         dt,
                     )
                     paths.append(np.vstack([up, jiggle, hang, lay]))
@@ -337,6 +338,10 @@ def main() -> int:
         help="the lay ends this fraction of the hang further towards the near side than the "
         "towel's length asks: the last of it is dragged along the table, taut (default 0)",
     )  # fmt: skip
+    ap.add_argument(
+        "--lay-speed", type=float, default=LAY_SPEED,
+        help=f"the lay's speed, m/s (default {LAY_SPEED}, SpreadConfig.lay_speed)",
+    )  # fmt: skip
     ap.add_argument("--frames", default=None, help="a side-view picture sheet per spread, in DIR")
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)  # child process: one seed
     args = ap.parse_args()
@@ -357,13 +362,14 @@ def main() -> int:
             args.suite,
             args.frames,
             args.drag,
+            args.lay_speed,
         )
         print(json.dumps(row), flush=True)
         return 0
     extra = ["--grasp", args.grasp, "--stretch", str(args.stretch), "--arms", str(args.arms)]
     extra += ["--shake", *args.shake, "--suite", args.suite]
     extra += ["--frames", args.frames] if args.frames else []
-    extra += ["--drag", str(args.drag)]
+    extra += ["--drag", str(args.drag), "--lay-speed", str(args.lay_speed)]
     rows = run_each_seed(__file__, parse_seeds(args.seeds), extra)
     ok = [r for r in rows if "error" not in r]
     print(
