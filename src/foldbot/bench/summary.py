@@ -390,7 +390,8 @@ def _tangled(flat: list[dict]) -> dict[str, int | None]:
     the towels left unflattened had; None where none recorded it (runs before it was)."""
     known = [f for f in flat if "self_crossings_end" in f]
     if not known:
-        return {"tangled_start": None, "tangled_end": None, "unflattened_tangled": None}
+        keys = ("tangled_start", "tangled_end", "unflattened", "unflattened_tangled", "recorded")
+        return dict.fromkeys(keys)
     return {
         "tangled_start": sum(f["self_crossings_start"] > 0 for f in known),
         "tangled_end": sum(f["self_crossings_end"] > 0 for f in known),
