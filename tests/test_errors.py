@@ -50,3 +50,19 @@ def test_failed_segment_is_found_through_the_errors_raised_from():
         assert errors.failed_segment(outer) == "approach"
     assert errors.failed_segment(errors.UnreachableTargetError("no segment named")) is None
     assert errors.failed_segment(ValueError("other")) is None
+
+
+def test_facts_attach_to_a_foldbot_error_and_the_nearer_entry_is_kept():
+    exc = errors.SimulationDivergedError("diverged")
+    assert exc.facts is None
+    errors.add_facts(exc, flatten={"actions": 2})
+    errors.add_facts(exc, flatten={"actions": 5}, crumple={"crossings": 3})
+    # The entry attached first, nearer the error, wins; a new entry is added beside it.
+    assert exc.facts == {"flatten": {"actions": 2}, "crumple": {"crossings": 3}}
+    assert errors.FoldbotError("other").facts is None  # not shared between errors
+
+
+def test_facts_leave_other_exceptions_alone():
+    exc = KeyError("a bug")
+    errors.add_facts(exc, flatten={"actions": 2})
+    assert not hasattr(exc, "facts")

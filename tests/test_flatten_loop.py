@@ -105,10 +105,11 @@ FAILING_SCRIPT = """
 import contextlib, json, sys
 import imageio.v3 as iio
 import numpy as np
+from foldbot import metrics
 from foldbot.errors import SimulationDivergedError
 from foldbot.flatten import flatten_and_score
 from foldbot.garments.towel import TowelSpec
-from foldbot.io.episode import EpisodeWriter
+from foldbot.io.episode import EpisodeWriter, to_jsonable
 from foldbot.perception.estimator import VisionEstimator
 from foldbot.perception.overlay import contact_sheet
 from foldbot.pipeline import EpisodeConfig, SimCell, build_sim_cell
@@ -137,14 +138,17 @@ try:
 
         world.add_step_hook(diverge)
         oracle = parts.oracle
+        crossings = metrics.self_crossings(oracle.cloth_vertices(), parts.mesh.faces)
         flatten_and_score(
             cell, (0.3, 0.3), oracle.cloth_vertices(), oracle.cloth_vertices,
             parts.mesh.faces, parts.mesh.area, writer.write_image, log=lambda s: None,
         )
 except SimulationDivergedError as exc:
-    error = {"message": str(exc), "notes": getattr(exc, "__notes__", [])}
+    error = {"message": str(exc), "notes": getattr(exc, "__notes__", []),
+             "facts": to_jsonable(exc.facts)}
 print(json.dumps({
     "error": error,
+    "crossings": crossings,
     "sheet_shape": list(iio.imread(writer.failed / "flatten.png").shape),
     "one_tile_shape": list(contact_sheet([frame], ["x"]).shape),
 }))
@@ -175,3 +179,9 @@ def test_an_error_while_flattening_keeps_the_picture_of_the_pulls(tmp_path):
     )
     # One tile: the first pull, drawn over the view it was planned from, stopped by the error.
     assert report["sheet_shape"] == report["one_tile_shape"]
+    # The error carries how far flattening got, for the benchmark's error record: no pull
+    # finished, and whether the crumpled cloth had passed through itself (ground truth).
+    flatten = report["error"]["facts"]["flatten"]
+    assert flatten["success"] is False and flatten["actions"] == 0 and flatten["ended_in_error"]
+    assert 0.0 < flatten["coverage_start"] < 1.0
+    assert flatten["self_crossings_start"] == report["crossings"]

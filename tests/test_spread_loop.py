@@ -24,6 +24,7 @@ from foldbot.sim.world import SimWorld
 
 seed = int(sys.argv[1])
 fault = float(sys.argv[2])  # m: the first spread aimed this far outside its corners
+configs = json.loads(sys.argv[3])  # FlattenConfig and SpreadConfig fields, or null
 cfg = EpisodeConfig(seed=seed, towel=TowelSpec(0.3, 0.3, 8), video_fps=0.0, arms=2)
 with SimWorld(cfg.sim) as world, contextlib.ExitStack() as stack:
     parts = build_sim_cell(cfg, world)
@@ -37,7 +38,12 @@ with SimWorld(cfg.sim) as world, contextlib.ExitStack() as stack:
         world, parts.robot, parts.executor, parts.camera, VisionEstimator(), cfg.motion,
         more_executors=parts.more_executors,
     )
-    if fault > 0:
+    if configs is not None:
+        rec = run_spreads(
+            FlattenConfig(**configs["flatten"]), SpreadConfig(**configs["spread"]), cell,
+            (0.3, 0.3), log=lambda s: None,
+        )
+    elif fault > 0:
         rec = run_spreads(
             FlattenConfig(max_actions=2), SpreadConfig(fault_grasp_offset=fault), cell,
             (0.3, 0.3), log=lambda s: None,
@@ -56,11 +62,12 @@ print(json.dumps({
 """
 
 
-def flatten_crumpled(seed: int, fault: float = 0.0) -> dict:
+def flatten_crumpled(seed: int, fault: float = 0.0, configs: dict | None = None) -> dict:
     """SCRIPT's report for `seed`, run in a fresh interpreter (`fault`: the first spread aimed
-    that far outside its corners, m; then two spreads instead of one flattening action)."""
+    that far outside its corners, m; then two spreads instead of one flattening action;
+    `configs`: {"flatten": FlattenConfig fields, "spread": SpreadConfig fields} for run_spreads)."""
     out = subprocess.run(
-        [sys.executable, "-c", SCRIPT, str(seed), str(fault)],
+        [sys.executable, "-c", SCRIPT, str(seed), str(fault), json.dumps(configs)],
         capture_output=True,
         text=True,
         timeout=900,
@@ -125,3 +132,31 @@ def test_a_missed_spread_is_followed_by_another_pair():
     assert first["retries"] == 1 and "no cloth" in first["grasp_reason"]
     assert second["kind"] == "flatten_spread"
     assert set(second["label"].split()[1::2]) != set(first["label"].split()[1::2])
+
+
+@pytest.mark.slow
+def test_a_towel_already_at_the_target_gets_a_finishing_pull():
+    """With a finishing coverage, reaching the target does not end the flattening while
+    actions remain: one arm pulls the outline's shortest point out (here the target is so low
+    that the crumpled towel starts over it, and the finishing coverage so high that it never
+    ends it); without one, nothing moves."""
+    configs = {"flatten": {"target_coverage": 0.05, "max_actions": 1, "finish_coverage": None}}
+    configs["spread"] = {}
+    assert flatten_crumpled(4, configs=configs)["actions"] == []
+    configs["flatten"]["finish_coverage"] = 1.5
+    report = flatten_crumpled(4, configs=configs)
+    (action,) = report["actions"]
+    assert action["kind"] == "flatten_pull" and action["label"].startswith("pull ")
+    assert action["coverage_before"] == report["initial"] >= 0.05
+    assert report["captions"][0].startswith(f"1: {action['label']}")
+
+
+@pytest.mark.slow
+def test_over_the_pull_coverage_the_cell_pulls_instead_of_spreading(spread):
+    """Seed 4's heap, spread by both arms above (`spread`), is pulled by one arm once the
+    pull coverage lies under its perceived coverage."""
+    configs = {"flatten": {"max_actions": 1}, "spread": {"pull_from": 0.0}}
+    report = flatten_crumpled(4, configs=configs)
+    (action,) = report["actions"]
+    assert action["kind"] == "flatten_pull"
+    assert report["initial"] == spread["initial"]  # the same heap, seen the same

@@ -2,9 +2,15 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 
 class FoldbotError(Exception):
     """Base class of every error foldbot raises deliberately."""
+
+    facts: dict[str, Any] | None = None
+    """What the episode had measured before this error (result.json's entries so far, e.g. its
+    "flatten" entry), kept in the benchmark's error record; None where nothing was."""
 
 
 class ConfigError(FoldbotError, ValueError):
@@ -51,6 +57,13 @@ def failed_segment(error: BaseException) -> str | None:
             return str(segment)
         seen = seen.__cause__
     return None
+
+
+def add_facts(error: BaseException, **facts: Any) -> None:
+    """Attach `facts` to a FoldbotError (beside any it carries; an entry already there is kept,
+    being the nearer to the error); other exceptions, bugs, are left as they are."""
+    if isinstance(error, FoldbotError):
+        error.facts = {**facts, **(error.facts or {})}
 
 
 def require(condition: bool, message: str) -> None:

@@ -29,6 +29,7 @@ from foldbot.errors import (
     ArmsWouldCollideError,
     FoldbotError,
     UnreachableTargetError,
+    add_facts,
     failed_segment,
     require,
 )
@@ -134,8 +135,8 @@ def run_flatten(
     record: FlattenRecord | None = None,
 ) -> FlattenRecord:
     """Flatten the cloth on `cell` with pick-and-place pulls until its perceived coverage of
-    the item's expected `(width, height)` (m) reaches `cfg.target_coverage`, or `cfg.max_actions`.
-    The pulls are planned from perception, or by `oracle` (ground truth, for comparison). A
+    the item's expected `(width, height)` (m) reaches `cfg.target_coverage` (`cfg.finish_coverage`
+    where that is higher: finishing pulls), or `cfg.max_actions`. The pulls are planned from perception, or by `oracle` (ground truth, for comparison). A
     two-arm cell spreads the towel instead (run_spreads; the oracle still pulls).
     Fills and returns `record` (a new one if None), so a caller holding it keeps the pulls made
     before an error; the pull an error stopped gets its overlay, captioned with the error."""
@@ -151,7 +152,12 @@ def run_flatten(
     coverage = rec.initial_coverage = perceived_coverage(state, area)
     log(f"flatten: perceived coverage {coverage:.2f} (target {cfg.target_coverage:.2f})")
     yaw, expected = None, None
-    while coverage < cfg.target_coverage and len(rec.actions) < cfg.max_actions:
+    finishing = True  # until a finishing pull loses the target
+    while len(rec.actions) < cfg.max_actions:
+        if coverage >= cfg.target_coverage:
+            if not finishing or coverage >= cfg.stop_coverage:
+                break
+            log(f"  coverage {coverage:.2f} is under {cfg.stop_coverage:.2f}: a finishing pull")
         if oracle is not None:
             expected, pulls = oracle(state, cfg)
         else:
@@ -163,10 +169,24 @@ def run_flatten(
         if not pulls:
             log("flatten: no point of the expected outline is short enough to pull")
             break
+        before = coverage
         state, obs, coverage = _pull_step(
             cfg, cell, state, obs, pulls, expected, coverage, area, rec, log
         )
+        finishing = finishing and not _lost_target(cfg, before, coverage, log)
     return rec.finish(coverage, cfg.target_coverage, state, obs, expected)
+
+
+def _lost_target(
+    cfg: FlattenConfig, before: float, after: float, log: Callable[[str], None]
+) -> bool:
+    """Whether a finishing pull (from `before`, at or over the target) took the perceived
+    coverage back under the target (`after`): flattening then stops finishing, so a pull that
+    made things worse is not repeated until the actions run out (logged)."""
+    lost = before >= cfg.target_coverage > after
+    if lost:
+        log("  the finishing pull lost the target: no more finishing pulls")
+    return lost
 
 
 def flatten_and_score(
@@ -188,12 +208,29 @@ def flatten_and_score(
     flatten.png: each pull over the view it was planned from, then the view it ended on; after
     an error, the pulls up to it (the episode's `DIR.failed/` keeps it)."""
     start = metrics.coverage(crumpled, faces, flat_area)
-    log(f"crumpled: coverage {start:.2f}; flattening…")
+    # Ground truth, for the record only: a simulated cloth that has passed through itself is
+    # tangled, which a real one never is and no flattening undoes (docs/experiments.md).
+    crossings = metrics.self_crossings(crumpled, faces)
+    log(
+        f"crumpled: coverage {start:.2f}"
+        + (f", passed through itself ({crossings} edges cross it)" if crossings else "")
+        + "; flattening…"
+    )
     cfg = FlattenConfig()
     record = FlattenRecord()
     try:
         run_flatten(cfg, cell, expected_size, log, oracle, record)
-    except Exception:  # flatten.png still shows the pulls up to the error
+    except Exception as exc:  # flatten.png still shows the pulls up to the error
+        add_facts(
+            exc,
+            flatten={
+                "success": False,
+                "actions": sum(not a.get("skipped_unreachable", False) for a in record.actions),
+                "coverage_start": start,
+                "self_crossings_start": crossings,
+                "ended_in_error": True,
+            },
+        )
         sheet = record.sheet()
         if sheet is not None:
             with contextlib.suppress(Exception):  # the error itself is what must surface
@@ -209,9 +246,7 @@ def flatten_and_score(
     entry = record.result_entry(
         start, end, cfg.max_actions, "vision" if oracle is None else "oracle"
     )
-    # Ground truth, for the record only: a simulated cloth that has passed through itself is
-    # tangled, which a real one never is and no flattening undoes (docs/experiments.md).
-    entry["self_crossings_start"] = metrics.self_crossings(crumpled, faces)
+    entry["self_crossings_start"] = crossings
     entry["self_crossings_end"] = metrics.self_crossings(flattened, faces)
     log(
         f"flattened: coverage {start:.2f} → {end:.2f} in {entry['actions']} actions"
@@ -376,7 +411,9 @@ def run_spreads(
     corners lifted, spread, hung and laid) until its perceived coverage of the expected
     `(width, height)` (m) reaches `cfg.target_coverage`, or `cfg.max_actions` spreads. Fills and
     returns `record` as run_flatten does; each spread's entry has kind "flatten_spread", and
-    where no spread is feasible the action is one pull (kind "flatten_pull")."""
+    where no spread is feasible the action is one pull (kind "flatten_pull"). Pulls by one arm
+    also go on past the target up to `cfg.finish_coverage` (finishing pulls), and replace the
+    spread from `spread.pull_from` up, where those are set."""
     require(cell.arms == 2, f"a spread needs a two-arm cell, this one has {cell.arms}")
     width, height = (float(v) for v in expected_size)
     area = width * height
@@ -389,7 +426,24 @@ def run_spreads(
     log(f"flatten: perceived coverage {coverage:.2f} (target {cfg.target_coverage:.2f}), spreading")
     laid = None  # where the last spread that carried the towel let go
     missed_corners = None  # the corners whose grasps the last spread missed (its retry too)
-    while coverage < cfg.target_coverage and len(rec.actions) < cfg.max_actions:
+    finishing = True  # until a finishing pull loses the target
+    while len(rec.actions) < cfg.max_actions:
+        if coverage >= cfg.target_coverage:
+            if not finishing or coverage >= cfg.stop_coverage:
+                break
+            log(f"  coverage {coverage:.2f} is under {cfg.stop_coverage:.2f}: a finishing pull")
+            pulled = _pull_instead(cfg, cell, state, obs, expected_size, log, rec)
+            if pulled is None:
+                break
+            before, (state, obs, coverage) = coverage, pulled
+            finishing = not _lost_target(cfg, before, coverage, log)
+            continue
+        if spread.pull_from is not None and coverage >= spread.pull_from:
+            log(f"  coverage {coverage:.2f} is {spread.pull_from:.2f} or more: a pull")
+            pulled = _pull_instead(cfg, cell, state, obs, expected_size, log, rec)
+            if pulled is not None:
+                state, obs, coverage = pulled
+                continue
         t_sim, t_wall = cell.sim_time, time.perf_counter()
         seen_state, seen_obs = state, obs
         attempts: list[dict] = []
@@ -432,7 +486,12 @@ def run_spreads(
             raise
         if plan is None:  # not one spread feasible: one pull instead, by the arm beside it
             log("  no spread is feasible here; one pull instead")
-            state, obs, coverage = _pull_instead(cfg, cell, state, obs, expected_size, log, rec)
+            pulled = _pull_instead(cfg, cell, state, obs, expected_size, log, rec)
+            if pulled is None:
+                raise FoldbotError(
+                    "no spread is feasible and no point of the outline is short to pull"
+                )
+            state, obs, coverage = pulled
             continue
         after = perceived_coverage(state, area) if state.detected else 0.0
         if outcomes[0]["carried"]:
@@ -544,14 +603,16 @@ def _pull_instead(
     expected_size: tuple[float, float],
     log: Callable[[str], None],
     rec: FlattenRecord,
-) -> tuple[ClothState, Observation, float]:
+) -> tuple[ClothState, Observation, float] | None:
     """One flattening pull by the arm on the grasp's side (run_flatten's _pull_step), recorded
     in `rec` as one of the flattening actions; returns the state, observation and perceived
-    coverage it ends on."""
+    coverage it ends on, or None where no point of the expected outline is short enough to pull
+    (logged; nothing moved)."""
     width, height = (float(v) for v in expected_size)
     fit, pulls = plan_pulls(state, width, height, cfg, cloth_surface(obs, state, cfg))
     if not pulls:
-        raise FoldbotError("no spread is feasible and no point of the outline is short to pull")
+        log("  no point of the expected outline is short enough to pull")
+        return None
     expected = expected_outline_world(fit, state.table_plane)
     area = width * height
     coverage = perceived_coverage(state, area)

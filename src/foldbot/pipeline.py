@@ -28,7 +28,7 @@ from foldbot.control.executor import (
     move_joints_together,
     run_together,
 )
-from foldbot.errors import UnreachableTargetError, require
+from foldbot.errors import UnreachableTargetError, add_facts, require
 from foldbot.flatten import flatten_and_score
 from foldbot.garment_loop import run_garment_fold
 from foldbot.garments import sample_garment
@@ -677,7 +677,12 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
         initial = oracle.cloth_vertices()
         fold = run_fold if cfg.garment == "towel" else run_garment_fold
         loop_cfg = loop_config(cfg, cloth.thickness)
-        record = fold_and_picture(fold, loop_cfg, cell, writer.write_image, log)
+        try:
+            record = fold_and_picture(fold, loop_cfg, cell, writer.write_image, log)
+        except Exception as exc:  # the error record keeps how the flattening went
+            if flattened is not None:
+                add_facts(exc, flatten=flattened)
+            raise
         final = oracle.cloth_vertices()
         score = score_episode(initial, final, mesh.faces, record.fold_lines, cloth.thickness)
         if recorder is not None:

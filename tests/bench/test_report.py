@@ -130,6 +130,23 @@ def test_markdown_shows_the_flattening_with_intervals_over_the_towels(tiny_suite
     md = markdown(summarise(suite, records))
     assert f"| {lo:.2f}–{hi:.2f} | 2 / 3 of 4 (2 of 2) |" in md
     assert "*cloth passed through itself*" in md
+    assert "episodes that ended in an error" not in md  # none did
+    # Two more towels' episodes ended in errors: one while flattening a tangled heap, one in
+    # the fold after flattening; a third's record (a run before facts were kept) says nothing.
+    records[1:] = [
+        {"id": records[1]["id"], "error_type": "SimulationDivergedError", "error": "x",
+         "facts": {"flatten": {"success": False, "actions": 1, "self_crossings_start": 7}}},
+        {"id": records[2]["id"], "error_type": "SimulationDivergedError", "error": "x",
+         "facts": {"flatten": {"success": True, "actions": 2, "self_crossings_start": 0,
+                               "self_crossings_end": 0}}},
+        {"id": records[3]["id"], "error_type": "Timeout", "error": "no result"},
+    ]  # fmt: skip
+    md = markdown(summarise(suite, records))
+    assert (
+        "of the 3 episodes that ended in an error, 1 of the 2 whose record kept the crumple had "
+        "passed through themselves once crumpled; 1 had been flattened before the error, in the "
+        "fold."
+    ) in md
 
 
 def test_markdown_shows_the_first_frames_perception(tiny_suite_data):

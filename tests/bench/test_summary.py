@@ -154,6 +154,30 @@ def test_flatten_figures_with_replicates_are_over_the_towels():
     # Each towel flattened once: over the episodes, as before.
     once = group_stats(records[::3])["flatten"]
     assert once["actions"]["mean_ci95"] == pytest.approx(mean_interval([1.0, 5.0]))
+    assert (f["errors"], f["errors_recorded"], f["errors_tangled_start"]) == (0, None, None)
+
+
+def test_flatten_figures_count_what_episodes_ending_in_errors_kept():
+    def crumpled(seed: int) -> str:
+        return f"towel-half-vision-closed-crumpled-s{seed:04d}"
+
+    flat = {"success": True, "actions": 1, "coverage_start": 0.4, "coverage_end": 0.95}
+    records = [
+        {"id": crumpled(0), "result": {**result(True, 5.0, 0.9), "flatten": flat}},
+        # Diverged while flattening a cloth the crumple had passed through itself …
+        {"id": crumpled(1), "error_type": "SimulationDivergedError", "error": "x",
+         "facts": {"flatten": {"success": False, "actions": 3, "self_crossings_start": 12,
+                               "ended_in_error": True}}},
+        # … in the fold after flattening an untangled one …
+        {"id": crumpled(2), "error_type": "SimulationDivergedError", "error": "x",
+         "facts": {"flatten": {**flat, "self_crossings_start": 0, "self_crossings_end": 0}}},
+        # … and a crumple that failed before any flattening (nothing kept).
+        {"id": crumpled(3), "error_type": "FoldbotError", "error": "crumple left the table"},
+    ]  # fmt: skip
+    f = group_stats(records)["flatten"]
+    assert (f["episodes"], f["successes"]) == (4, 1)  # an episode not scored is not counted
+    assert (f["errors"], f["errors_recorded"], f["errors_tangled_start"]) == (3, 2, 1)
+    assert f["errors_after_flattening"] == 1
 
 
 def test_clustered_success_interval_counts_what_replicates_are_worth():

@@ -159,6 +159,8 @@ def test_no_cloth_is_a_clear_error():
     [
         ({"target_coverage": 0.0}, r"target_coverage must be in \(0, 1.5\], got 0.0"),
         ({"target_coverage": float("nan")}, r"target_coverage must be in \(0, 1.5\]"),
+        ({"finish_coverage": 0.0}, r"finish_coverage must be None or in \(0, 1.5\], got 0.0"),
+        ({"finish_coverage": "high"}, r"finish_coverage must be None or in \(0, 1.5\]"),
         ({"max_actions": -1}, r"max_actions must be an integer in \[0, 50\], got -1"),
         ({"max_actions": 2.5}, r"max_actions must be an integer in \[0, 50\], got 2.5"),
         ({"grasp_inset": 0.5}, r"grasp_inset must be in \[0, 0.1\], got 0.5"),
@@ -172,6 +174,13 @@ def test_no_cloth_is_a_clear_error():
 def test_bad_config_values_name_the_value_and_the_allowed_range(kwargs, needle):
     with pytest.raises(ConfigError, match=needle):
         FlattenConfig(**kwargs)
+
+
+def test_flattening_stops_at_the_finishing_coverage_where_it_is_higher():
+    assert FlattenConfig(finish_coverage=None).stop_coverage == FlattenConfig().target_coverage
+    assert FlattenConfig().stop_coverage == 0.95  # finishing pulls by default
+    assert FlattenConfig(target_coverage=0.9, finish_coverage=0.95).stop_coverage == 0.95
+    assert FlattenConfig(target_coverage=0.9, finish_coverage=0.8).stop_coverage == 0.9
 
 
 def test_bad_expected_size_is_a_clear_error():

@@ -175,6 +175,8 @@ def test_the_way_to_the_corners_is_the_same_at_every_margin():
         ({"slow_descent": 0.0}, "slow_descent"),
         ({"hang_margins": ()}, "hang_margins"),
         ({"hang_margins": (0.5,)}, "hang_margins"),
+        ({"pull_from": -0.1}, r"pull_from must be None or in \[0, 1.5\], got -0.1"),
+        ({"pull_from": float("inf")}, "pull_from"),
     ],
 )
 def test_bad_config_is_named(kw, match):

@@ -200,6 +200,22 @@ def markdown(summary: dict) -> str:
             "unflattened had. A real cloth cannot pass through itself; a simulated one that has "
             "is tangled, and no flattening lays it flat.",
         ]
+        for name, f in flat_rows:
+            if not f.get("errors_recorded"):
+                continue
+            lines += [
+                "",
+                f"{name}: of the {f['errors']} episodes that ended in an error, "
+                f"{f['errors_tangled_start']} of the {f['errors_recorded']} whose record kept "
+                "the crumple had passed through themselves once crumpled"
+                + (
+                    f"; {f['errors_after_flattening']} had been flattened before the error, "
+                    "in the fold"
+                    if f["errors_after_flattening"]
+                    else ""
+                )
+                + ".",
+            ]
     seen_rows = [(n, g["first_frame_keypoints"]) for n, g in rows if g.get("first_frame_keypoints")]
     if seen_rows:
         lines += [

@@ -381,6 +381,27 @@ def flatten_stats(records: list[dict]) -> dict[str, Any] | None:
         "coverage_start": towel_stats(crumpled, "flatten.coverage_start"),
         "coverage_end": towel_stats(crumpled, "flatten.coverage_end"),
         **_tangled(flat),
+        **_ended_in_error(crumpled),
+    }
+
+
+def _ended_in_error(crumpled: list[dict]) -> dict[str, int | None]:
+    """Of the crumpled episodes that ended in an error: how many; of those whose record keeps
+    the flattening (worker.run_spec's "facts"; runs before it did not), how many crumpled cloths
+    had passed through themselves (ground truth) and how many had been flattened before the
+    error (in the fold after it: still counted unflattened above, as the episode was not
+    scored); None where no record kept it."""
+    errors = [r for r in crumpled if "result" not in r]
+    kept = [
+        f
+        for r in errors
+        if "self_crossings_start" in (f := (r.get("facts") or {}).get("flatten") or {})
+    ]
+    return {
+        "errors": len(errors),
+        "errors_recorded": len(kept) if kept else None,
+        "errors_tangled_start": sum(f["self_crossings_start"] > 0 for f in kept) if kept else None,
+        "errors_after_flattening": sum(bool(f.get("success")) for f in kept) if kept else None,
     }
 
 

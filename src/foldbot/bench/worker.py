@@ -17,7 +17,7 @@ from pathlib import Path
 
 from foldbot.bench.suite import EpisodeSpec
 from foldbot.errors import FoldbotError
-from foldbot.io.episode import failed_dir, is_failed_dir
+from foldbot.io.episode import failed_dir, is_failed_dir, to_jsonable
 
 
 def write_json_atomic(path: Path, data: object) -> None:
@@ -51,6 +51,8 @@ def run_spec(spec: EpisodeSpec, out: Path) -> dict:
             "error": str(exc),
             "log_tail": lines[-LOG_TAIL:],
         }
+        if exc.facts:  # what the episode had measured before the error (its flattening …)
+            record["facts"] = to_jsonable(exc.facts)
         if is_failed_dir(failed_dir(out)):  # the video and pictures up to the error
             record["failed_dir"] = failed_dir(out).name
         return record

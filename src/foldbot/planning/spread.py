@@ -64,8 +64,17 @@ class SpreadConfig:
     """Fault injection for tests (m; 0 in use): the first spread's grasps, its retry too, are
     aimed this far outside the perceived corners, onto bare table, so the recovery from a missed
     spread can be exercised (flatten.run_spreads)."""
+    pull_from: float | None = None
+    """At or above this perceived coverage the cell pulls (one arm, planning.flatten's pulls)
+    instead of spreading: a spread lifts the whole towel, a pull moves one short corner or edge.
+    None: spreads up to the target."""
 
     def __post_init__(self) -> None:
+        v = self.pull_from
+        require(
+            v is None or (isinstance(v, int | float) and math.isfinite(v) and 0.0 <= v <= 1.5),
+            f"SpreadConfig.pull_from must be None or in [0, 1.5], got {v!r}",
+        )
         require(
             len(self.hang_margins) >= 1
             and all(isinstance(m, int | float) and 0.0 <= m <= 0.3 for m in self.hang_margins),
