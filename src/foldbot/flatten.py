@@ -152,12 +152,8 @@ def run_flatten(
     coverage = rec.initial_coverage = perceived_coverage(state, area)
     log(f"flatten: perceived coverage {coverage:.2f} (target {cfg.target_coverage:.2f})")
     yaw, expected = None, None
-    finishing = True  # until a finishing pull loses the target
-    while len(rec.actions) < cfg.max_actions:
-        if coverage >= cfg.target_coverage:
-            if not finishing or coverage >= cfg.stop_coverage:
-                break
-            log(f"  coverage {coverage:.2f} is under {cfg.stop_coverage:.2f}: a finishing pull")
+    stop = _Stop(cfg, log)
+    while len(rec.actions) < cfg.max_actions and not stop.reached(coverage):
         if oracle is not None:
             expected, pulls = oracle(state, cfg)
         else:
@@ -173,20 +169,34 @@ def run_flatten(
         state, obs, coverage = _pull_step(
             cfg, cell, state, obs, pulls, expected, coverage, area, rec, log
         )
-        finishing = finishing and not _lost_target(cfg, before, coverage, log)
+        stop.pulled(before, coverage)
     return rec.finish(coverage, cfg.target_coverage, state, obs, expected)
 
 
-def _lost_target(
-    cfg: FlattenConfig, before: float, after: float, log: Callable[[str], None]
-) -> bool:
-    """Whether a finishing pull (from `before`, at or over the target) took the perceived
-    coverage back under the target (`after`): flattening then stops finishing, so a pull that
-    made things worse is not repeated until the actions run out (logged)."""
-    lost = before >= cfg.target_coverage > after
-    if lost:
-        log("  the finishing pull lost the target: no more finishing pulls")
-    return lost
+@dataclass
+class _Stop:
+    """When flattening stops: at the target coverage, or where `cfg.finish_coverage` is higher,
+    on to it by finishing pulls, until one of them takes the coverage back under the target
+    (a pull that made things worse is not repeated until the actions run out)."""
+
+    cfg: FlattenConfig
+    log: Callable[[str], None]
+    finishing: bool = True
+
+    def reached(self, coverage: float) -> bool:
+        """Whether flattening stops at perceived `coverage` (logs a finishing pull's start)."""
+        if coverage < self.cfg.target_coverage:
+            return False
+        if not self.finishing or coverage >= self.cfg.stop_coverage:
+            return True
+        self.log(f"  coverage {coverage:.2f} is under {self.cfg.stop_coverage:.2f}: finishing")
+        return False
+
+    def pulled(self, before: float, after: float) -> None:
+        """Note a pull that took the perceived coverage from `before` to `after`."""
+        if self.finishing and before >= self.cfg.target_coverage > after:
+            self.finishing = False
+            self.log("  the finishing pull lost the target: no more finishing pulls")
 
 
 def flatten_and_score(
@@ -426,17 +436,14 @@ def run_spreads(
     log(f"flatten: perceived coverage {coverage:.2f} (target {cfg.target_coverage:.2f}), spreading")
     laid = None  # where the last spread that carried the towel let go
     missed_corners = None  # the corners whose grasps the last spread missed (its retry too)
-    finishing = True  # until a finishing pull loses the target
-    while len(rec.actions) < cfg.max_actions:
-        if coverage >= cfg.target_coverage:
-            if not finishing or coverage >= cfg.stop_coverage:
-                break
-            log(f"  coverage {coverage:.2f} is under {cfg.stop_coverage:.2f}: a finishing pull")
+    stop = _Stop(cfg, log)
+    while len(rec.actions) < cfg.max_actions and not stop.reached(coverage):
+        if coverage >= cfg.target_coverage:  # a finishing pull
             pulled = _pull_instead(cfg, cell, state, obs, expected_size, log, rec)
             if pulled is None:
                 break
             before, (state, obs, coverage) = coverage, pulled
-            finishing = not _lost_target(cfg, before, coverage, log)
+            stop.pulled(before, coverage)
             continue
         if spread.pull_from is not None and coverage >= spread.pull_from:
             log(f"  coverage {coverage:.2f} is {spread.pull_from:.2f} or more: a pull")
