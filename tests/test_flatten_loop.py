@@ -185,3 +185,24 @@ def test_an_error_while_flattening_keeps_the_picture_of_the_pulls(tmp_path):
     assert flatten["success"] is False and flatten["actions"] == 0 and flatten["ended_in_error"]
     assert 0.0 < flatten["coverage_start"] < 1.0
     assert flatten["self_crossings_start"] == report["crossings"]
+
+
+def test_finishing_pulls_stop_once_one_loses_the_target():
+    from foldbot.flatten import _Stop
+    from foldbot.planning.flatten import FlattenConfig
+
+    logged: list[str] = []
+    stop = _Stop(FlattenConfig(target_coverage=0.9, finish_coverage=0.95), logged.append)
+    assert not stop.reached(0.5)  # flattening goes on
+    assert not stop.reached(0.91) and "finishing" in logged[-1]  # a finishing pull
+    stop.pulled(0.91, 0.93)  # it helped: finishing goes on
+    assert not stop.reached(0.93)
+    assert stop.reached(0.95)  # finished
+    stop.pulled(0.93, 0.88)  # a finishing pull that lost the target …
+    assert "lost the target" in logged[-1]
+    assert not stop.reached(0.88)  # … flattening pulls on to the target …
+    stop.pulled(0.88, 0.91)
+    assert stop.reached(0.91)  # … and stops there
+    assert stop.reached(0.9) and not stop.reached(0.89)
+    # Without a finishing coverage flattening stops at the target.
+    assert _Stop(FlattenConfig(finish_coverage=None), logged.append).reached(0.9)

@@ -135,9 +135,10 @@ def run_flatten(
     record: FlattenRecord | None = None,
 ) -> FlattenRecord:
     """Flatten the cloth on `cell` with pick-and-place pulls until its perceived coverage of
-    the item's expected `(width, height)` (m) reaches `cfg.target_coverage` (`cfg.finish_coverage`
-    where that is higher: finishing pulls), or `cfg.max_actions`. The pulls are planned from perception, or by `oracle` (ground truth, for comparison). A
-    two-arm cell spreads the towel instead (run_spreads; the oracle still pulls).
+    the item's expected `(width, height)` (m) reaches `cfg.target_coverage` (on to
+    `cfg.finish_coverage` where that is higher: finishing pulls), or `cfg.max_actions`. The
+    pulls are planned from perception, or by `oracle` (ground truth, for comparison). A two-arm
+    cell spreads the towel instead (run_spreads; the oracle still pulls).
     Fills and returns `record` (a new one if None), so a caller holding it keeps the pulls made
     before an error; the pull an error stopped gets its overlay, captioned with the error."""
     rec = FlattenRecord() if record is None else record

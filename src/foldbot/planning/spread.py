@@ -67,7 +67,9 @@ class SpreadConfig:
     pull_from: float | None = None
     """At or above this perceived coverage the cell pulls (one arm, planning.flatten's pulls)
     instead of spreading: a spread lifts the whole towel, a pull moves one short corner or edge.
-    None: spreads up to the target."""
+    None: spreads up to the target (towel_crumpled_two_arms over 40 towels at 0.8: flattened 21
+    either way, folds 18 against 20; a spread from 0.8–0.9 often lays the towel at 0.98–1.00,
+    the pulls that replaced it 0.90–0.97)."""
 
     def __post_init__(self) -> None:
         v = self.pull_from
