@@ -397,11 +397,14 @@ def _ended_in_error(crumpled: list[dict]) -> dict[str, int | None]:
         for r in errors
         if "self_crossings_start" in (f := (r.get("facts") or {}).get("flatten") or {})
     ]
+    if not kept:
+        keys = ("errors_recorded", "errors_tangled_start", "errors_after_flattening")
+        return {"errors": len(errors), **dict.fromkeys(keys)}
     return {
         "errors": len(errors),
-        "errors_recorded": len(kept) if kept else None,
-        "errors_tangled_start": sum(f["self_crossings_start"] > 0 for f in kept) if kept else None,
-        "errors_after_flattening": sum(bool(f.get("success")) for f in kept) if kept else None,
+        "errors_recorded": len(kept),
+        "errors_tangled_start": sum(f["self_crossings_start"] > 0 for f in kept),
+        "errors_after_flattening": sum(bool(f.get("success")) for f in kept),
     }
 
 
