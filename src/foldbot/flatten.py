@@ -133,17 +133,19 @@ def run_flatten(
     log: Callable[[str], None] = print,
     oracle: PullOracle | None = None,
     record: FlattenRecord | None = None,
+    spread: SpreadConfig | None = None,
 ) -> FlattenRecord:
     """Flatten the cloth on `cell` with pick-and-place pulls until its perceived coverage of
     the item's expected `(width, height)` (m) reaches `cfg.target_coverage` (on to
     `cfg.finish_coverage` where that is higher: finishing pulls), or `cfg.max_actions`. The
     pulls are planned from perception, or by `oracle` (ground truth, for comparison). A two-arm
-    cell spreads the towel instead (run_spreads; the oracle still pulls).
+    cell spreads the towel instead (run_spreads, by `spread` or SpreadConfig's defaults; the
+    oracle still pulls).
     Fills and returns `record` (a new one if None), so a caller holding it keeps the pulls made
     before an error; the pull an error stopped gets its overlay, captioned with the error."""
     rec = FlattenRecord() if record is None else record
     if oracle is None and cell.arms == 2:
-        return run_spreads(cfg, SpreadConfig(), cell, expected_size, log, rec)
+        return run_spreads(cfg, spread or SpreadConfig(), cell, expected_size, log, rec)
     width, height = (float(v) for v in expected_size)
     area = width * height
     cell.park()
@@ -210,8 +212,11 @@ def flatten_and_score(
     write_image: Callable[[str, np.ndarray], object],
     log: Callable[[str], None] = print,
     oracle: PullOracle | None = None,
+    cfg: FlattenConfig | None = None,
+    spread: SpreadConfig | None = None,
 ) -> tuple[dict[str, Any], np.ndarray]:
-    """Flatten a crumpled cloth on `cell` (run_flatten, FlattenConfig's defaults) and score it,
+    """Flatten a crumpled cloth on `cell` (run_flatten, by `cfg` and `spread` or their defaults:
+    the episode's flatten options, foldbot.flatten_options) and score it,
     in process or over ROS alike. `crumpled` (the cloth's vertices now) and `ground_truth` (read
     after flattening) are GROUND TRUTH, for the coverages only; `oracle` plans the pulls from
     ground truth instead of perception (the entry's "policy"). Writes overlay_flattened.png;
@@ -227,10 +232,10 @@ def flatten_and_score(
         + (f", passed through itself ({crossings} edges cross it)" if crossings else "")
         + "; flattening…"
     )
-    cfg = FlattenConfig()
+    cfg = FlattenConfig() if cfg is None else cfg
     record = FlattenRecord()
     try:
-        run_flatten(cfg, cell, expected_size, log, oracle, record)
+        run_flatten(cfg, cell, expected_size, log, oracle, record, spread)
     except Exception as exc:  # flatten.png still shows the pulls up to the error
         add_facts(
             exc,

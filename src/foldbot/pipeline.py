@@ -30,6 +30,12 @@ from foldbot.control.executor import (
 )
 from foldbot.errors import UnreachableTargetError, add_facts, require
 from foldbot.flatten import flatten_and_score
+from foldbot.flatten_options import (
+    FlattenOptionValue,
+    check_flatten_options,
+    flatten_configs,
+    refused_flatten_options,
+)
 from foldbot.garment_loop import run_garment_fold
 from foldbot.garments import sample_garment
 from foldbot.garments.mesh import ClothMesh
@@ -148,6 +154,10 @@ class EpisodeConfig:
     loop_options: dict[str, LoopOptionValue] = field(default_factory=dict)
     """The closed loop's switches set by name (loop_options.LOOP_OPTIONS: top_layer_first,
     stack_edge_carry, pair_descent, …); those not named keep LoopConfig's defaults."""
+    flatten_options: dict[str, FlattenOptionValue] = field(default_factory=dict)
+    """How a crumpled towel is flattened, set by name (flatten_options.FLATTEN_OPTIONS:
+    finish_coverage, grasp_layer, spread_lay_speed, …); those not named keep FlattenConfig's and
+    SpreadConfig's defaults. Crumpled starts only; the spread_ ones in a two-arm cell."""
     replicate: int = 0
     """0: the cloth lies exactly where the seed puts it; k > 0: the same cloth laid
     REPLICATE_NUDGE_M from there, in a direction the seed and k draw (seeded_pose)."""
@@ -231,6 +241,11 @@ class EpisodeConfig:
             self.jaw_catch in JAW_CATCHES,
             f"unknown jaw_catch {self.jaw_catch!r}; allowed: {', '.join(JAW_CATCHES)}",
         )
+        object.__setattr__(self, "flatten_options", check_flatten_options(self.flatten_options))
+        refused = refused_flatten_options(
+            self.flatten_options, self.start, self.arms, self.perception
+        )
+        require(refused is None, str(refused))
 
 
 def garment_recipes(garment: str) -> tuple[str, ...]:
@@ -492,6 +507,7 @@ def episode_result(
         "jaw_catch": cfg.jaw_catch,
         "loop_options": dict(cfg.loop_options),
         "cloth_options": changed_cloth_options(cfg.cloth),
+        "flatten_options": dict(cfg.flatten_options),
         "simd_uncapped": late_libraries(),
         "seed": cfg.seed,
         "replicate": cfg.replicate,
@@ -626,6 +642,7 @@ def crumple_and_flatten(
     log("crumpling the towel…")
     crumple_start(cfg, parts.world, parts.cloth)
     oracle = CornerPullOracle.of(parts.oracle, parts.mesh) if cfg.perception == "oracle" else None
+    pulls, spreads = flatten_configs(cfg.flatten_options)
     entry, _ = flatten_and_score(
         cell,
         (parts.spec.width, parts.spec.height),
@@ -636,6 +653,8 @@ def crumple_and_flatten(
         writer.write_image,
         log,
         oracle,
+        pulls,
+        spreads,
     )
     return entry
 

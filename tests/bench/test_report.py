@@ -87,6 +87,19 @@ def test_markdown_names_the_cloth_options_a_suite_sets(tiny_suite_data):
     )
 
 
+def test_markdown_names_the_flatten_options_a_suite_sets(tiny_suite_data):
+    assert "Flattening set" not in markdown(summarise(suite_from_dict(tiny_suite_data()), []))
+    data = tiny_suite_data()
+    data["episode"] = {**data["episode"], "start": "crumpled"}
+    data["flatten_options"] = {"grasp_layer": "top", "finish_coverage": "none"}
+    summary = summarise(suite_from_dict(data), [])
+    assert summary["suite"]["flatten_options"] == {"finish_coverage": None, "grasp_layer": "top"}
+    assert (
+        "Flattening set: finish_coverage = none, grasp_layer = top (the others at "
+        "FlattenConfig's and SpreadConfig's defaults)." in markdown(summary)
+    )
+
+
 def test_markdown_shows_how_replicates_repeat(tiny_suite_data):
     from foldbot.pipeline import REPLICATE_NUDGE_M
 

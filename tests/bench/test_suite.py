@@ -218,6 +218,65 @@ def test_cloth_options_reach_the_cloth_and_are_left_out_of_specs_by_default(tiny
     assert suite_from_dict(data).cloth_options == expected
 
 
+def test_flatten_options_reach_the_episode_and_are_left_out_of_specs_by_default(
+    tiny_suite_data,
+):
+    data = tiny_suite_data()
+    default = load_one(data)
+    assert default.to_config().flatten_options == {}
+    assert "flatten_options" not in default.as_dict()  # older runs keep resuming
+    assert suite_from_dict(data).flatten_options == {}
+    data["episode"] = {**data["episode"], "start": "crumpled", "arms": 2}
+    data["axes"] = {**data["axes"], "perception": ["vision"]}
+    data["flatten_options"] = {"finish_coverage": "none", "spread_lay_speed": 0.05}
+    spec = load_one(data)
+    expected = {"finish_coverage": None, "spread_lay_speed": 0.05}
+    assert spec.to_config().flatten_options == expected
+    assert spec.as_dict()["flatten_options"] == expected
+    assert EpisodeSpec.from_dict(spec.as_dict()) == spec
+    assert suite_from_dict(data).flatten_options == expected
+
+
+@pytest.mark.parametrize(
+    ("episode", "perception", "table", "needle"),
+    [
+        (
+            {"start": "crumpled"},
+            ["vision"],
+            {"finsh_coverage": 0.97},
+            "unknown key 'flatten_options.finsh_coverage'; allowed in [flatten_options]:",
+        ),
+        (
+            {"start": "crumpled"},
+            ["vision"],
+            {"grasp_inset": 0.5},
+            "[flatten_options] flatten option grasp_inset must be in [0, 0.1], got 0.5",
+        ),
+        (
+            {},
+            ["vision"],
+            {"finish_coverage": "none"},
+            "tiny.toml: flatten options (finish_coverage) act on crumpled starts only",
+        ),
+        (
+            {"start": "crumpled", "arms": 2},
+            ["vision", "oracle"],
+            {"spread_hang_time": 0.5},
+            "tiny.toml: flatten option spread_hang_time acts on the two-arm cell's spreads",
+        ),
+    ],
+)
+def test_a_bad_flatten_options_table_is_named(tiny_suite_data, episode, perception, table, needle):
+    """A bad table, or one the suite's episodes would not read (a flat start; spreads that the
+    oracle's episodes never make), is refused when the suite loads, before any run."""
+    data = tiny_suite_data(perception=perception)
+    data["episode"] = {**data["episode"], **episode}
+    data["flatten_options"] = table
+    with pytest.raises(ConfigError) as exc:
+        suite_from_dict(data, "tiny.toml")
+    assert needle in str(exc.value)
+
+
 @pytest.mark.parametrize(
     ("table", "needle"),
     [

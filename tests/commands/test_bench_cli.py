@@ -9,6 +9,7 @@ import pytest
 from foldbot.bench.suite import load_suite
 from foldbot.cli import build_parser, main
 from foldbot.commands.bench import suite_from_args
+from foldbot.errors import ConfigError
 
 FIGURES = (
     "success_rate",
@@ -218,3 +219,27 @@ def test_the_summary_command_repeats_the_options_set(tmp_path):
     assert command.endswith(
         "--loop-option relay_corners=false --cloth friction=0.5 --out " + str(out)
     )
+
+
+def test_flatten_options_go_over_the_suites_own(tmp_path):
+    suite_file = tmp_path / "tiny.toml"
+    suite_file.write_text(
+        'name = "tiny"\n[axes]\nseeds = "0-1"\n[episode]\nstart = "crumpled"\n'
+        "[flatten_options]\nfinish_coverage = 0.97\nmin_pull = 0.03\n"
+    )
+    args = build_parser().parse_args(
+        ["bench", "--suite", str(suite_file), "--out", "x"]
+        + ["--flatten-option", "finish_coverage=none"]
+    )
+    suite = suite_from_args(args)
+    expected = {"finish_coverage": None, "min_pull": 0.03}
+    assert [e.to_config().flatten_options for e in suite.episodes] == [expected, expected]
+    assert suite.flatten_options == expected
+    # Set on a suite of flat starts, the option would be read by no episode: refused.
+    flat = tmp_path / "flat.toml"
+    flat.write_text('name = "flat"\n[axes]\nseeds = "0-1"\n')
+    args = build_parser().parse_args(
+        ["bench", "--suite", str(flat), "--out", "x", "--flatten-option", "min_pull=0.03"]
+    )
+    with pytest.raises(ConfigError, match=r"flatten options \(min_pull\) act on crumpled starts"):
+        suite_from_args(args)

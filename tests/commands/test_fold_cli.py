@@ -138,6 +138,17 @@ def test_loop_options_reach_the_episode():
     assert cfg.loop_options == {"pair_descent": 0.02, "stack_edge_carry": False}
 
 
+def test_flatten_options_reach_the_episode():
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    assert config_from_args(parser.parse_args(["--out", "x"])).flatten_options == {}
+    args = ["--out", "x", "--start", "crumpled", "--flatten-option", "grasp_layer=top"]
+    cfg = config_from_args(parser.parse_args([*args, "--flatten-option", "finish_coverage=none"]))
+    assert cfg.flatten_options == {"finish_coverage": None, "grasp_layer": "top"}
+    with pytest.raises(ConfigError, match="act on crumpled starts only; this episode starts flat"):
+        config_from_args(parser.parse_args(["--out", "x", "--flatten-option", "min_pull=0.03"]))
+
+
 def test_time_step_reaches_the_world():
     parser = argparse.ArgumentParser()
     add_arguments(parser)

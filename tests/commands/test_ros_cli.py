@@ -141,6 +141,31 @@ def test_ros_fold_hands_the_nodes_every_option_that_shapes_the_episode(tmp_path)
     assert node_cfg.cloth.margin_divisor == 6.5
 
 
+def test_ros_fold_hands_the_nodes_the_flatten_options(tmp_path):
+    """A crumpled start's flatten options reach the nodes' EpisodeConfig (the task node
+    flattens by flatten_options.flatten_configs of it, as `foldbot fold` does)."""
+    import argparse
+
+    from foldbot.commands import fold, ros_fold
+    from foldbot.flatten_options import flatten_configs
+    from foldbot.ros.node_args import parse_fold_args
+
+    parser = argparse.ArgumentParser()
+    ros_fold.add_arguments(parser)
+    args = parser.parse_args(
+        [
+            *("--out", str(tmp_path / "e"), "--start", "crumpled", "--arms", "2"),
+            *("--flatten-option", "finish_coverage=none"),
+            *("--flatten-option", "spread_lay_speed=0.05"),
+        ]
+    )
+    _node_args, node_cfg = parse_fold_args(ros_fold.fold_args_text(args))
+    assert node_cfg == fold.config_from_args(args)
+    assert node_cfg.flatten_options == {"finish_coverage": None, "spread_lay_speed": 0.05}
+    pulls, spreads = flatten_configs(node_cfg.flatten_options)
+    assert pulls.finish_coverage is None and spreads.lay_speed == 0.05
+
+
 def test_a_replay_that_misses_frames_says_where_to_look():
     from foldbot.commands.ros_replay import report_lines
     from foldbot.ros.replay import ReplayReport

@@ -2,8 +2,8 @@
 the change is larger than the towels' own scatter.
 
 Episodes are paired by id (garment, recipe, perception, loop, seed), so each pair is the same
-towel folded twice: by two versions of the code, or with two settings (`--loop-option`, a suite
-edit). Per group and overall: how many pairs came out the same to the last digit, the success
+towel folded twice: by two versions of the code, or with two settings (`--loop-option`,
+`--flatten-option`, a suite edit). Per group and overall: how many pairs came out the same to the last digit, the success
 rates with their Wilson intervals, and the fold error's paired difference (second minus first)
 with its Student-t interval (both over the towels where a towel was folded several times:
 replicates); then every pair that changed. The simulation is deterministic, so a

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from foldbot.bench.summary import CAUSES, FIRST_FRAME_OFF_MM
+from foldbot.flatten_options import shown_flatten_value
 from foldbot.io.episode import to_jsonable
 from foldbot.loop_options import shown_value
 
@@ -113,6 +114,13 @@ def markdown(summary: dict) -> str:
     if cloth:
         shown = ", ".join(f"{k} = {v:g}" for k, v in cloth.items())
         lines += [f"Cloth set: {shown} (the others at ClothConfig's defaults).", ""]
+    flatten = s.get("flatten_options")
+    if flatten:
+        shown = ", ".join(f"{k} = {shown_flatten_value(v)}" for k, v in flatten.items())
+        lines += [
+            f"Flattening set: {shown} (the others at FlattenConfig's and SpreadConfig's defaults).",
+            "",
+        ]
     if summary.get("command"):
         lines += ["```bash", summary["command"], "```", ""]
     header = (

@@ -49,6 +49,9 @@ top_layer_first = false                 # true/false, integers, metres; "none" w
 [cloth]                                 # the cloth's physical parameters (foldbot.cloth_options),
 margin_divisor = 6.5                    # e.g. a thinner collision margin: edge / 6.5 (default 5)
 
+[flatten_options]                       # how a crumpled towel is flattened (foldbot.flatten_options;
+finish_coverage = "none"                # crumpled starts only), e.g. stop at the 0.9 target
+
 [reference]
 ravens_speed = true                     # plain-PyBullet speed reference (ravens_reference.py)
 ```
@@ -69,6 +72,7 @@ from typing import Any
 
 from foldbot.cloth_options import CLOTH_OPTIONS, apply_cloth_options, check_cloth_options
 from foldbot.errors import ConfigError
+from foldbot.flatten_options import FLATTEN_OPTIONS, FlattenOptionValue, check_flatten_options
 from foldbot.garments.towel import MAX_RESOLUTION, MIN_RESOLUTION, MIN_VERTICES, TowelSpec
 from foldbot.loop_options import LOOP_OPTIONS, LoopOptionValue, check_loop_options
 from foldbot.pipeline import (
@@ -103,6 +107,7 @@ _SCHEMA: dict[str, set[str]] = {
         "episode",
         "loop_options",
         "cloth",
+        "flatten_options",
         "reference",
     },
     "axes": {"garment", "recipe", "perception", "loop", "seeds", "replicates"},
@@ -111,6 +116,7 @@ _SCHEMA: dict[str, set[str]] = {
     "episode": {"retries", "video_fps", "start", "park", "time_step", "arms", "jaw_catch"},
     "loop_options": set(LOOP_OPTIONS),
     "cloth": set(CLOTH_OPTIONS),
+    "flatten_options": set(FLATTEN_OPTIONS),
     "reference": {"ravens_speed"},
 }
 
@@ -185,6 +191,9 @@ class EpisodeSpec:
     cloth_options: tuple[tuple[str, float], ...] = ()
     """The cloth's physical parameters set by name (cloth_options.CLOTH_OPTIONS), as (name,
     value); the others at ClothConfig's defaults."""
+    flatten_options: tuple[tuple[str, FlattenOptionValue], ...] = ()
+    """How a crumpled towel is flattened, set by name (EpisodeConfig.flatten_options), as
+    (name, value)."""
     replicate: int = 0
     """EpisodeConfig.replicate: 0, the seed's pose; k > 0, the same cloth laid 0.1 mm from it."""
 
@@ -231,6 +240,7 @@ class EpisodeSpec:
             jaw_catch=self.jaw_catch,
             loop_options=dict(self.loop_options),
             cloth=apply_cloth_options(ClothConfig(), dict(self.cloth_options)),
+            flatten_options=dict(self.flatten_options),
             replicate=self.replicate,
             sim=SimConfig() if self.time_step is None else SimConfig(time_step=self.time_step),
         )
@@ -258,6 +268,10 @@ class EpisodeSpec:
             d["cloth_options"] = dict(self.cloth_options)
         else:
             del d["cloth_options"]  # likewise
+        if d["flatten_options"]:
+            d["flatten_options"] = dict(self.flatten_options)
+        else:
+            del d["flatten_options"]  # likewise
         if d["replicate"] == 0:
             del d["replicate"]  # likewise
         if d["towel_side_range"] is not None:
@@ -270,7 +284,7 @@ class EpisodeSpec:
         d = dict(d)
         if d.get("towel_side_range") is not None:
             d["towel_side_range"] = tuple(d["towel_side_range"])
-        for key in ("loop_options", "cloth_options"):
+        for key in ("loop_options", "cloth_options", "flatten_options"):
             if key in d:
                 d[key] = tuple(d[key].items())
         return cls(**d)
@@ -299,6 +313,11 @@ class Suite:
     def cloth_options(self) -> dict[str, float]:
         """The cloth options its episodes set (one [cloth] table for the whole suite)."""
         return dict(self.episodes[0].cloth_options) if self.episodes else {}
+
+    @property
+    def flatten_options(self) -> dict[str, FlattenOptionValue]:
+        """The flatten options its episodes set (one [flatten_options] table for the suite)."""
+        return dict(self.episodes[0].flatten_options) if self.episodes else {}
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-able description (written to DIR/suite.json; resuming checks it)."""
@@ -518,6 +537,15 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
         cloth_options = tuple(check_cloth_options(data.get("cloth", {})).items())
     except ConfigError as exc:
         raise ConfigError(f"{where}: [cloth] {exc}") from None
+    flatten_table = data.get("flatten_options", {})
+    try:
+        flatten_options = tuple(
+            check_flatten_options(
+                {k: None if v == "none" else v for k, v in flatten_table.items()}
+            ).items()
+        )
+    except ConfigError as exc:
+        raise ConfigError(f"{where}: [flatten_options] {exc}") from None
     ravens = _get(data, "reference", "ravens_speed", bool, True, where)
 
     specs = [
@@ -545,14 +573,18 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
             jaw_catch=jaw_catch,
             loop_options=loop_options,
             cloth_options=cloth_options,
+            flatten_options=flatten_options,
             replicate=replicate,
         )
         for garment, recipe, perception, loop, seed, replicate in itertools.product(
             garments, recipes, perceptions, loops, seeds, range(replicates)
         )
     ]
-    for spec in {spec.garment: spec for spec in specs}.values():
-        spec.to_config()  # anything EpisodeConfig refuses is refused here, before any run
+    for spec in {(spec.garment, spec.perception): spec for spec in specs}.values():
+        try:  # anything EpisodeConfig refuses is refused here, before any run
+            spec.to_config()
+        except ConfigError as exc:
+            raise ConfigError(f"{where}: {exc}") from None
     randomised = {
         "towel_side_m": list(side_range) if side_range else None,
         "towel_fixed_m": None if side_range else [width, height],

@@ -1,7 +1,7 @@
 """`foldbot bench`: run a benchmark suite of fold episodes and summarise them.
 
     foldbot bench --suite NAME --out DIR [--seeds S] [--workers N] [--ray ADDRESS]
-                  [--loop-option NAME=VALUE] [--cloth NAME=VALUE]
+                  [--loop-option NAME=VALUE] [--cloth NAME=VALUE] [--flatten-option NAME=VALUE]
     foldbot bench --recipe R --seeds 0-19 [--perception P] [--size-range LO HI] --out DIR
 
 A suite (suites/NAME.toml, or a path to one) is the grid garment × recipe × perception × loop ×
@@ -30,8 +30,9 @@ from foldbot.bench.runner import DEFAULT_TIMEOUT_S, run_suite
 from foldbot.bench.suite import Suite, load_suite, parse_seeds, suite_from_dict
 from foldbot.bench.summary import summarise
 from foldbot.cloth_options import check_cloth_options, cloth_options_from_args
-from foldbot.commands.fold import add_cloth_option, add_loop_option
+from foldbot.commands.fold import add_cloth_option, add_flatten_option, add_loop_option
 from foldbot.errors import ConfigError
+from foldbot.flatten_options import check_flatten_options, flatten_options_from_args
 from foldbot.loop_options import check_loop_options, loop_options_from_args
 from foldbot.pipeline import PERCEPTION_MODES
 from foldbot.planning.recipes import RECIPE_HELP, RECIPES
@@ -88,6 +89,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     add_loop_option(parser, "in every episode, over the suite's [loop_options]")
     add_cloth_option(parser, "in every episode, over the suite's [cloth]")
+    add_flatten_option(parser, "in every episode, over the suite's [flatten_options]")
     one = parser.add_argument_group("one-recipe suite (instead of --suite)")
     one.add_argument(
         "--recipe",
@@ -117,18 +119,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def suite_from_args(args: argparse.Namespace) -> Suite:
     """The suite named by --suite, or the one-recipe suite the other options describe, with the
-    --loop-option and --cloth settings over its own."""
+    --loop-option, --cloth and --flatten-option settings over its own."""
     return with_options(
         _suite_from_args(args),
         loop_options_from_args(args.loop_option),
         cloth_options_from_args(args.cloth),
+        flatten_options_from_args(args.flatten_option),
     )
 
 
-def with_options(suite: Suite, loop: dict, cloth: dict) -> Suite:
-    """The suite with the `loop` options and the `cloth` ones set in every episode, over (and
-    beside) the suite's own."""
-    if not loop and not cloth:
+def with_options(suite: Suite, loop: dict, cloth: dict, flatten: dict | None = None) -> Suite:
+    """The suite with the `loop`, `cloth` and `flatten` options set in every episode, over (and
+    beside) the suite's own; every episode's configuration is checked with them (ConfigError
+    before any run: e.g. a flatten option in a suite of flat starts)."""
+    if not loop and not cloth and not flatten:
         return suite
     episodes = tuple(
         dataclasses.replace(
@@ -137,9 +141,14 @@ def with_options(suite: Suite, loop: dict, cloth: dict) -> Suite:
                 check_loop_options({**dict(e.loop_options), **loop}, e.garment).items()
             ),
             cloth_options=tuple(check_cloth_options({**dict(e.cloth_options), **cloth}).items()),
+            flatten_options=tuple(
+                check_flatten_options({**dict(e.flatten_options), **(flatten or {})}).items()
+            ),
         )
         for e in suite.episodes
     )
+    for e in {(e.garment, e.perception): e for e in episodes}.values():
+        e.to_config()  # anything EpisodeConfig refuses, refused here before any run
     return dataclasses.replace(suite, episodes=episodes)
 
 
@@ -231,6 +240,8 @@ def run(args: argparse.Namespace) -> int:
         cmd += ["--loop-option", option]
     for option in args.cloth:
         cmd += ["--cloth", option]
+    for option in args.flatten_option:
+        cmd += ["--flatten-option", option]
     summary["command"] = shlex.join([*cmd, "--out", str(out)])
     if suite.ravens_speed and not args.no_reference:
         summary["ravens_speed_reference"] = _reference(suite, summary)

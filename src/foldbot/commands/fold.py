@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 
 from foldbot.cloth_options import apply_cloth_options, cloth_options_from_args, cloth_options_help
 from foldbot.errors import ConfigError
+from foldbot.flatten_options import flatten_options_from_args, flatten_options_help
 from foldbot.garments.towel import TowelSpec
 from foldbot.loop_options import loop_options_from_args, loop_options_help
 from foldbot.pipeline import (
@@ -80,6 +81,19 @@ def add_cloth_option(parser: argparse.ArgumentParser, where: str) -> None:
         metavar="NAME=VALUE",
         help=f"set one of the cloth's physical parameters (repeatable; {where}): "
         + cloth_options_help(),
+    )
+
+
+def add_flatten_option(parser: argparse.ArgumentParser, where: str) -> None:
+    """`--flatten-option NAME=VALUE` (repeatable), shared by the commands that run episodes;
+    `where` says what it goes over."""
+    parser.add_argument(
+        "--flatten-option",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help=f"set how a crumpled towel is flattened (repeatable; {where}); VALUE is true/false, "
+        "an integer, a number in SI units, none, or all/top: " + flatten_options_help(),
     )
 
 
@@ -224,6 +238,7 @@ def add_episode_arguments(parser: argparse.ArgumentParser) -> None:
     )
     add_loop_option(parser, "a suite's [loop_options]")
     add_cloth_option(parser, "a suite's [cloth]; --mass is mass=")
+    add_flatten_option(parser, "a suite's [flatten_options]; with --start crumpled")
     parser.add_argument(
         "--video-fps", type=float, default=10.0, help="video frames per simulated second (0 = off)"
     )
@@ -271,6 +286,7 @@ def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
         sim=SimConfig(time_step=args.time_step, gui=args.gui),
         video_fps=args.video_fps,
         loop_options=loop_options_from_args(args.loop_option),
+        flatten_options=flatten_options_from_args(args.flatten_option),
     )
 
 

@@ -93,6 +93,8 @@ def fold_args_text(args: argparse.Namespace) -> str:
         words += ["--loop-option", option]
     for option in args.cloth or ():
         words += ["--cloth", option]
+    for option in args.flatten_option or ():
+        words += ["--flatten-option", option]
     if args.garment_edge_length is not None:
         words += ["--garment-edge-length", repr(args.garment_edge_length)]
     words += ["--garment-yaw", repr(args.garment_yaw)]

@@ -33,6 +33,7 @@ from foldbot import errors
 from foldbot.carry import nearest_arm
 from foldbot.cell import FoldCell, StepLog
 from foldbot.flatten import flatten_and_score
+from foldbot.flatten_options import flatten_configs
 from foldbot.garment_loop import run_garment_fold
 from foldbot.io.episode import EpisodeWriter
 from foldbot.loop import corners_of, fold_and_picture, run_fold
@@ -535,6 +536,8 @@ def run_task(fold_args: str, log=rospy.loginfo) -> dict:
                 float(mesh["flat_area"]),
                 write_image,
                 log,
+                None,
+                *flatten_configs(cfg.flatten_options),
             )
         fold = run_fold if cfg.garment == "towel" else run_garment_fold
         record = fold_and_picture(fold, loop_config(cfg, thickness), cell, write_image, log)
