@@ -27,6 +27,15 @@ def test_reported_error_keeps_the_reports_notes():
     assert exc.__notes__ == ["see x"]
 
 
+def test_reported_error_keeps_the_reports_facts():
+    """A task node's failure carries how far the episode got (over ROS as in process)."""
+    report = {"error": "diverged", "error_type": "SimulationDivergedError"}
+    assert errors.reported_error(report, "over ROS").facts is None
+    facts = {"flatten": {"actions": 3, "ended_in_error": True}}
+    exc = errors.reported_error({**report, "facts": facts}, "over ROS")
+    assert isinstance(exc, errors.SimulationDivergedError) and exc.facts == facts
+
+
 def test_reported_error_keeps_the_segment_it_failed_in():
     # The planner node names the motion segment an infeasible pair failed in; the task node's
     # flattening reads it (failed_segment) to skip hang margins that cannot help.

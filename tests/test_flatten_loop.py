@@ -174,9 +174,9 @@ def test_an_error_while_flattening_keeps_the_picture_of_the_pulls(tmp_path):
     failed = tmp_path / "ep.failed"
     assert not out.exists() and "flatten.png" in report["error"]["notes"][0]
     assert sorted(p.name for p in failed.iterdir()) == ["error.json", "flatten.png"]
-    assert json.loads((failed / "error.json").read_text())["error_type"] == (
-        "SimulationDivergedError"
-    )
+    error_json = json.loads((failed / "error.json").read_text())
+    assert error_json["error_type"] == "SimulationDivergedError"
+    assert error_json["facts"] == report["error"]["facts"]  # kept beside the pictures
     # One tile: the first pull, drawn over the view it was planned from, stopped by the error.
     assert report["sheet_shape"] == report["one_tile_shape"]
     # The error carries how far flattening got, for the benchmark's error record: no pull

@@ -87,7 +87,8 @@ def split_name_value(text: str, what: str, example: str, names: tuple[str, ...])
 def reported_error(report: dict, what: str) -> FoldbotError:
     """The error another process reported (JSON: `error`, `error_type`) as the same foldbot error
     type (FoldbotError for any other name), its message prefixed with `what`, with the report's
-    `notes` as the exception's notes and its `segment` (failed_segment) as the error's."""
+    `notes` as the exception's notes, its `segment` (failed_segment) and its `facts` (what the
+    episode measured before it) as the error's."""
     cls = globals().get(str(report.get("error_type", "")), FoldbotError)
     if not (isinstance(cls, type) and issubclass(cls, FoldbotError)):
         cls = FoldbotError
@@ -96,4 +97,6 @@ def reported_error(report: dict, what: str) -> FoldbotError:
         error.segment = str(report["segment"])
     for note in report.get("notes") or ():  # e.g. where the episode's video up to it went
         error.add_note(str(note))
+    if isinstance(report.get("facts"), dict) and report["facts"]:
+        error.facts = dict(report["facts"])
     return error

@@ -134,6 +134,22 @@ def test_an_error_leaves_no_episode_and_keeps_what_was_recorded_beside_it(
     assert str(failed.absolute()) in note and "video.mp4" in note
 
 
+def test_an_errors_facts_are_kept_in_error_json(tmp_path: Path) -> None:
+    """What the episode measured before a FoldbotError (its flattening, say) is evidence too."""
+    from foldbot.errors import SimulationDivergedError, add_facts
+
+    with pytest.raises(SimulationDivergedError), EpisodeWriter(tmp_path / "ep") as w:
+        w.write_image("flatten", np.zeros((8, 8, 3), np.uint8))
+        exc = SimulationDivergedError("cloth simulation diverged")
+        add_facts(exc, flatten={"actions": np.int64(2), "coverage_start": np.float64(0.5)})
+        raise exc
+    assert json.loads((tmp_path / "ep.failed" / "error.json").read_text()) == {
+        "error_type": "SimulationDivergedError",
+        "error": "cloth simulation diverged",
+        "facts": {"flatten": {"actions": 2, "coverage_start": 0.5}},
+    }
+
+
 def test_an_error_with_nothing_recorded_leaves_nothing(tmp_path: Path) -> None:
     with pytest.raises(RuntimeError, match="boom"), EpisodeWriter(tmp_path / "ep") as w:
         raise RuntimeError("boom")

@@ -348,7 +348,9 @@ class EpisodeWriter:
         if not staged or (target.exists() and not is_failed_dir(target)):
             self._cleanup()
             return None
-        report = {"error_type": type(error).__name__, "error": str(error)}
+        report: dict[str, Any] = {"error_type": type(error).__name__, "error": str(error)}
+        if getattr(error, "facts", None):  # what the episode measured before it (FoldbotError)
+            report["facts"] = to_jsonable(error.facts)
         try:
             (self.staging_dir / RESULT_FILE).unlink(missing_ok=True)  # not an episode
             (self.staging_dir / ERROR_FILE).write_text(json.dumps(report, indent=2) + "\n")

@@ -35,7 +35,7 @@ from foldbot.cell import FoldCell, StepLog
 from foldbot.flatten import flatten_and_score
 from foldbot.flatten_options import flatten_configs
 from foldbot.garment_loop import run_garment_fold
-from foldbot.io.episode import EpisodeWriter
+from foldbot.io.episode import EpisodeWriter, to_jsonable
 from foldbot.loop import corners_of, fold_and_picture, run_fold
 from foldbot.metrics import score_episode
 from foldbot.perception.overlay import draw_overlay
@@ -578,6 +578,8 @@ def main(argv: list[str] | None = None) -> int:
         failure = {"ok": False, "error": str(exc), "error_type": type(exc).__name__}
         if getattr(exc, "__notes__", None):  # where the video up to the error was left
             failure["notes"] = list(exc.__notes__)
+        if exc.facts:  # what the episode measured before it (e.g. how far flattening got)
+            failure["facts"] = to_jsonable(exc.facts)
         pub.publish(String(data=json.dumps(failure)))
         error_file = rospy.get_param(ERROR_FILE_PARAM, "")
         if error_file:
