@@ -324,16 +324,19 @@ def test_crumpled_towel_is_flattened_over_topics(tmp_path):
 
 SPREAD = ["--start", "crumpled", "--arms", "2", "--seed", "9", "--width", "0.3", "--height", "0.3"]
 SPREAD += ["--resolution", "9", "--jaw-catch", "surface", "--video-fps", "0"]
+SPREAD += ["--flatten-option", "spread_hang_time=0.8"]
 
 
 def test_two_arms_spread_a_crumpled_towel_over_topics(tmp_path):
     """`--arms 2 --start crumpled`: the task node flattens by spreads (flatten.run_spreads), each
     planned for both arms together by the planner node (its hang timed there) and moved by the
-    sim node on one clock, then folds."""
+    sim node on one clock, then folds. A flatten option reaches the spread the nodes make."""
     out, result = crumpled_over_topics(SPREAD, tmp_path)
     assert result["arms"] == 2 and result["jaw_catch"] == "surface"
+    assert result["flatten_options"] == {"spread_hang_time": 0.8}
     f = result["flatten"]
     spread = f["pulls"][0]
+    assert [arm["hang_time"] for arm in spread["arms"]] == [0.8, 0.8]
     assert spread["kind"] == "flatten_spread" and spread["grasp_success"] is True
     assert all(len(v) > 0 for v in spread["grasped_vertices"])  # each arm held the towel
     left, right = spread["arms"]
