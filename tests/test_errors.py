@@ -75,3 +75,14 @@ def test_facts_leave_other_exceptions_alone():
     exc = KeyError("a bug")
     errors.add_facts(exc, flatten={"actions": 2})
     assert not hasattr(exc, "facts")
+
+
+def test_an_option_word_reads_as_its_value():
+    words = ("true", "FALSE", "none", "top", "3", "0.25", "1e-3")
+    assert [errors.option_word(w, ("all", "top")) for w in words] == [
+        True, False, None, "top", 3, 0.25, 0.001,
+    ]  # fmt: skip
+    with pytest.raises(ValueError):  # a name is a value only where the option allows it
+        errors.option_word("top")
+    with pytest.raises(ValueError):
+        errors.option_word("3 cm")

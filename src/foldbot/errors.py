@@ -84,6 +84,22 @@ def split_name_value(text: str, what: str, example: str, names: tuple[str, ...])
     return name, raw
 
 
+def option_word(raw: str, names: tuple[str, ...] = ()) -> bool | int | float | str | None:
+    """A command line's VALUE word as a value: true/false, none, one of `names` (as given), an
+    integer, or a number; ValueError when it is none of these (the caller names the option)."""
+    low = raw.lower()
+    if low in ("true", "false"):
+        return low == "true"
+    if low == "none":
+        return None
+    if low in names:
+        return low
+    try:
+        return int(raw)
+    except ValueError:
+        return float(raw)
+
+
 def reported_error(report: dict, what: str) -> FoldbotError:
     """The error another process reported (JSON: `error`, `error_type`) as the same foldbot error
     type (FoldbotError for any other name), its message prefixed with `what`, with the report's

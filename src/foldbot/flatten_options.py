@@ -17,7 +17,7 @@ import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from foldbot.errors import ConfigError, split_name_value
+from foldbot.errors import ConfigError, option_word, split_name_value
 from foldbot.planning.flatten import GRASP_LAYERS, FlattenConfig
 from foldbot.planning.spread import SpreadConfig
 
@@ -157,24 +157,10 @@ def parse_flatten_option(text: str) -> tuple[str, FlattenOptionValue]:
     name, raw = split_name_value(text, "flatten option", "finish_coverage=none", FLATTEN_OPTIONS)
     if name not in FLATTEN_OPTION_FIELDS:
         check_flatten_option(name, None)  # raises: unknown name, with the allowed ones
-    low = raw.lower()
-    value: object
-    if low in ("true", "false"):
-        value = low == "true"
-    elif low == "none":
-        value = None
-    elif low in GRASP_LAYERS:
-        value = low
-    else:
-        try:
-            value = int(raw)
-        except ValueError:
-            try:
-                value = float(raw)
-            except ValueError:
-                raise ConfigError(
-                    f"flatten option {name} = {raw!r} must be {_allowed(name)}"
-                ) from None
+    try:
+        value = option_word(raw, GRASP_LAYERS)
+    except ValueError:
+        raise ConfigError(f"flatten option {name} = {raw!r} must be {_allowed(name)}") from None
     if (
         isinstance(value, int)
         and not isinstance(value, bool)

@@ -12,7 +12,7 @@ import dataclasses
 import math
 from collections.abc import Mapping
 
-from foldbot.errors import ConfigError, split_name_value
+from foldbot.errors import ConfigError, option_word, split_name_value
 from foldbot.loop import LoopConfig
 
 LoopOptionValue = bool | int | float | None
@@ -117,22 +117,10 @@ def parse_loop_option(text: str) -> tuple[str, LoopOptionValue]:
     name, raw = split_name_value(text, "loop option", "top_layer_first=false", LOOP_OPTIONS)
     if name not in LOOP_OPTION_KINDS:
         check_loop_option(name, None)  # raises: unknown name, with the allowed ones
-    low = raw.lower()
-    value: object
-    if low in ("true", "false"):
-        value = low == "true"
-    elif low == "none":
-        value = None
-    else:
-        try:
-            value = int(raw)
-        except ValueError:
-            try:
-                value = float(raw)
-            except ValueError:
-                raise ConfigError(
-                    f"loop option {name} = {raw!r} must be {_allowed(name)}"
-                ) from None
+    try:
+        value = option_word(raw)
+    except ValueError:
+        raise ConfigError(f"loop option {name} = {raw!r} must be {_allowed(name)}") from None
     return name, check_loop_option(name, value)
 
 
