@@ -188,7 +188,7 @@ def test_help_names_every_option_with_its_unit_and_default():
     text = flatten_options_help()
     for name in FLATTEN_OPTIONS:
         assert name in text
-    assert "finish_coverage (coverage, default 0.95)" in text
+    assert "finish_coverage (coverage, default 0.97)" in text
     assert "grasp_layer (default all)" in text
     assert "spread_lay_speed (m/s, default 0.1)" in text
     assert "spread_pull_from (coverage, default none)" in text

@@ -178,7 +178,7 @@ def test_bad_config_values_name_the_value_and_the_allowed_range(kwargs, needle):
 
 def test_flattening_stops_at_the_finishing_coverage_where_it_is_higher():
     assert FlattenConfig(finish_coverage=None).stop_coverage == FlattenConfig().target_coverage
-    assert FlattenConfig().stop_coverage == 0.95  # finishing pulls by default
+    assert FlattenConfig().stop_coverage == 0.97  # finishing pulls by default
     assert FlattenConfig(target_coverage=0.9, finish_coverage=0.95).stop_coverage == 0.95
     assert FlattenConfig(target_coverage=0.9, finish_coverage=0.8).stop_coverage == 0.9
 
