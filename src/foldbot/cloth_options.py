@@ -14,7 +14,7 @@ import dataclasses
 import math
 from collections.abc import Mapping
 
-from foldbot.errors import ConfigError, split_name_value
+from foldbot.errors import ConfigError, options_from_args, split_name_value
 from foldbot.sim.cloth import ClothConfig
 
 CLOTH_OPTIONS = (
@@ -80,13 +80,7 @@ def parse_cloth_option(text: str) -> tuple[str, float]:
 
 def cloth_options_from_args(texts: list[str]) -> dict[str, float]:
     """Repeated --cloth NAME=VALUE, each checked; naming an option twice is an error."""
-    options: dict[str, float] = {}
-    for text in texts:
-        name, value = parse_cloth_option(text)
-        if name in options:
-            raise ConfigError(f"--cloth {name} is given twice ({options[name]:g}, {value:g})")
-        options[name] = value
-    return options
+    return options_from_args(texts, parse_cloth_option, "--cloth", lambda v: f"{v:g}")
 
 
 def cloth_options_help() -> str:

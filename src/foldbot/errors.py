@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 
@@ -82,6 +83,25 @@ def split_name_value(text: str, what: str, example: str, names: tuple[str, ...])
             f"{what} {text!r} must look like NAME=VALUE, e.g. {example}; names: {', '.join(names)}"
         )
     return name, raw
+
+
+def options_from_args(
+    texts: list[str],
+    parse: Callable[[str], tuple[str, Any]],
+    flag: str,
+    shown: Callable[[Any], str],
+) -> dict[str, Any]:
+    """Repeated `flag NAME=VALUE` words, each read by `parse` (→ name, checked value), as a
+    dict in the order given; naming an option twice is a ConfigError showing both values."""
+    options: dict[str, Any] = {}
+    for text in texts:
+        name, value = parse(text)
+        if name in options:
+            raise ConfigError(
+                f"{flag} {name} is given twice ({shown(options[name])}, {shown(value)})"
+            )
+        options[name] = value
+    return options
 
 
 def option_word(raw: str, names: tuple[str, ...] = ()) -> bool | int | float | str | None:

@@ -17,7 +17,7 @@ import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from foldbot.errors import ConfigError, option_word, split_name_value
+from foldbot.errors import ConfigError, option_word, options_from_args, split_name_value
 from foldbot.planning.flatten import GRASP_LAYERS, FlattenConfig
 from foldbot.planning.spread import SpreadConfig
 
@@ -172,15 +172,9 @@ def parse_flatten_option(text: str) -> tuple[str, FlattenOptionValue]:
 
 def flatten_options_from_args(texts: list[str]) -> dict[str, FlattenOptionValue]:
     """Repeated --flatten-option NAME=VALUE, each checked; naming an option twice is an error."""
-    options: dict[str, FlattenOptionValue] = {}
-    for text in texts:
-        name, value = parse_flatten_option(text)
-        if name in options:
-            raise ConfigError(
-                f"--flatten-option {name} is given twice "
-                f"({shown_flatten_value(options[name])}, {shown_flatten_value(value)})"
-            )
-        options[name] = value
+    options = options_from_args(
+        texts, parse_flatten_option, "--flatten-option", shown_flatten_value
+    )
     return check_flatten_options(options)
 
 

@@ -12,7 +12,7 @@ import dataclasses
 import math
 from collections.abc import Mapping
 
-from foldbot.errors import ConfigError, option_word, split_name_value
+from foldbot.errors import ConfigError, option_word, options_from_args, split_name_value
 from foldbot.loop import LoopConfig
 
 LoopOptionValue = bool | int | float | None
@@ -126,15 +126,7 @@ def parse_loop_option(text: str) -> tuple[str, LoopOptionValue]:
 
 def loop_options_from_args(texts: list[str]) -> dict[str, LoopOptionValue]:
     """Repeated --loop-option NAME=VALUE, each checked; naming an option twice is an error."""
-    options: dict[str, LoopOptionValue] = {}
-    for text in texts:
-        name, value = parse_loop_option(text)
-        if name in options:
-            raise ConfigError(
-                f"--loop-option {name} is given twice ({shown_value(options[name])}, {shown_value(value)})"
-            )
-        options[name] = value
-    return options
+    return options_from_args(texts, parse_loop_option, "--loop-option", shown_value)
 
 
 def apply_loop_options(loop: LoopConfig, options: Mapping[str, object]) -> LoopConfig:
