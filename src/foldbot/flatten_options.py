@@ -161,12 +161,6 @@ def parse_flatten_option(text: str) -> tuple[str, FlattenOptionValue]:
         value = option_word(raw, GRASP_LAYERS)
     except ValueError:
         raise ConfigError(f"flatten option {name} = {raw!r} must be {_allowed(name)}") from None
-    if (
-        isinstance(value, int)
-        and not isinstance(value, bool)
-        and FLATTEN_OPTION_FIELDS[name].kind not in ("count", "switch")
-    ):
-        value = float(value)
     return name, check_flatten_options({name: value})[name]
 
 

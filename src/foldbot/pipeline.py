@@ -653,8 +653,8 @@ def crumple_and_flatten(
         writer.write_image,
         log,
         oracle,
-        pulls,
-        spreads,
+        cfg=pulls,
+        spread=spreads,
     )
     return entry
 

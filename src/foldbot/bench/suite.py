@@ -66,6 +66,7 @@ import dataclasses
 import itertools
 import math
 import tomllib
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -411,6 +412,21 @@ def _range(value: Any, key: str, lo: float, hi: float, where: str) -> float:
     return float(value)
 
 
+def _option_table(
+    data: dict[str, Any],
+    section: str,
+    check: Callable[[dict[str, Any]], dict[str, Any]],
+    where: str,
+) -> tuple[tuple[str, Any], ...]:
+    """A `[section]` table of options by name ("none" read as None), checked by `check`, as
+    (name, value) pairs; ConfigError naming the file and the table otherwise."""
+    table = data.get(section, {})
+    try:
+        return tuple(check({k: None if v == "none" else v for k, v in table.items()}).items())
+    except ConfigError as exc:
+        raise ConfigError(f"{where}: [{section}] {exc}") from None
+
+
 def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
     """Validate a parsed suite (the TOML's tables) and expand it into episode specs."""
     where = f"suite file {source}" if source else "suite"
@@ -522,30 +538,19 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
     time_step = ep.get("time_step")
     if time_step is not None:
         time_step = _range(time_step, "episode.time_step", 1e-4, 0.02, where)
-    loop_table = data.get("loop_options", {})
-    try:
-        loop_options = tuple(
-            check_loop_options(
-                {k: None if v == "none" else v for k, v in loop_table.items()}
-            ).items()
-        )
-        for garment in garments:
-            check_loop_options(dict(loop_options), garment)
-    except ConfigError as exc:
-        raise ConfigError(f"{where}: [loop_options] {exc}") from None
+
+    def loop_checked(table: dict[str, Any]) -> dict[str, LoopOptionValue]:
+        checked = check_loop_options(table)
+        for garment in garments:  # each garment's loop reads only its own
+            check_loop_options(checked, garment)
+        return checked
+
+    loop_options = _option_table(data, "loop_options", loop_checked, where)
     try:
         cloth_options = tuple(check_cloth_options(data.get("cloth", {})).items())
     except ConfigError as exc:
         raise ConfigError(f"{where}: [cloth] {exc}") from None
-    flatten_table = data.get("flatten_options", {})
-    try:
-        flatten_options = tuple(
-            check_flatten_options(
-                {k: None if v == "none" else v for k, v in flatten_table.items()}
-            ).items()
-        )
-    except ConfigError as exc:
-        raise ConfigError(f"{where}: [flatten_options] {exc}") from None
+    flatten_options = _option_table(data, "flatten_options", check_flatten_options, where)
     ravens = _get(data, "reference", "ravens_speed", bool, True, where)
 
     specs = [

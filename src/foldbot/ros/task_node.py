@@ -527,6 +527,7 @@ def run_task(fold_args: str, log=rospy.loginfo) -> dict:
         flattened = None
         if cfg.start == "crumpled":
             spec = seeded_garment(cfg)[0]
+            pulls, spreads = flatten_configs(cfg.flatten_options)
             flattened, initial = flatten_and_score(
                 cell,
                 (spec.width, spec.height),
@@ -536,8 +537,8 @@ def run_task(fold_args: str, log=rospy.loginfo) -> dict:
                 float(mesh["flat_area"]),
                 write_image,
                 log,
-                None,
-                *flatten_configs(cfg.flatten_options),
+                cfg=pulls,
+                spread=spreads,
             )
         fold = run_fold if cfg.garment == "towel" else run_garment_fold
         record = fold_and_picture(fold, loop_config(cfg, thickness), cell, write_image, log)
