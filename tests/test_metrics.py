@@ -18,6 +18,7 @@ from foldbot.metrics import (
     fold_goal,
     fold_pairs,
     perfect_fold_error_mm,
+    perfect_normalized,
     physical_layers,
     score_episode,
     self_crossings,
@@ -281,8 +282,49 @@ def test_score_episode_perfect_and_unmoved() -> None:
         "success",
         "flat_area_m2",
         "perfect_fold_error_mm",
+        "perfect_normalized",
+        "self_crossings",
     }
     assert good.perfect_fold_error_mm == 0.0  # a half then a quarter fold lands on every layer
+    assert good.perfect_normalized == pytest.approx(
+        perfect_normalized(verts, [HALF, SECOND], 0.002)
+    )
+    assert bad.self_crossings == 0  # the flat sheet (the goal's creases are not a real cloth's)
+
+
+def test_perfect_normalized_is_what_the_goal_scores() -> None:
+    verts, faces = grid()
+    t = 0.002
+    a, b = fold_pairs(verts, HALF)
+    group_start = float(np.mean(np.linalg.norm(verts[a] - verts[b], axis=1)))
+    # On the grid's symmetry every moving vertex lands one thickness above its partner.
+    assert perfect_normalized(verts, [HALF], t) == pytest.approx(1.0 - t / group_start)
+    assert perfect_normalized(verts, [HALF], 0.0) == pytest.approx(1.0)
+    goal, _ = fold_goal(verts, [HALF], t)
+    assert perfect_normalized(verts, [HALF], t) == pytest.approx(
+        score_episode(verts, goal, faces, [HALF], t).normalized_performance
+    )
+    # Off the grid's symmetry the nearest partner lies beside the mirror image: under 1 even
+    # for a sheet of no thickness, and further under on a coarser mesh of the same towel.
+    off = [0.01, 0.0, 0.0, 1.0]
+    fine, _ = grid(n=21)
+    coarse, _ = grid(n=7)
+    assert perfect_normalized(fine, [off], 0.0) < 1.0
+    assert perfect_normalized(coarse, [off], 0.0) < perfect_normalized(fine, [off], 0.0)
+    with pytest.raises(ConfigError, match="fold_lines is empty"):
+        perfect_normalized(verts, [], t)
+
+
+def test_score_episode_counts_a_fold_through_itself() -> None:
+    verts, faces = grid()
+    half, _ = fold_goal(verts, [HALF], 0.002)
+    top = np.flatnonzero(half[:, 2] > 0.001)
+    k = top[np.argmin(np.linalg.norm(half[top, :2] - [0.075, 0.0], axis=1))]
+    through = half.copy()
+    through[k, 2] = -0.01  # pushed through the layer beneath
+    score = score_episode(verts, through, faces, [HALF], 0.002)
+    assert score.self_crossings == self_crossings(through, faces) > 0
+    assert score_episode(verts, half, faces, [HALF], 0.002).self_crossings == 0
 
 
 def test_score_episode_requires_a_fold_line() -> None:

@@ -83,6 +83,10 @@ def test_episode_folder_follows_the_contract(half_fold_episode):
     again = rescore(out)
     assert again.fold_error_mm == pytest.approx(stored["fold_error_mm"])
     assert again.normalized_performance == pytest.approx(stored["normalized_performance"])
+    assert again.perfect_normalized == pytest.approx(stored["perfect_normalized"])
+    # A half fold's cloth lies on itself, not through itself; its best score is nearly 1.
+    assert stored["self_crossings"] == again.self_crossings == 0
+    assert stored["normalized_performance"] < stored["perfect_normalized"] < 1.0
     # The flat start is flat, the final state folded (half the area covered).
     assert np.ptp(episode.initial[:, 2]) < 0.003
     assert 0.4 < stored["coverage"] < 0.6

@@ -19,7 +19,10 @@ def test_report_files(tmp_path, tiny_suite_data):
                     "success": err < 13,
                     "fold_error_mm": err,
                     "perfect_fold_error_mm": 2.5,
+                    "perfect_normalized": 0.875,
                     "normalized_performance": 0.85,
+                    # The vision fold of seed 0 (a success) passed through itself.
+                    "self_crossings": 7 if (e.perception, e.seed) == ("vision", 0) else 0,
                     "coverage": 0.5,
                     "sim_seconds": 10.0,
                     "wall_seconds": 25.0,
@@ -48,7 +51,11 @@ def test_report_files(tmp_path, tiny_suite_data):
     assert "| **all** | 6 | 50 % (19–81) | 10.0 / 12.0 / 13.8 | 4.8–15.2 |" in md
     # Oracle minus vision on the two towels scored both ways: 7 mm closer on each.
     assert "| -7.0 (-7.0 to -7.0), 2 |" in md
-    assert "| perfect fold mm: mean |" in md and "| 2.5 |" in md and "physically perfect fold" in md
+    assert "| perfect fold: mm / normalized, mean |" in md and "physically perfect fold" in md
+    assert "| 2.5 / 0.875 |" in md
+    # Of the 5 scored folds one ended through itself, a success all the same.
+    assert "| folded through itself (successes) |" in md and "| 1 of 5 (1) |" in md
+    assert stored["overall"]["through_itself"] == {"recorded": 5, "folds": 1, "successes": 1}
     assert "towel half, oracle, closed loop" in md and "vision / oracle" in md
     assert "foldbot bench --suite tiny --out X" in md
     # Every scored episode simulated 10 s in 25 s of wall time: all five under real time.

@@ -267,6 +267,19 @@ def test_group_stats_perfect_fold_error_over_records_that_have_it():
     assert group_stats([{"id": "c", "result": old}])["perfect_fold_error_mm"] is None
 
 
+def test_group_stats_count_the_folds_through_themselves_over_records_that_have_it():
+    records = [
+        {"id": "a", "result": {**result(True, 10.0, 0.9), "self_crossings": 12}},
+        {"id": "b", "result": {**result(False, 40.0, 0.7), "self_crossings": 3}},
+        {"id": "c", "result": {**result(True, 10.0, 0.9), "self_crossings": 0}},
+        {"id": "d", "result": result(True, 10.0, 0.9)},  # written before result.json had it
+        {"id": "e", "error_type": "SimulationDivergedError", "error": "diverged"},
+    ]
+    stats = group_stats(records)
+    assert stats["through_itself"] == {"recorded": 3, "folds": 2, "successes": 1}
+    assert group_stats(records[3:])["through_itself"] is None
+
+
 def test_first_frame_keypoint_errors_are_pooled_with_the_worst_keypoint_named():
     def seen(**errors):
         return {**result(False, 40.0, 0.5), "first_frame_keypoint_error_mm": errors}

@@ -61,7 +61,7 @@ def test_subcommand_help(cmd, capsys):
             "crease_band acts on towel folds only; the tshirt loop reads top_layer_first",
         ),
         (["--suite", "smoke", "--arms", "2"], "--suite smoke sets the episode; drop --arms"),
-        (["--suite", "smoke", "--cloth", "mass=0.2"], "drop --cloth"),
+        (["--suite", "smoke", "--mass", "0.2"], "drop --mass"),
         (["--suite", "nosuch"], "unknown suite 'nosuch'"),
         (["--suite", "smoke", "--seed", "-1"], "--seed must be an integer ≥ 0, got -1"),
         (
@@ -277,6 +277,36 @@ def test_a_suite_episode_is_the_one_bench_runs_with_a_video():
     cfg = config_from_args(parser.parse_args(["--out", "x", "--suite", "towel_loop", "--seed", "4",
                                               "--recipe", "thirds"]))  # fmt: skip
     assert (cfg.recipe, cfg.seed) == ("thirds", 4)
+
+
+def test_a_suite_episode_takes_options_over_the_suites_own_as_bench_does():
+    """`--suite NAME --seed N` with --loop-option, --cloth and --flatten-option is the episode
+    `foldbot bench --suite NAME` runs with them: set over the suite's tables (its cloth's
+    layer_friction kept beside a new mass), checked as bench checks them."""
+    from foldbot.bench.suite import load_suite
+    from foldbot.commands.bench import with_options
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    options = ["--cloth", "mass=0.2", "--flatten-option", "finish_coverage=0.99",
+               "--loop-option", "pair_descent=0.02"]  # fmt: skip
+    base = ["--out", "x", "--suite", "towel_crumpled_two_arms", "--video-fps", "0"]
+    cfg = config_from_args(parser.parse_args([*base, "--seed", "3", *options]))
+    suite = with_options(
+        load_suite("towel_crumpled_two_arms"),
+        {"pair_descent": 0.02},
+        {"mass": 0.2},
+        {"finish_coverage": 0.99},
+    )
+    (spec,) = [e for e in suite.episodes if e.seed == 3]
+    assert cfg == spec.to_config()
+    assert cfg.cloth.mass == 0.2 and cfg.cloth.layer_friction == 0.25
+    assert dict(cfg.flatten_options) == {"finish_coverage": 0.99}
+    assert dict(cfg.loop_options)["pair_descent"] == 0.02
+    # Checked as bench checks them: a flatten option for a suite of flat starts is refused.
+    flat = ["--out", "x", "--suite", "towel_loop", "--seed", "4", "--recipe", "thirds"]
+    with pytest.raises(ConfigError, match="finish_coverage"):
+        config_from_args(parser.parse_args([*flat, "--flatten-option", "finish_coverage=0.99"]))
 
 
 def test_a_suite_episode_for_a_seed_the_suite_does_not_list():

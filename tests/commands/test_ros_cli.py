@@ -200,3 +200,9 @@ def test_ros_fold_hands_the_nodes_a_suite_episode(tmp_path, monkeypatch):
                               "towel-half-vision-open-s0000", "--video-fps", "2"])  # fmt: skip
     _node_args, node_cfg = parse_fold_args(ros_fold.fold_args_text(args))
     assert node_cfg == fold.config_from_args(args) and not node_cfg.closed_loop
+    # Options set over the suite's own reach the nodes too.
+    args = parser.parse_args(["--out", out, "--suite", "towel_crumpled_two_arms", "--seed", "5",
+                              "--flatten-option", "spread_hang_time=0.8"])  # fmt: skip
+    _node_args, node_cfg = parse_fold_args(ros_fold.fold_args_text(args))
+    assert node_cfg == fold.config_from_args(args)
+    assert dict(node_cfg.flatten_options) == {"spread_hang_time": 0.8}

@@ -60,6 +60,21 @@ def _tangled(f: dict) -> str:
     )
 
 
+def _perfect(g: dict) -> str:
+    """The perfect fold's error and normalized performance, means: '3.5 / 0.872'; – for a
+    figure the results predate."""
+    mm = (g.get("perfect_fold_error_mm") or {}).get("mean")
+    normalized = (g.get("perfect_normalized") or {}).get("mean")
+    return f"{_f(mm)} / {_f(normalized, '.3f')}"
+
+
+def _through_itself(t: dict | None) -> str:
+    """Scored folds through themselves: '4 of 39 (3)', or – where not recorded."""
+    if not t:
+        return "–"
+    return f"{t['folds']} of {t['recorded']} ({t['successes']})"
+
+
 def _rate(g: dict) -> str:
     """A success rate with its 95 % interval: '55 % (34–74)'."""
     ci = g.get("success_ci95")
@@ -125,18 +140,20 @@ def markdown(summary: dict) -> str:
         lines += ["```bash", summary["command"], "```", ""]
     header = (
         "| group | episodes | success (95 % CI) | fold error mm: mean / median / p95 "
-        "| fold error mm: mean's 95 % CI | perfect fold mm: mean | normalized perf.: mean / median / p95 | coverage: mean | actions / retries per episode "
+        "| fold error mm: mean's 95 % CI | perfect fold: mm / normalized, mean | normalized perf.: mean / median / p95 "
+        "| folded through itself (successes) | coverage: mean | actions / retries per episode "
         "| sim s per fold | wall s per episode | sim speed (per episode; under real time) "
         "| failures by cause |"
     )
-    lines += [header, "|" + "---|" * 13]
+    lines += [header, "|" + "---|" * 14]
     rows = [("**all**", summary["overall"])] + [(_group_name(g), g) for g in summary["groups"]]
     for name, g in rows:
         lines.append(
             f"| {name} | {g['episodes']} | {_rate(g)} "
             f"| {_stat(g['fold_error_mm'])} | {_interval((g['fold_error_mm'] or {}).get('mean_ci95'))} "
-            f"| {_f((g.get('perfect_fold_error_mm') or {}).get('mean'))} "
+            f"| {_perfect(g)} "
             f"| {_stat(g['normalized_performance'], '.3f')} "
+            f"| {_through_itself(g.get('through_itself'))} "
             f"| {_f((g['coverage'] or {}).get('mean'), '.2f')} "
             f"| {_f(g['actions_per_episode'])} / {_f(g['retries_per_episode'], '.2f')} "
             f"| {_f(g['sim_seconds_per_fold'])} | {_f(g['wall_seconds_per_episode'])} "
@@ -147,7 +164,15 @@ def markdown(summary: dict) -> str:
         "*perfect fold*: the fold error a physically perfect fold scores (every vertex on its goal "
         "in the table plane, lying flat on the cloth beneath it) under metrics.md's layer rule, "
         "which lifts a fold above every earlier layer even where none lies beneath "
-        "(`foldbot.metrics.perfect_fold_error_mm`).",
+        "(`foldbot.metrics.perfect_fold_error_mm`); and the normalized performance of a fold "
+        "that lands every vertex on its goal, the most the mesh and the simulated cloth's "
+        "thickness allow (SoftGym pairs a vertex with the nearest where the mesh has no mirror "
+        "partner; `foldbot.metrics.perfect_normalized`). Success asks 0.8.",
+        "",
+        "*folded through itself*: the scored folds whose cloth ended with mesh edges through its "
+        "own triangles (`foldbot.metrics.self_crossings`, ground truth), which no real cloth "
+        "can do; in brackets, how many of them metrics.md's rule counts as successes all the "
+        "same. — where the results predate the count.",
         "",
         "*95 % CI*: the success rate's Wilson score interval, and the Student-t interval of the "
         "mean fold error over the scored episodes: where a mean over many more towels may lie. "

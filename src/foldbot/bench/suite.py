@@ -279,6 +279,25 @@ class EpisodeSpec:
             d["towel_side_range"] = list(d["towel_side_range"])
         return d
 
+    def with_options(
+        self,
+        loop: dict[str, LoopOptionValue],
+        cloth: dict[str, float],
+        flatten: dict[str, FlattenOptionValue],
+    ) -> EpisodeSpec:
+        """This episode with the `loop`, `cloth` and `flatten` options set over (and beside) its
+        own, each checked (ConfigError: e.g. a loop option a garment's loop does not read)."""
+        return dataclasses.replace(
+            self,
+            loop_options=tuple(
+                check_loop_options({**dict(self.loop_options), **loop}, self.garment).items()
+            ),
+            cloth_options=tuple(check_cloth_options({**dict(self.cloth_options), **cloth}).items()),
+            flatten_options=tuple(
+                check_flatten_options({**dict(self.flatten_options), **flatten}).items()
+            ),
+        )
+
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> EpisodeSpec:
         """Inverse of as_dict."""

@@ -285,7 +285,13 @@ def group_stats(records: list[dict]) -> dict[str, Any]:
     towels = {towel_of(r.get("id", "")) for r in records}
     scored_stats = {
         key: towel_stats(records, key)
-        for key in ("fold_error_mm", "perfect_fold_error_mm", "normalized_performance", "coverage")
+        for key in (
+            "fold_error_mm",
+            "perfect_fold_error_mm",
+            "perfect_normalized",
+            "normalized_performance",
+            "coverage",
+        )
     }
     return {
         "episodes": n,
@@ -308,9 +314,25 @@ def group_stats(records: list[dict]) -> dict[str, Any]:
         "failures": {c: len(ids) for c, ids in failures.items()},
         "failed_episodes": failures,
         "failed_evidence": evidence,
+        "through_itself": through_itself(scored),
         "flatten": flatten_stats(records),
         "replicates": replicate_stats(records),
         "first_frame_keypoints": first_frame_stats(scored),
+    }
+
+
+def through_itself(results: list[dict]) -> dict[str, int] | None:
+    """Of the scored folds that recorded it (result.json's `self_crossings`, ground truth): how
+    many ended with the cloth through itself, and how many of those metrics.md's rule counts as
+    successes all the same; None where none recorded it (runs before it was)."""
+    known = [r for r in results if r.get("self_crossings") is not None]
+    if not known:
+        return None
+    tangled = [r for r in known if r["self_crossings"] > 0]
+    return {
+        "recorded": len(known),
+        "folds": len(tangled),
+        "successes": sum(bool(r.get("success")) for r in tangled),
     }
 
 

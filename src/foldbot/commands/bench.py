@@ -29,11 +29,11 @@ from foldbot.bench.report import write_report
 from foldbot.bench.runner import DEFAULT_TIMEOUT_S, run_suite
 from foldbot.bench.suite import Suite, load_suite, parse_seeds, suite_from_dict
 from foldbot.bench.summary import summarise
-from foldbot.cloth_options import check_cloth_options, cloth_options_from_args
+from foldbot.cloth_options import cloth_options_from_args
 from foldbot.commands.fold import add_cloth_option, add_flatten_option, add_loop_option
 from foldbot.errors import ConfigError
-from foldbot.flatten_options import check_flatten_options, flatten_options_from_args
-from foldbot.loop_options import check_loop_options, loop_options_from_args
+from foldbot.flatten_options import flatten_options_from_args
+from foldbot.loop_options import loop_options_from_args
 from foldbot.pipeline import PERCEPTION_MODES
 from foldbot.planning.recipes import RECIPE_HELP, RECIPES
 
@@ -134,19 +134,7 @@ def with_options(suite: Suite, loop: dict, cloth: dict, flatten: dict | None = N
     before any run: e.g. a flatten option in a suite of flat starts)."""
     if not loop and not cloth and not flatten:
         return suite
-    episodes = tuple(
-        dataclasses.replace(
-            e,
-            loop_options=tuple(
-                check_loop_options({**dict(e.loop_options), **loop}, e.garment).items()
-            ),
-            cloth_options=tuple(check_cloth_options({**dict(e.cloth_options), **cloth}).items()),
-            flatten_options=tuple(
-                check_flatten_options({**dict(e.flatten_options), **(flatten or {})}).items()
-            ),
-        )
-        for e in suite.episodes
-    )
+    episodes = tuple(e.with_options(loop, cloth, flatten or {}) for e in suite.episodes)
     for e in {(e.garment, e.perception): e for e in episodes}.values():
         e.to_config()  # anything EpisodeConfig refuses, refused here before any run
     return dataclasses.replace(suite, episodes=episodes)
@@ -274,7 +262,17 @@ def _print_overview(s: dict) -> None:
                 f"  perfect fold (mm)       mean {perfect['mean']:.1f}  (what a physically "
                 "perfect fold, lying flat, scores under the layer rule)"
             )
-        print(f"  normalized performance  mean {p['mean']:.3f}  median {p['median']:.3f}")
+        ceiling = o.get("perfect_normalized")
+        print(
+            f"  normalized performance  mean {p['mean']:.3f}  median {p['median']:.3f}"
+            + (f"  (a perfect fold: {ceiling['mean']:.3f}; success asks 0.8)" if ceiling else "")
+        )
+        tangled = o.get("through_itself")
+        if tangled and tangled["folds"]:
+            print(
+                f"  folded through itself   {tangled['folds']} of {tangled['recorded']} scored "
+                f"folds ({tangled['successes']} counted successes): a simulated cloth's tangle"
+            )
         print(
             f"  per episode             {o['actions_per_episode']:.1f} actions, "
             f"{o['retries_per_episode']:.2f} retries, {o['sim_seconds_per_fold']:.1f} s simulated, "

@@ -109,7 +109,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "bench` runs it (a seed outside the suite's own as `bench --seeds` runs it), but with a "
         "video (--video-fps) and optionally --gui. --recipe and "
         "--perception pick among the suite's where it has several, --replicate its replicate; "
-        "other episode options are refused beside it",
+        "--loop-option, --cloth and --flatten-option are set over the suite's own (a trial, as "
+        "`bench --suite` runs one); other episode options are refused beside it",
     )
     parser.add_argument(
         "--episode",
@@ -125,6 +126,9 @@ SUITE_PICKS = ("suite", "episode", "seed", "replicate", "recipe", "perception")
 """With --suite, the options that pick one of its episodes."""
 SUITE_FREE = ("video_fps", "out", "overwrite", "gui")
 """With --suite, the options that do not change the episode's physics or plan."""
+SUITE_OVER = ("loop_option", "cloth", "flatten_option")
+"""With --suite, the options set over the suite's own tables, as `foldbot bench --suite` sets
+them: a trial of one of its episodes."""
 
 
 def add_episode_arguments(parser: argparse.ArgumentParser) -> None:
@@ -310,6 +314,11 @@ def run(args: argparse.Namespace) -> int:
         f"coverage {result['coverage']:.2f}, "
         f"{result['sim_seconds']:.1f} s simulated in {result['wall_seconds']:.1f} s"
     )
+    if result.get("self_crossings"):
+        print(
+            f"  the simulated cloth passed through itself in the fold ({result['self_crossings']} "
+            "mesh edges cross it), which no real cloth does; scored all the same"
+        )
     print(f"episode written to {result['out_dir']}")
     return 0
 
@@ -326,23 +335,35 @@ def suite_episode_config(args: argparse.Namespace) -> EpisodeConfig:
 
 def pick_suite_episode(args: argparse.Namespace) -> EpisodeSpec:
     """The episode of suite `args.suite` that --episode, or --seed (and replicate, recipe,
-    perception), picks; ConfigError where another episode option is given beside --suite, or
-    where the suite has no such episode or several."""
-    from foldbot.bench.suite import load_suite
-
+    perception), picks, with the loop, cloth and flatten options given set over its own;
+    ConfigError where another episode option is given beside --suite, or where the suite has
+    no such episode or several."""
     defaults = argparse.ArgumentParser(add_help=False)
     add_arguments(defaults)
     given = [
         "--" + name.replace("_", "-")
         for name, default in vars(defaults.parse_args(["--out", "-"])).items()
-        if name not in SUITE_PICKS + SUITE_FREE and getattr(args, name, default) != default
+        if name not in SUITE_PICKS + SUITE_FREE + SUITE_OVER
+        and getattr(args, name, default) != default
     ]
     if given:
         raise ConfigError(
             f"--suite {args.suite} sets the episode; drop {', '.join(given)} (beside --suite only "
-            "--seed, --replicate, --recipe, --perception, --video-fps, --out, --overwrite and "
-            "--gui are allowed)"
+            "--seed, --replicate, --recipe, --perception, --video-fps, --out, --overwrite, "
+            "--gui, and --loop-option, --cloth and --flatten-option over the suite's own, are "
+            "allowed)"
         )
+    return _picked(args, defaults).with_options(
+        loop_options_from_args(args.loop_option),
+        cloth_options_from_args(args.cloth),
+        flatten_options_from_args(args.flatten_option),
+    )
+
+
+def _picked(args: argparse.Namespace, defaults: argparse.ArgumentParser) -> EpisodeSpec:
+    """The suite's episode --episode, or --seed (and replicate, recipe, perception), picks."""
+    from foldbot.bench.suite import load_suite
+
     if args.episode is not None:
         picks = [
             "--" + name

@@ -89,12 +89,7 @@ def fold_args_text(args: argparse.Namespace) -> str:
     if args.mass is not None:
         words += ["--mass", repr(args.mass)]
     words += ["--time-step", repr(args.time_step)]
-    for option in args.loop_option or ():
-        words += ["--loop-option", option]
-    for option in args.cloth or ():
-        words += ["--cloth", option]
-    for option in args.flatten_option or ():
-        words += ["--flatten-option", option]
+    words += option_words(args)
     if args.garment_edge_length is not None:
         words += ["--garment-edge-length", repr(args.garment_edge_length)]
     words += ["--garment-yaw", repr(args.garment_yaw)]
@@ -106,13 +101,26 @@ def fold_args_text(args: argparse.Namespace) -> str:
     return shlex.join(words)
 
 
+def option_words(args: argparse.Namespace) -> list[str]:
+    """The loop, cloth and flatten options given, as words."""
+    words = []
+    for flag, given in (
+        ("--loop-option", args.loop_option),
+        ("--cloth", args.cloth),
+        ("--flatten-option", args.flatten_option),
+    ):
+        for option in given or ():
+            words += [flag, option]
+    return words
+
+
 def suite_args_words(args: argparse.Namespace) -> list[str]:
-    """`--suite PATH --episode ID` (the episode the options pick), the video rate and output
-    folder."""
+    """`--suite PATH --episode ID` (the episode the options pick), the loop, cloth and flatten
+    options set over the suite's own, the video rate and output folder."""
     from foldbot.bench.suite import resolve_suite_path
 
     words = ["--suite", str(resolve_suite_path(args.suite).resolve())]
-    words += ["--episode", fold.pick_suite_episode(args).id]
+    words += ["--episode", fold.pick_suite_episode(args).id, *option_words(args)]
     words += ["--video-fps", repr(args.video_fps), "--out", str(Path(args.out).resolve())]
     if args.overwrite:
         words.append("--overwrite")
