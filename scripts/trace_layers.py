@@ -2,7 +2,8 @@
 carry with two arms), each stage's flap (the vertices that stage folds) measured against its
 goal, how far the action dragged the flaps laid before it, how far the staying cloth (the
 vertices no fold so far moves) lies from where it lay flat, and the first fold's normalized
-performance (the success measure) as it stands; and the fold error and the staying cloth's
+performance (the success measure) as it stands, and how many mesh edges pass through the
+cloth's own triangles (metrics.self_crossings: a fold through itself); and the fold error and the staying cloth's
 drift after the last action against the episode's end, which differ only by what the cloth did
 after the arm let go (parking, the last look). Ground truth, for diagnosis only: the fold itself
 runs exactly as in the benchmark (vision, closed loop); the simulator is only read between
@@ -100,6 +101,7 @@ def trace_episode(suite: str, recipe: str, seed: int) -> dict:
                 "flap_moved_mm": [round(1000 * float(moved[m].mean()), 1) for m in masks],
                 "first_fold_normalized": round(float(first.normalized), 3),
                 "staying_drift_mm": staying_drift_mm(after, initial, layers == 0),
+                "self_crossings": metrics.self_crossings(after, cloth.mesh.faces),
             }
         )
         state["last"] = after
@@ -137,6 +139,7 @@ def trace_episode(suite: str, recipe: str, seed: int) -> dict:
         return {
             "fold_error_mm": round(metrics.fold_error_mm(vertices, goal), 1),
             "staying_drift_mm": staying_drift_mm(vertices, cloth["initial"], staying),
+            "self_crossings": metrics.self_crossings(vertices, cloth["faces"]),
         }
 
     return {
