@@ -1,5 +1,7 @@
 """Two run folders compared episode by episode: pairs, the same ones, the paired difference."""
 
+import json
+
 import pytest
 
 from foldbot.bench.compare import compare_runs, load_run, markdown
@@ -73,6 +75,18 @@ def test_pairs_by_id_and_measures_the_paired_difference(runs):
         "fold inaccurate",
     ]
     assert changed["towel-half-vision-closed-s0001"]["fold_error_mm"] == [12.0, 9.0]
+
+
+def test_counts_the_folds_through_themselves_where_recorded(runs):
+    first, second = runs
+    for eid in ("towel-half-vision-closed-s0001", "towel-quarter-vision-closed-s0000"):
+        path = second / "episodes" / eid / "result.json"
+        result = json.loads(path.read_text())
+        path.write_text(json.dumps({**result, "self_crossings": 12 if "quarter" in eid else 0}))
+    c = compare_runs(first, second)
+    assert c["overall"]["through_itself"] == [None, {"recorded": 2, "folds": 1, "successes": 0}]
+    md = markdown(c)
+    assert "| folded through itself: first / second |" in md and "| – / 1 of 2 |" in md
 
 
 def test_markdown_names_the_changes(runs):

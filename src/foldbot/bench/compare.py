@@ -27,6 +27,7 @@ from foldbot.bench.summary import (
     clustered_success_interval,
     difference_interval,
     failure_cause,
+    through_itself,
 )
 from foldbot.errors import ConfigError
 from foldbot.io.episode import RESULT_FILE, is_episode_dir
@@ -101,6 +102,9 @@ def _group_figures(pairs: list[tuple[str, dict, dict]]) -> dict[str, Any]:
             "further": sum(d > 0 for d in diffs),
         },
         "diverged": [sum(_outcome(r) == "diverged" for r in side) for side in sides],
+        "through_itself": [
+            through_itself([r["result"] for r in side if "result" in r]) for side in sides
+        ],
     }
 
 
@@ -202,6 +206,11 @@ def _rate(rate: float | None, ci: list[float] | None) -> str:
     return _pct(rate) + ("" if rate is None or not ci else f" ({_interval(ci, '.0f', 100)})")
 
 
+def _through(t: dict | None) -> str:
+    """Scored folds through themselves, 'n of m', or – where none recorded it."""
+    return "–" if not t else f"{t['folds']} of {t['recorded']}"
+
+
 def _difference(d: dict) -> str:
     if d["mean"] is None:
         return "–"
@@ -228,8 +237,9 @@ def markdown(comparison: dict) -> str:
     lines += [
         "| group | pairs | the same | success: first / second (95 % CI) "
         "| fold error mm, mean over pairs scored both ways: first / second "
-        "| second minus first: mean (95 % CI) | closer / further | diverged: first / second |",
-        "|---|---|---|---|---|---|---|---|",
+        "| second minus first: mean (95 % CI) | closer / further | diverged: first / second "
+        "| folded through itself: first / second |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     rows = [("**all**", comparison["overall"])] + [
         (" ".join(str(g[k]) for k in SPEC_AXES), g) for g in comparison["groups"]
@@ -243,12 +253,15 @@ def markdown(comparison: dict) -> str:
         lines.append(
             f"| {name} | {g['pairs']} | {g['same']} | {rates} | {means} ({g['scored_both']}) "
             f"| {_difference(d)} | {d['closer']} / {d['further']} "
-            f"| {g['diverged'][0]} / {g['diverged'][1]} |"
+            f"| {g['diverged'][0]} / {g['diverged'][1]} "
+            f"| {' / '.join(_through(t) for t in g['through_itself'])} |"
         )
     lines += [
         "",
         "*the same*: pairs whose records agree to the last digit. An interval clear of 0 is a "
-        "difference these towels show; one across 0 is not.",
+        "difference these towels show; one across 0 is not. *folded through itself*: scored "
+        "folds whose cloth ended with mesh edges through its own triangles (result.json's "
+        "`self_crossings`, ground truth), of those that recorded it; – where none did.",
     ]
     if comparison["changed"]:
         lines += ["", "## Pairs that changed", "", "| episode | fold error mm | outcome |"]
