@@ -3,9 +3,9 @@ carry with two arms), each stage's flap (the vertices that stage folds) measured
 goal, how far the action dragged the flaps laid before it, how far the staying cloth (the
 vertices no fold so far moves) lies from where it lay flat, and the first fold's normalized
 performance (the success measure) as it stands, and how many mesh edges pass through the
-cloth's own triangles (metrics.self_crossings: a fold through itself); and the fold error and the staying cloth's
-drift after the last action against the episode's end, which differ only by what the cloth did
-after the arm let go (parking, the last look). Ground truth, for diagnosis only: the fold itself
+cloth's own triangles (metrics.self_crossings: a fold through itself); and the fold error and
+the staying cloth's drift after the last action against the episode's end, which differ only by
+what the cloth did after the arm let go (parking, the last look). Ground truth, for diagnosis only: the fold itself
 runs exactly as in the benchmark (vision, closed loop); the simulator is only read between
 actions.
 

@@ -280,6 +280,11 @@ def perfect_normalized(
     if not lines:
         raise ConfigError("fold_lines is empty; a perfect fold needs at least one fold line")
     goal, _ = fold_goal(start, lines, _thickness(thickness))
+    return _normalized_at_goal(start, goal, lines)
+
+
+def _normalized_at_goal(start: np.ndarray, goal: np.ndarray, lines: tuple[FoldLine, ...]) -> float:
+    """The first fold's normalized performance of the cloth lying exactly on `goal`."""
     return softgym_performance(start, goal, lines[0], staying_reference=goal).normalized
 
 
@@ -578,6 +583,6 @@ def score_episode(
         success=success(normalized, error, area),
         flat_area_m2=area,
         perfect_fold_error_mm=perfect,
-        perfect_normalized=perfect_normalized(start, lines, thickness),
+        perfect_normalized=_normalized_at_goal(start, goal, lines),
         self_crossings=self_crossings(end, tris),
     )

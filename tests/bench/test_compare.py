@@ -86,7 +86,7 @@ def test_counts_the_folds_through_themselves_where_recorded(runs):
     c = compare_runs(first, second)
     assert c["overall"]["through_itself"] == [None, {"recorded": 2, "folds": 1, "successes": 0}]
     md = markdown(c)
-    assert "| folded through itself: first / second |" in md and "| – / 1 of 2 |" in md
+    assert "| folded through itself: first / second |" in md and "| – / 1 of 2 (0) |" in md
 
 
 def test_markdown_names_the_changes(runs):

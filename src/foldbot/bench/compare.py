@@ -20,7 +20,7 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
-from foldbot.bench.report import _f, _interval, _pct, save_figure
+from foldbot.bench.report import _f, _interval, _pct, _through_itself, save_figure
 from foldbot.bench.runner import EPISODES, SUITE_FILE
 from foldbot.bench.summary import (
     by_towel,
@@ -206,11 +206,6 @@ def _rate(rate: float | None, ci: list[float] | None) -> str:
     return _pct(rate) + ("" if rate is None or not ci else f" ({_interval(ci, '.0f', 100)})")
 
 
-def _through(t: dict | None) -> str:
-    """Scored folds through themselves, 'n of m', or – where none recorded it."""
-    return "–" if not t else f"{t['folds']} of {t['recorded']}"
-
-
 def _difference(d: dict) -> str:
     if d["mean"] is None:
         return "–"
@@ -254,14 +249,15 @@ def markdown(comparison: dict) -> str:
             f"| {name} | {g['pairs']} | {g['same']} | {rates} | {means} ({g['scored_both']}) "
             f"| {_difference(d)} | {d['closer']} / {d['further']} "
             f"| {g['diverged'][0]} / {g['diverged'][1]} "
-            f"| {' / '.join(_through(t) for t in g['through_itself'])} |"
+            f"| {' / '.join(_through_itself(t) for t in g['through_itself'])} |"
         )
     lines += [
         "",
         "*the same*: pairs whose records agree to the last digit. An interval clear of 0 is a "
         "difference these towels show; one across 0 is not. *folded through itself*: scored "
         "folds whose cloth ended with mesh edges through its own triangles (result.json's "
-        "`self_crossings`, ground truth), of those that recorded it; – where none did.",
+        "`self_crossings`, ground truth), of those that recorded it, with the successes among them in "
+        "brackets; – where none did.",
     ]
     if comparison["changed"]:
         lines += ["", "## Pairs that changed", "", "| episode | fold error mm | outcome |"]
