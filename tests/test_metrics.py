@@ -21,6 +21,7 @@ from foldbot.metrics import (
     perfect_normalized,
     physical_layers,
     score_episode,
+    self_crossing_pairs,
     self_crossings,
     softgym_performance,
     success,
@@ -243,6 +244,26 @@ def test_self_crossings_count_a_cloth_through_itself_only() -> None:
     assert self_crossings(through, faces) > 0
     with pytest.raises(ConfigError, match="vertices"):
         self_crossings(verts[:, :2], faces)
+
+
+def test_self_crossing_pairs_name_the_edges_and_triangles_that_cross() -> None:
+    verts, faces = grid()
+    half, _ = fold_goal(verts, [HALF], 0.002)
+    assert self_crossing_pairs(half, faces).shape == (0, 3)
+    through = half.copy()
+    top = np.flatnonzero(half[:, 2] > 0.001)
+    k = top[np.argmin(np.linalg.norm(half[top, :2] - [0.075, 0.0], axis=1))]
+    through[k, 2] = -0.01  # pushed down through the layer beneath
+    pairs = self_crossing_pairs(through, faces)
+    assert len(pairs) == self_crossings(through, faces) > 0
+    bottom = set(np.flatnonzero(half[:, 2] <= 0.001).tolist())
+    for a, b, t in pairs:
+        assert {a, b}.isdisjoint(faces[t])
+        # k's edges through the layer beneath, or that layer's edges through k's triangles
+        if k in (a, b):
+            assert set(faces[t].tolist()) <= bottom
+        else:
+            assert k in faces[t] and {a, b} <= bottom
 
 
 # --- success ----------------------------------------------------------------------------------

@@ -463,14 +463,21 @@ def self_crossings(vertices: np.ndarray, faces: np.ndarray) -> int:
     through the triangle. A real cloth never does (it cannot pass through itself); a simulated
     one that has is tangled, and no flattening lays it flat. 0 for any untangled cloth, folded or
     crumpled; a diagnostic on ground truth, not a metric of metrics.md."""
+    return int(self_crossing_pairs(vertices, faces).shape[0])
+
+
+def self_crossing_pairs(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """The crossings that self_crossings counts, as rows (edge's first vertex, edge's second
+    vertex, triangle's index in `faces`), sorted: which part of the cloth passed through which
+    (scripts/trace_crossings.py). Empty (0×3) for an untangled cloth."""
     pts = _points("vertices", vertices)
     tris = _faces(faces, pts.shape[0])
     if tris.shape[0] == 0:
-        return 0
+        return np.zeros((0, 3), dtype=np.int64)
     edges = np.unique(np.sort(tris[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1), axis=0)
     p, q, r = (pts[tris[:, k]][None] for k in range(3))
     normal = np.cross(q - p, r - p)
-    count = 0
+    found = []
     for lo in range(0, edges.shape[0], 256):  # chunks keep the edge × triangle arrays small
         e = edges[lo : lo + 256]
         a, b = pts[e[:, 0]][:, None], pts[e[:, 1]][:, None]
@@ -490,8 +497,9 @@ def self_crossings(vertices: np.ndarray, faces: np.ndarray) -> int:
         shared = (e[:, :1, None] == tris[None]).any(axis=2) | (e[:, 1:, None] == tris[None]).any(
             axis=2
         )
-        count += int(((sides < 0) & inside & ~shared).sum())
-    return count
+        ei, ti = np.nonzero((sides < 0) & inside & ~shared)
+        found.append(np.column_stack([e[ei], ti]))
+    return np.concatenate(found).astype(np.int64)
 
 
 def fold_error_limit_mm(flat_area_m2: float) -> float:
