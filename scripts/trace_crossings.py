@@ -218,11 +218,16 @@ def trace_episode(suite: str, recipe: str, seed: int, every: int) -> dict:
 
 
 def summary(rows: list[dict]) -> list[str]:
-    """Lines for stderr: how many episodes passed through themselves, in which segment their
-    crossings first appeared, and how many of those first crossings touched the grip."""
+    """Lines for stderr: how many episodes passed through themselves (and how many of them ended
+    so: a crossing can come apart again), in which segment their crossings first appeared, and
+    how many of those first crossings touched the grip."""
     traced = [r for r in rows if "actions" in r]
     tangled = [r for r in traced if r.get("first")]
-    lines = [f"# {len(tangled)} of {len(traced)} traced episodes passed through themselves"]
+    ended = sum(1 for r in tangled if r.get("end", {}).get("crossings", 0) > 0)
+    lines = [
+        f"# {len(tangled)} of {len(traced)} traced episodes passed through themselves at some "
+        f"moment, {ended} ended so"
+    ]
     where = Counter(r["first"]["segment"] for r in tangled)
     for segment, n in where.most_common():
         grip = sum(

@@ -60,13 +60,15 @@ def test_the_first_rise_is_the_first_sample_with_more_crossings_than_before():
 
 
 def test_the_summary_says_where_the_crossings_first_appeared():
-    def row(segment: str | None, held: list[int], grip: int) -> dict:
+    def row(segment: str | None, held: list[int], grip: int, end: int = 1) -> dict:
         first = None if segment is None else {"segment": segment, "held": held, "at_the_grip": grip}
-        return {"actions": [{"action": "a"}], "first": first}
+        return {"actions": [{"action": "a"}], "first": first, "end": {"crossings": end}}
 
-    rows = [row("carry", [4, 9], 3), row("carry", [4], 0), row("park", [], 2), row(None, [], 0)]
-    rows.append({"error": "diverged"})  # not traced: left out
+    rows = [row("carry", [4, 9], 3), row("carry", [4], 0, end=0), row("park", [], 2)]
+    rows += [row(None, [], 0, end=0), {"error": "diverged"}]  # the last not traced: left out
     lines = trace_crossings.summary(rows)
-    assert lines[0] == "# 3 of 4 traced episodes passed through themselves"
+    assert (
+        lines[0] == "# 3 of 4 traced episodes passed through themselves at some moment, 2 ended so"
+    )
     assert lines[1] == "  first in 'carry': 2 (holding, at the grip: 1)"
     assert lines[2] == "  first in 'park': 1 (holding, at the grip: 0)"
