@@ -23,16 +23,17 @@ import foldbot  # noqa: F401  first: caps numpy's SIMD level before numpy loads 
 # isort: on
 import argparse
 import json
-import subprocess
 import sys
 import tempfile
 from collections import Counter
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
 from foldbot.bench.suite import parse_seeds
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from per_seed import run_each_seed
 
 
 def neighbourhood(vertices: set[int], faces: np.ndarray) -> set[int]:
@@ -256,23 +257,12 @@ def main() -> int:
         row = trace_episode(args.suite, args.recipe, args.one, args.every)
         print(json.dumps(row), flush=True)
         return 0
-    if args.workers < 1:
-        raise SystemExit(f"--workers must be ≥ 1, got {args.workers}")
-
-    def child(seed: int) -> dict:
-        cmd = [sys.executable, __file__, "--suite", args.suite, "--recipe", args.recipe]
-        cmd += ["--every", str(args.every), "--one", str(seed)]
-        res = subprocess.run(cmd, capture_output=True, text=True)
-        line = res.stdout.strip().splitlines()[-1] if res.stdout.strip() else ""
-        if line.startswith("{"):
-            return json.loads(line)
-        return {"recipe": args.recipe, "seed": seed, "error": res.stderr[-300:]}
-
-    rows = []
-    with ThreadPoolExecutor(args.workers) as pool:
-        for row in pool.map(child, parse_seeds(args.seeds)):
-            rows.append(row)
-            print(json.dumps(row), flush=True)
+    rows = run_each_seed(
+        __file__,
+        parse_seeds(args.seeds),
+        ["--suite", args.suite, "--recipe", args.recipe, "--every", str(args.every)],
+        args.workers,
+    )
     for line in summary(rows):
         print(line, file=sys.stderr)
     return 0

@@ -25,16 +25,17 @@ import foldbot  # noqa: F401  first: caps numpy's SIMD level before numpy loads 
 # isort: on
 import argparse
 import json
-import subprocess
 import sys
 import tempfile
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
 from foldbot.bench.suite import parse_seeds
 from foldbot.metrics import FOLD_SUCCESS_MIN_NORMALIZED
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from per_seed import run_each_seed
 
 
 def flap_masks(initial: np.ndarray, lines: list, thickness: float) -> list[np.ndarray]:
@@ -176,22 +177,12 @@ def main() -> int:
     if args.one is not None:
         print(json.dumps(trace_episode(args.suite, args.recipe, args.one)), flush=True)
         return 0
-    if args.workers < 1:
-        raise SystemExit(f"--workers must be ≥ 1, got {args.workers}")
-
-    def child(seed: int) -> dict:
-        cmd = [sys.executable, __file__, "--suite", args.suite, "--recipe", args.recipe]
-        res = subprocess.run([*cmd, "--one", str(seed)], capture_output=True, text=True)
-        line = res.stdout.strip().splitlines()[-1] if res.stdout.strip() else ""
-        if line.startswith("{"):
-            return json.loads(line)
-        return {"recipe": args.recipe, "seed": seed, "error": res.stderr[-300:]}
-
-    rows = []
-    with ThreadPoolExecutor(args.workers) as pool:
-        for row in pool.map(child, parse_seeds(args.seeds)):
-            rows.append(row)
-            print(json.dumps(row), flush=True)
+    rows = run_each_seed(
+        __file__,
+        parse_seeds(args.seeds),
+        ["--suite", args.suite, "--recipe", args.recipe],
+        args.workers,
+    )
     ends = [stage_ends(r) for r in rows]
     ends = [e for e in ends if e]
     print(f"# {args.recipe}: {len(ends)} of {len(rows)} episodes scored", file=sys.stderr)
