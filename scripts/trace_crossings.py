@@ -166,11 +166,13 @@ def trace_episode(suite: str, recipe: str, seed: int, every: int) -> dict:
     if not samples:
         return {"recipe": recipe, "seed": seed, "error": error or "no action was traced"}
     if result is None:
-        # No cloth.npz: the goal layers from the first sample's cloth, as the trace saw it.
-        cell = now["cell"]
-        initial = cell.executors[0].grasp.cloth.spawn_vertices
-        faces = np.asarray(cell.executors[0].grasp.cloth.mesh.faces)
-        thickness = cell.executors[0].grasp.cloth.thickness
+        # No cloth.npz: the goal layers from the cloth as spawned flat and the lines traced.
+        cloth = now["cell"].executors[0].grasp.cloth
+        initial, faces, thickness = (
+            cloth.spawn_vertices,
+            np.asarray(cloth.mesh.faces),
+            cloth.thickness,
+        )
     layers = (
         metrics.fold_goal(initial, lines, thickness)[1]
         if lines
