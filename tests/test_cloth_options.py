@@ -7,6 +7,7 @@ import pytest
 
 from foldbot.cloth_options import (
     CLOTH_OPTIONS,
+    COUNT_CLOTH_OPTIONS,
     apply_cloth_options,
     changed_cloth_options,
     check_cloth_options,
@@ -25,6 +26,10 @@ def test_every_option_is_a_numeric_cloth_field():
         if name == "layer_friction":  # unset by default: cloth–cloth friction follows friction²
             assert cloth_option_default(name) is None
             assert fields[name].type == "float | None"
+            continue
+        if name in COUNT_CLOTH_OPTIONS:  # physics steps: a whole number
+            assert isinstance(cloth_option_default(name), int), name
+            assert fields[name].type == "int", name
             continue
         assert isinstance(cloth_option_default(name), float), name
         assert fields[name].type == "float", name
@@ -49,6 +54,8 @@ def test_options_are_checked_and_kept_in_their_order():
         ({"margin_divisor": 1.5}, "cloth margin_divisor must be in [2, 20]"),
         ({"damping_stiffness": -1}, "cloth damping_stiffness must be ≥ 0, got -1.0"),
         ({"layer_friction": 0}, "cloth layer_friction must be in (0, 4] (or unset: friction²)"),
+        ({"crossing_guard": 1.5}, "cloth crossing_guard must be an integer in [0, 100] physics"),
+        ({"crossing_guard": -1}, "cloth crossing_guard must be an integer in [0, 100] physics"),
     ],
 )
 def test_a_bad_option_names_itself_and_what_is_allowed(options, needle):
@@ -60,6 +67,7 @@ def test_a_bad_option_names_itself_and_what_is_allowed(options, needle):
 def test_the_command_line_form():
     assert parse_cloth_option("margin_divisor=6.5") == ("margin_divisor", 6.5)
     assert parse_cloth_option(" friction = 2 ") == ("friction", 2.0)
+    assert parse_cloth_option("crossing_guard=2") == ("crossing_guard", 2)
     assert cloth_options_from_args(["mass=0.2", "friction=0.5"]) == {"mass": 0.2, "friction": 0.5}
     for text, needle in [
         ("friction", "must look like NAME=VALUE"),
@@ -80,6 +88,9 @@ def test_applied_and_recorded_only_where_they_differ_from_the_defaults():
     assert changed_cloth_options(ClothConfig()) == {}
     layers = apply_cloth_options(ClothConfig(), {"layer_friction": 0.25})
     assert changed_cloth_options(layers) == {"layer_friction": 0.25}
+    guarded = apply_cloth_options(ClothConfig(), {"crossing_guard": 1.0})
+    assert guarded.crossing_guard == 1 and isinstance(guarded.crossing_guard, int)
+    assert changed_cloth_options(guarded) == {"crossing_guard": 1}
 
 
 def test_the_help_names_every_option_with_its_default():

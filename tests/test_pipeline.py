@@ -456,19 +456,44 @@ def test_towel_size_is_drawn_from_the_seed_within_range():
 
 def test_a_cloth_option_reaches_the_simulated_cloth_and_the_record(tmp_path):
     """`--cloth margin_divisor=8`: the soft body's margin is an eighth of a mesh edge, so the
-    layer thickness the goal uses (cloth.npz) is a quarter of one; result.json names the option."""
+    layer thickness the goal uses (cloth.npz) is a quarter of one; result.json names the options
+    (and, with `crossing_guard`, how many mesh points the guard put back)."""
     from foldbot.cli import build_parser
     from foldbot.commands.fold import config_from_args
     from foldbot.garments.towel import make_towel
 
     args = ["fold", "--width", "0.2", "--height", "0.2", "--resolution", "6", "--video-fps", "0"]
-    args += ["--cloth", "margin_divisor=8", "--out", str(tmp_path / "ep")]
+    args += ["--cloth", "margin_divisor=8", "--cloth", "crossing_guard=1"]
+    args += ["--out", str(tmp_path / "ep")]
     run_cli(*args)
     result = json.loads((tmp_path / "ep" / "result.json").read_text())
-    assert result["cloth_options"] == {"margin_divisor": 8.0}
+    assert result["cloth_options"] == {"margin_divisor": 8.0, "crossing_guard": 1}
+    assert isinstance(result["crossing_guard_restored"], int)  # the guard watched the fold
     edge = make_towel(config_from_args(build_parser().parse_args(args)).towel).edge_length
     thickness = float(np.load(tmp_path / "ep" / "cloth.npz")["thickness"])
     assert thickness == pytest.approx(edge / 4)
+
+
+def test_the_crossing_guard_watches_the_cloth_from_the_flat_start():
+    """ClothConfig.crossing_guard: the cell's world steps a CrossingGuard on its cloth, from the
+    moment the cloth is built (before a crumple or a fold), and a default cloth has none."""
+    from foldbot.pipeline import build_sim_cell
+    from foldbot.sim.cloth import ClothConfig
+    from foldbot.sim.crossing_guard import CrossingGuard
+    from foldbot.sim.world import SimWorld
+
+    for every, guarded in ((0, False), (3, True)):
+        cfg = EpisodeConfig(towel=TowelSpec(0.2, 0.2, 6), cloth=ClothConfig(crossing_guard=every))
+        with SimWorld(cfg.sim) as world:
+            parts = build_sim_cell(cfg, world)
+            guards = [h for h in world._step_hooks if isinstance(h, CrossingGuard)]
+            assert (parts.guard is not None) == guarded
+            assert guards == ([parts.guard] if guarded else [])
+            if guarded:
+                assert parts.guard.cloth is parts.cloth and parts.guard.every == 3
+                world.step(30)
+                assert parts.guard.restored == 0  # a flat towel settling goes through nothing
+            parts.model_world.close()
 
 
 def test_a_cloth_whose_layers_slide_keeps_the_tables_grip():

@@ -25,8 +25,12 @@ CLOTH_OPTIONS = (
     "friction",
     "layer_friction",
     "margin_divisor",
+    "crossing_guard",
 )
 """The names allowed (see each field's docstring in ClothConfig; every value is a number)."""
+
+COUNT_CLOTH_OPTIONS = ("crossing_guard",)
+"""The options that count (physics steps): a whole number is kept as an int."""
 
 
 def cloth_option_default(name: str) -> float | None:
@@ -36,7 +40,7 @@ def cloth_option_default(name: str) -> float | None:
 
 def check_cloth_options(options: Mapping[str, object]) -> dict[str, float]:
     """Every option checked (a known name, a finite number, a value ClothConfig accepts), as a
-    plain dict of floats in CLOTH_OPTIONS' order; ConfigError naming the option, the value and
+    plain dict of floats (ints for a count) in CLOTH_OPTIONS' order; ConfigError naming the option, the value and
     what is allowed otherwise."""
     if not isinstance(options, Mapping):
         raise ConfigError(f"cloth options must be a table of name = number, got {options!r}")
@@ -51,6 +55,8 @@ def check_cloth_options(options: Mapping[str, object]) -> dict[str, float]:
         ):
             raise ConfigError(f"cloth option {name} = {value!r} must be a finite number")
         checked[name] = float(value)
+        if name in COUNT_CLOTH_OPTIONS and checked[name].is_integer():
+            checked[name] = int(checked[name])
     ClothConfig(**checked)  # its own ranges: ConfigError naming the field and the value
     return {name: checked[name] for name in CLOTH_OPTIONS if name in checked}
 

@@ -55,6 +55,7 @@ from foldbot.planning.recipes import RECIPES, folded_as
 from foldbot.planning.spread import SpreadAction, motion_segments
 from foldbot.sim.camera import CameraConfig, RGBDCamera
 from foldbot.sim.cloth import ClothConfig, DivergenceMonitor, SoftCloth, keep_table_grip, settle
+from foldbot.sim.crossing_guard import CrossingGuard
 from foldbot.sim.crumple import crumple
 from foldbot.sim.flatten_oracle import CornerPullOracle
 from foldbot.sim.garment_oracle import GarmentOracleEstimator
@@ -576,6 +577,9 @@ class SimCellParts:
     """A two-arm cell's second arm (its robot is `more_executors[0].robot`)."""
     monitor: DivergenceMonitor | None = None
     """The cloth's divergence monitor (a step hook of `world`)."""
+    guard: CrossingGuard | None = None
+    """The cloth's crossing guard (a step hook of `world`), where ClothConfig.crossing_guard
+    asks for one."""
 
 
 def build_sim_cell(cfg: EpisodeConfig, world: SimWorld) -> SimCellParts:
@@ -589,6 +593,10 @@ def build_sim_cell(cfg: EpisodeConfig, world: SimWorld) -> SimCellParts:
     cloth = SoftCloth(world.client, mesh, cfg.cloth, layout.table_height, center, yaw)
     keep_table_grip(world, cfg.cloth)  # a layer_friction of its own leaves cloth–table as it was
     monitor = DivergenceMonitor(cloth, layout.workspace_center_xy, radius=1.0)
+    guard = None
+    if cfg.cloth.crossing_guard:
+        guard = CrossingGuard(cloth, every=int(cfg.cloth.crossing_guard))
+        world.add_step_hook(guard)  # from the flat start, so it learns every side
     world.add_step_hook(monitor)
     camera = RGBDCamera(world.client, cfg.camera)
     oracle = GroundTruthOracle(cloth, camera)
@@ -617,6 +625,7 @@ def build_sim_cell(cfg: EpisodeConfig, world: SimWorld) -> SimCellParts:
         model_world,
         tuple(executors[1:]),
         monitor,
+        guard,
     )
 
 
@@ -720,6 +729,8 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
         if flattened is not None:
             result["flatten"] = flattened
         result["cloth_fastest_slide_mps"] = parts.monitor.fastest_slide
+        if parts.guard is not None:
+            result["crossing_guard_restored"] = parts.guard.restored
         result["first_frame_keypoint_error_mm"] = first_frame_keypoint_errors(
             cfg, mesh, initial, record.initial_state
         )

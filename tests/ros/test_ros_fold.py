@@ -30,12 +30,12 @@ def foldbot(*args: str, timeout: float = 600) -> subprocess.CompletedProcess:
 
 @pytest.fixture(scope="module")
 def ros_run(tmp_path_factory):
-    """One 8 × 8 towel half fold over topics, recorded."""
+    """One 8 × 8 towel half fold over topics, recorded, its cloth guarded against crossings."""
     tmp = tmp_path_factory.mktemp("ros")
     out, bag = tmp / "episode", tmp / "run.bag"
     proc = foldbot(
         "ros-fold", "--resolution", "8", "--video-fps", "2", "--out", str(out),
-        "--record", str(bag), "--port", str(free_port()),
+        "--record", str(bag), "--port", str(free_port()), "--cloth", "crossing_guard=1",
     )  # fmt: skip
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     return out, bag
@@ -61,6 +61,9 @@ def test_episode_folder_matches_the_contract(ros_run):
     assert result["sim_seconds"] > 5.0
     # The sim node's divergence monitor reports the fastest slide, as `foldbot fold` records it.
     assert 0.0 < result["cloth_fastest_slide_mps"] < MAX_SLIDE_SPEED
+    # …and its crossing guard how many mesh points it put back (a cloth option reaches the node).
+    assert result["cloth_options"] == {"crossing_guard": 1}
+    assert isinstance(result["crossing_guard_restored"], int)
 
 
 def test_bag_holds_the_topics_with_ros_conventions(ros_run):

@@ -204,6 +204,8 @@ class SimNode:
         payload.setdefault("qs", qs)
         # The divergence monitor's fastest slide so far: result.json records it, as in process.
         payload.setdefault("cloth_fastest_slide_mps", self.parts.monitor.fastest_slide)
+        if self.parts.guard is not None:  # the crossing guard's count, likewise
+            payload.setdefault("crossing_guard_restored", self.parts.guard.restored)
         self.pub["result"].publish(convert.string_msg(payload))
 
     # ------------------------------------------------------------------ commands

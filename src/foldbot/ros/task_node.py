@@ -112,6 +112,8 @@ class RosCell(FoldCell):
         self._clock = 0.0
         self.fastest_slide = 0.0
         """The sim node's divergence monitor's fastest cloth slide (m/s), from its last report."""
+        self.guard_restored: int | None = None
+        """The sim node's crossing guard's count of mesh points put back (None: no guard)."""
         self.rest_qs = [np.zeros(0)] * arms
         """Every arm's joints where the last command left it (the sim node's report)."""
         self._lock = threading.Lock()
@@ -240,6 +242,7 @@ class RosCell(FoldCell):
             )
         self._clock = float(reply["sim_time"])
         self.fastest_slide = float(reply.get("cloth_fastest_slide_mps", 0.0))
+        self.guard_restored = reply.get("crossing_guard_restored")
 
     def _plan(self, kind: str, **payload: Any) -> dict:
         rid = next(self._ids)
@@ -560,6 +563,8 @@ def run_task(fold_args: str, log=rospy.loginfo) -> dict:
             if flattened is not None:
                 result["flatten"] = flattened
             result["cloth_fastest_slide_mps"] = cell.fastest_slide
+            if cell.guard_restored is not None:
+                result["crossing_guard_restored"] = int(cell.guard_restored)
             result["first_frame_keypoint_error_mm"] = first_frame_keypoint_errors(
                 cfg, seeded_garment(cfg)[1], initial, record.initial_state
             )

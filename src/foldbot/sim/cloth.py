@@ -17,6 +17,9 @@ import pybullet as p
 from foldbot.errors import SimulationDivergedError, require
 from foldbot.garments.mesh import ClothMesh
 
+MAX_GUARD_EVERY = 100
+"""ClothConfig.crossing_guard's upper bound (physics steps between checks)."""
+
 
 @dataclass(frozen=True)
 class ClothConfig:
@@ -48,6 +51,9 @@ class ClothConfig:
     (docs/experiments.md)."""
     self_collision: bool = True
     """Cloth–cloth collision, which keeps folded layers apart."""
+    crossing_guard: int = 0
+    """Every how many physics steps the crossing guard puts back mesh points that went through
+    the cloth (sim.crossing_guard; Bullet's contact leaves them through); 0: no guard."""
     thickness: float | None = None
     """Layer thickness (m) used for fold goals; None = 2 × collision margin, the spacing at which
     cloth–cloth contact holds two simulated layers apart."""
@@ -72,6 +78,11 @@ class ClothConfig:
         for name in ("damping_stiffness", "friction", "drop_height"):
             v = getattr(self, name)
             require(math.isfinite(v) and v >= 0.0, f"cloth {name} must be ≥ 0, got {v!r}")
+        require(
+            float(self.crossing_guard).is_integer() and 0 <= self.crossing_guard <= MAX_GUARD_EVERY,
+            f"cloth crossing_guard must be an integer in [0, {MAX_GUARD_EVERY}] physics steps "
+            f"(0: no guard), got {self.crossing_guard!r}",
+        )
         if self.layer_friction is not None:
             require(
                 math.isfinite(self.layer_friction) and 0.0 < self.layer_friction <= 4.0,
@@ -203,6 +214,20 @@ class SoftCloth:
             self.body_id, -1, flags=p.MESH_DATA_SIMULATION_MESH, physicsClientId=self.client
         )
         return np.asarray(verts, dtype=np.float64)
+
+    def node_positions(self) -> np.ndarray:
+        """Vertex positions (V×3, world, m) in PyBullet's node order. Simulator state."""
+        return self._raw_vertices()
+
+    def set_node_positions(self, positions: np.ndarray) -> None:
+        """Move the nodes (V×3, node order) where given; their velocities are kept."""
+        p.resetMeshData(
+            self.body_id, vertices=np.asarray(positions).tolist(), physicsClientId=self.client
+        )
+
+    def node_faces(self) -> np.ndarray:
+        """The mesh's triangles (F×3) as PyBullet node indices."""
+        return self._order[np.asarray(self.mesh.faces)]
 
     def sim_vertices(self) -> np.ndarray:
         """Vertex positions (V×3, world, m) in mesh order. Simulator state: sim-side use only."""
