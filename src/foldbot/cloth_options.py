@@ -40,8 +40,8 @@ def cloth_option_default(name: str) -> float | None:
 
 def check_cloth_options(options: Mapping[str, object]) -> dict[str, float]:
     """Every option checked (a known name, a finite number, a value ClothConfig accepts), as a
-    plain dict of floats (ints for a count) in CLOTH_OPTIONS' order; ConfigError naming the option, the value and
-    what is allowed otherwise."""
+    plain dict of floats (ints for a count) in CLOTH_OPTIONS' order; ConfigError naming the
+    option, the value and what is allowed otherwise."""
     if not isinstance(options, Mapping):
         raise ConfigError(f"cloth options must be a table of name = number, got {options!r}")
     checked: dict[str, float] = {}
