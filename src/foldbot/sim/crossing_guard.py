@@ -50,7 +50,8 @@ class CrossingGuard:
         self.restore_distance = cloth.margin if restore_distance is None else restore_distance
         """How far (m) from the face a point put back is laid, on its own side."""
         self.faces = cloth.node_faces()
-        n_nodes = len(cloth.node_positions())
+        rest = cloth.node_positions()  # the flat start: the cell builds the guard with the cloth
+        n_nodes = len(rest)
         # Per face and corner: is the edge opposite the corner on the cloth's border? A point can
         # go round a border edge to the other side; round an inner edge it would cross the next face.
         opposite = np.stack(
@@ -59,7 +60,6 @@ class CrossingGuard:
         keys = np.sort(opposite, axis=2).reshape(-1, 2)
         _, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
         self.border = (counts[inverse.ravel()] == 1).reshape(-1, 3)
-        rest = cloth.node_positions()
         longest = np.linalg.norm(rest[self.faces] - rest[np.roll(self.faces, 1, axis=1)], axis=2)
         self.reach = 0.6 * float(longest.max()) + self.track_distance
         """Search radius (m) around a face's centroid for points near it."""
