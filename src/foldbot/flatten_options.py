@@ -70,6 +70,7 @@ FLATTEN_OPTION_FIELDS: dict[str, FlattenOption] = {
     "spread_release_height": _spread("release_height", "number", "m"),
     "spread_grasp_inset": _spread("grasp_inset", "number", "m"),
     "spread_top_depth": _spread("top_depth", "number", "m"),
+    "spread_seek_cloth": _spread("seek_cloth", "number", "m"),
 }
 """Option name → the config field it sets (see each field's docstring there for its meaning and
 what was measured)."""

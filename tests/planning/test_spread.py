@@ -281,3 +281,49 @@ def test_a_bad_action_is_named(change, match):
     plan = plan_spread(heap_state(HEAP, [0.9] * 4), (W, H), SpreadConfig(), FlattenConfig())
     with pytest.raises(FoldbotError, match=match):
         action_from_dict({**action_as_dict(plan.actions[0]), **change})
+
+
+def test_a_corner_seen_out_on_the_table_is_grasped_on_the_first_cloth_inward():
+    # A heap's rounded tip: the outline's sides meet 4 cm out on bare table at far_left.
+    flat = FlattenConfig()
+    state = heap_state(HEAP, [0.9] * 4)
+    surface = _raster(flat, 0.01)
+    corner = np.array(HEAP[3])
+    centre = np.mean(HEAP, axis=0)
+    inward = (centre - corner) / np.linalg.norm(centre - corner)
+    ny, nx = surface.shape
+    jj, ii = np.mgrid[0:ny, 0:nx]
+    cell_xy = np.stack([flat.workspace[0] + ii * flat.raster, flat.workspace[2] + jj * flat.raster])
+    along = np.tensordot(inward, cell_xy - corner[:, None, None], axes=1)
+    surface[along < 0.04] = np.nan  # no cloth seen within 4 cm of the corner, towards the centre
+    pair = ("far_left", "near_left")
+
+    def grasp(cfg: SpreadConfig) -> np.ndarray:
+        plan = plan_spread(state, (W, H), cfg, flat, surface, pair=pair)
+        return next(a for a in plan.actions if a.label == "spread far_left").grasp
+
+    as_seen = grasp(SpreadConfig(seek_cloth=0.0))
+    np.testing.assert_allclose(as_seen[:2], corner + 0.008 * inward, atol=1e-9)
+    sought = grasp(SpreadConfig(seek_cloth=0.1))
+    went = float((sought[:2] - corner) @ inward)
+    assert 0.04 - flat.raster <= went - 0.008 <= 0.04 + flat.raster, went
+    assert np.linalg.norm(sought[:2] - (corner + went * inward)) < 1e-9, "straight inward"
+    i = round((sought[0] - flat.workspace[0]) / flat.raster)
+    j = round((sought[1] - flat.workspace[2]) / flat.raster)
+    assert np.isfinite(surface[j, i]), "the jaws close over cloth seen"
+    # Not far enough to reach it: aimed as seen. A corner on cloth is not moved.
+    np.testing.assert_allclose(grasp(SpreadConfig(seek_cloth=0.02)), as_seen)
+    on_cloth = plan_spread(state, (W, H), SpreadConfig(seek_cloth=0.1), flat, _raster(flat, 0.01))
+    plain = plan_spread(state, (W, H), SpreadConfig(seek_cloth=0.0), flat, _raster(flat, 0.01))
+    for a, b in zip(on_cloth.actions, plain.actions, strict=True):
+        np.testing.assert_array_equal(a.grasp, b.grasp)
+    # A corner just off the outline (its own cell bare, the next inward cloth): one cell in.
+    surface[:] = 0.01
+    surface[along < 0.004] = np.nan
+    went = float((grasp(SpreadConfig(seek_cloth=0.1))[:2] - corner) @ inward) - 0.008
+    assert 0.0 < went <= flat.raster + 1e-9, went
+
+
+def test_seek_cloth_out_of_range_is_named():
+    with pytest.raises(ConfigError, match=r"seek_cloth must be in \[0, 0.2\], got 0.5"):
+        SpreadConfig(seek_cloth=0.5)
