@@ -292,12 +292,18 @@ def cloth_surface(obs: Observation, state: ClothState, cfg: FlattenConfig) -> np
     return flat.reshape(ny, nx).astype(np.float32)
 
 
+def _raster_cell(xy: np.ndarray, cfg: FlattenConfig) -> tuple[int, int]:
+    """(column i along x, row j along y) of the top-view raster cell holding world `xy`; may lie
+    off the raster."""
+    x0, _x1, y0, _y1 = cfg.workspace
+    return round((xy[0] - x0) / cfg.raster), round((xy[1] - y0) / cfg.raster)
+
+
 def _surface_at(surface: np.ndarray, xy: np.ndarray, cfg: FlattenConfig, radius: float) -> float:
     """Highest surface height (m) within `radius` (m) of `xy`; NaN where none is known (also
     off the raster: cloth can lie beyond the flattening workspace)."""
-    x0, _x1, y0, _y1 = cfg.workspace
     ny, nx = surface.shape
-    i, j = (round((xy[k] - (x0, y0)[k]) / cfg.raster) for k in range(2))
+    i, j = _raster_cell(xy, cfg)
     r = max(1, math.ceil(radius / cfg.raster))
     j0, j1, i0, i1 = max(0, j - r), min(ny, j + r + 1), max(0, i - r), min(nx, i + r + 1)
     if j0 >= j1 or i0 >= i1:

@@ -19,7 +19,13 @@ from foldbot.errors import FoldbotError, require
 from foldbot.perception.keypoints import CORNER_LABELS
 from foldbot.perception.state import ClothState
 from foldbot.planning.actions import FoldAction
-from foldbot.planning.flatten import _JAW_REACH_BELOW, FlattenConfig, _surface_at, table_z
+from foldbot.planning.flatten import (
+    _JAW_REACH_BELOW,
+    FlattenConfig,
+    _raster_cell,
+    _surface_at,
+    table_z,
+)
 from foldbot.planning.motion import MotionConfig, Segment, action_segments, line_path
 
 
@@ -259,11 +265,9 @@ def _first_cloth(
     has cloth, `reach` is 0, or none is found within it."""
     if reach <= 0.0:
         return 0.0
-    x0, _x1, y0, _y1 = flat.workspace
     ny, nx = surface.shape
     for t in np.arange(0.0, reach + 1e-9, flat.raster / 2):
-        i = round((xy[0] + t * inward[0] - x0) / flat.raster)
-        j = round((xy[1] + t * inward[1] - y0) / flat.raster)
+        i, j = _raster_cell(xy + t * inward, flat)
         if 0 <= i < nx and 0 <= j < ny and math.isfinite(surface[j, i]):
             return float(t)
     return 0.0
