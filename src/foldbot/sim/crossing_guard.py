@@ -101,18 +101,22 @@ class CrossingGuard:
         normal_p = normal[fi]
         foot = x[vi] - height[:, None] * normal_p
         bary = barycentric(foot, a, tri[fi, 1], tri[fi, 2])
+        # Only points near a face matter (a side is kept for them alone), and they are few: the
+        # rest of the check runs on those pairs only.
+        near = (bary >= -NEAR_SLACK).all(axis=1)
+        vi, fi, height, bary = vi[near], fi[near], height[near], bary[near]
+        foot, normal_p = foot[near], normal_p[near]
         out = bary < -INSIDE_SLACK
         over = ~out.any(axis=1)
         round_border = (out & self.border[fi]).any(axis=1)
-        near = (bary >= -NEAR_SLACK).all(axis=1)
         sign = np.where(height >= 0, 1, -1).astype(np.int8)
         old = self.side[vi, fi]
-        crossed = near & over & (old != 0) & (sign != old)
+        crossed = over & (old != 0) & (sign != old)
         # A side is learned over the face and kept while the point is beyond an inner edge; beyond
         # the border it is forgotten (the point may come back round on the other side).
         side = np.where(over, np.where(old != 0, old, sign), np.where(round_border, 0, old))
         self.side[self._near] = 0
-        remember = near & (side != 0)
+        remember = side != 0
         self.side[vi[remember], fi[remember]] = side[remember]
         self._near = (vi[remember], fi[remember])
         if not crossed.any():
