@@ -160,3 +160,18 @@ def test_over_the_pull_coverage_the_cell_pulls_instead_of_spreading(spread):
     (action,) = report["actions"]
     assert action["kind"] == "flatten_pull"
     assert report["initial"] == spread["initial"]  # the same heap, seen the same
+
+
+@pytest.mark.slow
+def test_where_no_pair_can_be_spread_gripper_down_the_tools_tilt_apart():
+    """Seed 14's heap: gripper down, the arms would meet over every pair of corners (the plans
+    refused, nothing moved); with the tools tilted 20° apart a pair is spread, instead of one
+    arm's pull."""
+    configs = {"flatten": {"max_actions": 1}, "spread": {"grasp_tilt": 0.35}}
+    report = flatten_crumpled(14, configs=configs)
+    (action,) = report["actions"]
+    assert action["kind"] == "flatten_spread" and action["grasp_success"] is True
+    assert [arm["tilt"] for arm in action["arms"]] == [0.35, -0.35]  # each wrist leans outward
+    assert {a["tool_tilt_rad"] for a in action["attempts"]} == {0.35}  # its retry too
+    assert action["plans_tried"] > len(action["attempts"])  # refused gripper down first
+    assert report["after"] > report["before"] + 0.1

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -473,7 +474,9 @@ def run_spreads(
                 if done is None:
                     break
                 plan, outcomes = done
-                attempts.append(pair_attempt(plan.actions, outcomes))
+                attempts.append(
+                    pair_attempt(plan.actions, outcomes) | {"tool_tilt_rad": plan.actions[0].tilt}
+                )
                 cell.park()
                 cell.wait(cfg.settle_time)
                 state, obs = cell.observe()
@@ -513,7 +516,13 @@ def run_spreads(
             missed_corners = seen_state.keypoint_array(plan.corners)
         log(
             f"flatten {len(rec.actions) + 1}: spread {' + '.join(plan.corners)} "
-            f"({plan.width * 1000:.0f} mm apart, hung {plan.margin * 1000:.0f} mm clear) "
+            f"({plan.width * 1000:.0f} mm apart, hung {plan.margin * 1000:.0f} mm clear"
+            + (
+                f", tools tilted {math.degrees(plan.actions[0].tilt):.0f}°"
+                if plan.actions[0].tilt
+                else ""
+            )
+            + ") "
             f"→ coverage {coverage:.2f} → {after:.2f}"
             + ("" if outcomes[0]["carried"] else ", grasp failed")
         )
@@ -531,6 +540,7 @@ def run_spreads(
                 "max_tracking_error_m": max(o["max_tracking_error"] for o in outcomes),
                 "retries": len(attempts) - 1,
                 "attempts": attempts,
+                "plans_tried": len(tried),
                 "coverage_before": coverage,
                 "coverage_after": after,
                 "sim_seconds": cell.sim_time - t_sim,
@@ -573,11 +583,12 @@ def _spread_once(
     before anything moves, on one clock; a missed grasp lets both go), holding the towel as
     high as the arms reach: the surest pair of corners whose grasps keep the palm clear of the
     heap, at each of `spread.hang_margins` in turn, then the next pair, until one is feasible
-    (a pair on one side of the cell can bring the arms together). `laid`: where the last
+    (a pair on one side of the cell can bring the arms together); where none is, gripper
+    down, every pair again with the tools tilted apart (`spread.grasp_tilt`). `laid`: where the last
     spread let go (corner_pairs ranks that edge late), `missed`: the corners whose grasps the last
     spread missed (ranked last); each plan tried is appended to `tried`
     (the picture after an error shows the last). None when no pair is feasible at any margin
-    (nothing moved; the log names why each was not)."""
+    or tilt (nothing moved; the log names why each was not)."""
     surface = cloth_surface(obs, state, cfg)
     pairs = [
         pair
@@ -586,25 +597,29 @@ def _spread_once(
     ]
     if not pairs:
         log("  every pair of corners lies where the palm would press into the heap")
-    for pair in pairs:
-        for margin in spread.hang_margins:
-            plan = plan_spread(state, expected_size, spread, cfg, surface, margin, pair)
-            cell.show(
-                state,
-                grasp_points=[a.grasp for a in plan.actions],
-                place_points=[a.release for a in plan.actions],
-            )
-            if tried is not None:
-                tried.append(plan)
-            try:
-                return plan, execute_together(cell, [(0, plan.actions[0]), (1, plan.actions[1])])
-            except (UnreachableTargetError, ArmsWouldCollideError) as exc:
-                log(
-                    f"  spread infeasible ({' + '.join(pair)} hung {margin * 1000:.0f} mm clear: "
-                    f"{exc})"
+    for tilt in (0.0, spread.grasp_tilt) if spread.grasp_tilt else (0.0,):
+        for pair in pairs:
+            for margin in spread.hang_margins:
+                plan = plan_spread(state, expected_size, spread, cfg, surface, margin, pair, tilt)
+                cell.show(
+                    state,
+                    grasp_points=[a.grasp for a in plan.actions],
+                    place_points=[a.release for a in plan.actions],
                 )
-                if failed_segment(exc) in MARGIN_FREE_SEGMENTS:
-                    break  # the way to the corners fails at any margin: next pair
+                if tried is not None:
+                    tried.append(plan)
+                try:
+                    return plan, execute_together(
+                        cell, [(0, plan.actions[0]), (1, plan.actions[1])]
+                    )
+                except (UnreachableTargetError, ArmsWouldCollideError) as exc:
+                    tilted = f", tools tilted {math.degrees(tilt):.0f}°" if tilt else ""
+                    log(
+                        f"  spread infeasible ({' + '.join(pair)} hung {margin * 1000:.0f} mm "
+                        f"clear{tilted}: {exc})"
+                    )
+                    if failed_segment(exc) in MARGIN_FREE_SEGMENTS:
+                        break  # the way to the corners fails at any margin: next pair
     return None
 
 

@@ -36,7 +36,8 @@ class FlattenOption:
     kind: str
     """switch, count, number, number or none, or layer (one of GRASP_LAYERS)."""
     unit: str = ""
-    """The number's unit for help text: m, s, m/s, or a coverage (top-view area / flat area)."""
+    """The number's unit for help text: m, s, m/s, rad, or a coverage (top-view area / flat
+    area)."""
 
 
 def _pull(field: str, kind: str, unit: str = "") -> FlattenOption:
@@ -71,6 +72,7 @@ FLATTEN_OPTION_FIELDS: dict[str, FlattenOption] = {
     "spread_grasp_inset": _spread("grasp_inset", "number", "m"),
     "spread_top_depth": _spread("top_depth", "number", "m"),
     "spread_seek_cloth": _spread("seek_cloth", "number", "m"),
+    "spread_grasp_tilt": _spread("grasp_tilt", "number", "rad"),
 }
 """Option name → the config field it sets (see each field's docstring there for its meaning and
 what was measured)."""

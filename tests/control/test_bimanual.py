@@ -115,3 +115,60 @@ def test_a_dwell_is_checked_as_time_standing_at_the_segment_end(two_arms):
     assert len(held) == len(plain) + extra
     assert np.array_equal(held[: len(plain)], plain)
     assert np.array_equal(held[len(plain) :], np.repeat(plain[-1:], extra, axis=0))
+
+
+def _spread_pair(world, tilt: float):
+    """Both arms' parts of a spread of two corners 10 cm apart, near the workspace's far side
+    (the +y corner to the +y arm), each tool tilted `tilt` away from the other arm."""
+    from foldbot.planning.spread import SpreadAction
+
+    z = world.layout.table_height
+    grasps = [np.array([0.572, 0.0685, z + 0.01]), np.array([0.548, -0.0285, z + 0.01])]
+    return [
+        SpreadAction(
+            grasp=g,
+            hold=np.array([0.6, side * 0.15, z + 0.35]),
+            touch=np.array([0.6, side * 0.15, z + 0.305]),
+            release=np.array([0.3, side * 0.15, z + 0.02]),
+            tilt=side * tilt,
+        )
+        for side, g in zip((1.0, -1.0), grasps, strict=True)
+    ]
+
+
+def test_tools_tilted_apart_let_two_arms_take_corners_close_together(two_arms):
+    """Gripper down, the wrists over two corners 10 cm apart meet on the way in; with each tool
+    tilted 20° away from the other arm they keep clear, the TCP on the same points."""
+    import pybullet as p
+
+    from foldbot.control.bimanual import check_arms_clear
+    from foldbot.errors import ArmsWouldCollideError
+    from foldbot.planning.motion import MotionConfig
+    from foldbot.planning.spread import spread_segments
+
+    world, executors = two_arms
+
+    def plan(tilt):
+        out = []
+        for ex, action in zip(executors, _spread_pair(world, tilt), strict=True):
+            segments = spread_segments(action, ex.robot.tcp_pose()[0], MotionConfig())
+            out.append((ex, ex.plan(segments)))
+        return out
+
+    with pytest.raises(ArmsWouldCollideError, match="segment 'approach'"):
+        check_arms_clear(plan(0.0))
+    tilted = plan(0.35)
+    check_arms_clear(tilted)
+    for (ex, steps), action in zip(tilted, _spread_pair(world, 0.35), strict=True):
+        at_grasp = {s.segment.name: s for s in steps}["descend"].joint_path[-1]
+        pos, quat = ex.model.fk_tcp(at_grasp)
+        np.testing.assert_allclose(
+            pos, action.grasp + [0, 0, MotionConfig().grasp_depth], atol=1e-3
+        )
+        tool_z = np.array(p.getMatrixFromQuaternion(quat)).reshape(3, 3)[:, 2]
+        lean = -np.sign(action.tilt) * tool_z[1]  # the wrist leans away from the other arm
+        assert lean == pytest.approx(np.sin(0.35), abs=0.01)
+        held = {s.segment.name: s for s in steps}["spread"].joint_path[-1]
+        tool_z = np.array(p.getMatrixFromQuaternion(ex.model.fk_tcp(held)[1])).reshape(3, 3)[:, 2]
+        np.testing.assert_allclose(tool_z, [0, 0, -1], atol=0.01)  # gripper down at the hold
+    assert world.steps == 0, "planning moves nothing"

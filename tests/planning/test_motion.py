@@ -66,3 +66,20 @@ def test_an_actions_descent_travels_with_it():
 def test_a_descent_below_the_grasp_depth_or_above_the_approach_is_refused(descent):
     with pytest.raises(ConfigError, match=r"descent .* must lie between the grasp depth"):
         action_segments(dataclasses.replace(ACTION, descent=descent), START, MotionConfig())
+
+
+def test_a_segments_orientations_are_one_per_waypoint():
+    from foldbot.planning.motion import Segment, line_path
+
+    points = line_path(START, START + [0.1, 0.0, 0.0])
+    turned = np.tile([0.0, 1.0, 0.0, 0.0], (len(points), 1))
+    assert Segment("move", points, 0.1, orientations=turned).orientations is turned
+    with pytest.raises(
+        ConfigError,
+        match=r"segment 'move': orientations must be 12×4 finite quaternions \(one per "
+        r"waypoint\), got shape \(11, 4\)",
+    ):
+        Segment("move", points, 0.1, orientations=turned[:-1])
+    turned[3, 0] = np.nan
+    with pytest.raises(ConfigError, match="finite quaternions"):
+        Segment("move", points, 0.1, orientations=turned)

@@ -19,6 +19,7 @@ from foldbot.planning.spread import (
     spread_segments,
     spread_width,
 )
+from foldbot.planning.tool import GRIPPER_DOWN, gripper_tilted_quaternion
 
 TABLE = 0.75
 W, H = 0.40, 0.30
@@ -143,6 +144,42 @@ def test_both_arms_get_the_same_steps_with_a_still_hang():
         assert [s.name for s in again] == names[0]
 
 
+def test_gripper_down_all_along_unless_tilted():
+    plan = plan_spread(heap_state(HEAP, [0.9] * 4), (W, H), SpreadConfig(), FlattenConfig())
+    for a in plan.actions:
+        assert a.tilt == 0.0
+        segs = spread_segments(a, np.array([0.45, 0.3, 1.0]), MotionConfig())
+        assert all(s.orientations is None for s in segs)  # the executor's gripper-down
+
+
+def test_a_tilted_spread_leans_each_wrist_away_from_the_other_arm_at_the_grasp():
+    state = heap_state(HEAP, [0.9] * 4)
+    plan = plan_spread(state, (W, H), SpreadConfig(), FlattenConfig(), tilt=0.3)
+    (left, right) = plan.actions  # the +y arm's part first
+    assert (left.tilt, right.tilt) == (0.3, -0.3)
+    assert left.hold[1] > right.hold[1]
+    # Only the tools turn: every point is where the untilted spread puts it.
+    flat = plan_spread(state, (W, H), SpreadConfig(), FlattenConfig())
+    for a, b in zip(plan.actions, flat.actions, strict=True):
+        for k in ("grasp", "hold", "touch", "release"):
+            np.testing.assert_array_equal(getattr(a, k), getattr(b, k))
+    for a in plan.actions:
+        by = {s.name: s for s in spread_segments(a, np.array([0.45, 0.3, 1.0]), MotionConfig())}
+        tilted = gripper_tilted_quaternion(a.tilt)
+        turn = by["approach"].orientations
+        assert turn.shape == (len(by["approach"].points), 4)
+        np.testing.assert_allclose(turn[0], GRIPPER_DOWN)  # turned on the way in
+        np.testing.assert_allclose(turn[-1], tilted)
+        for name in ("come_down", "descend", "lift"):  # held tilted down to the corner and off
+            np.testing.assert_allclose(
+                by[name].orientations, np.tile(tilted, (len(by[name].points), 1))
+            )
+        back = by["spread"].orientations  # turned back on the rise to the hold
+        np.testing.assert_allclose(back[0], tilted)
+        np.testing.assert_allclose(back[-1], GRIPPER_DOWN, atol=1e-12)
+        assert all(by[n].orientations is None for n in ("lower", "lay", "retreat"))
+
+
 def test_the_way_to_the_corners_is_the_same_at_every_margin():
     """flatten._spread_once moves on to the next pair when one of these segments fails, without
     trying the lower margins: they must not depend on the margin."""
@@ -177,6 +214,8 @@ def test_the_way_to_the_corners_is_the_same_at_every_margin():
         ({"hang_margins": (0.5,)}, "hang_margins"),
         ({"pull_from": -0.1}, r"pull_from must be None or in \[0, 1.5\], got -0.1"),
         ({"pull_from": float("inf")}, "pull_from"),
+        ({"grasp_tilt": 0.7}, r"grasp_tilt must be in \[0, 0.6\], got 0.7"),
+        ({"grasp_tilt": -0.1}, "grasp_tilt"),
     ],
 )
 def test_bad_config_is_named(kw, match):
@@ -241,7 +280,7 @@ def test_an_action_travels_as_data_and_comes_back_the_same():
     # For a planner in another process (the ROS planner node): a spread's part with every speed
     # and its hang, or a pick-and-place, named by kind.
     cfg = SpreadConfig(hang_time=0.5, lay_speed=0.08)
-    plan = plan_spread(heap_state(HEAP, [0.9] * 4), (W, H), cfg, FlattenConfig())
+    plan = plan_spread(heap_state(HEAP, [0.9] * 4), (W, H), cfg, FlattenConfig(), tilt=0.2)
     for action in plan.actions:
         d = action_as_dict(action)
         assert d["kind"] == "spread" and d["hang_time"] == 0.5 and d["lay_speed"] == 0.08
@@ -249,7 +288,7 @@ def test_an_action_travels_as_data_and_comes_back_the_same():
         assert isinstance(back, SpreadAction) and back.label == action.label
         for k in ("grasp", "hold", "touch", "release"):
             assert np.array_equal(getattr(back, k), getattr(action, k))
-        for k in ("hang_time", "descend_speed", "slow_descent", "lift_speed", "lay_speed"):
+        for k in ("hang_time", "descend_speed", "slow_descent", "lift_speed", "lay_speed", "tilt"):
             assert getattr(back, k) == getattr(action, k)
         segs = [
             spread_segments(a, np.array([0.45, 0.3, 1.0]), MotionConfig()) for a in (action, back)
@@ -257,6 +296,11 @@ def test_an_action_travels_as_data_and_comes_back_the_same():
         assert [(s.name, s.speed, s.dwell) for s in segs[0]] == [
             (s.name, s.speed, s.dwell) for s in segs[1]
         ]
+        assert back.tilt == action.tilt != 0.0
+        for s0, s1 in zip(*segs, strict=True):
+            assert (s0.orientations is None) == (s1.orientations is None)
+            if s0.orientations is not None:
+                np.testing.assert_array_equal(s0.orientations, s1.orientations)
     fold = FoldAction(np.array([0.4, 0.1, 0.75]), np.array([0.6, 0.1, 0.75]), (0.5, 0, 0, 1), "c")
     d = action_as_dict(fold)
     assert d["kind"] == "fold"

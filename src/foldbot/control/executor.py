@@ -73,12 +73,16 @@ class ArmExecutor:
         """The table in the model's world, which every planned waypoint must keep the arm clear
         of (None: not checked, for a twin in a world without one)."""
 
-    def joint_path(self, points: np.ndarray, q_seed: np.ndarray) -> np.ndarray:
-        """IK for every waypoint, each seeded by the previous solution (N × dof)."""
-        quat = _down(self.yaw)
+    def joint_path(
+        self, points: np.ndarray, q_seed: np.ndarray, orientations: np.ndarray | None = None
+    ) -> np.ndarray:
+        """IK for every waypoint, each seeded by the previous solution (N × dof), the TCP at
+        `orientations` (N × 4, x y z w) where given, else gripper down at the executor's yaw."""
+        down = _down(self.yaw)
         out = []
         q = q_seed
         for i, pt in enumerate(points):
+            quat = down if orientations is None else orientations[i]
             try:
                 q = self.model.solve_ik(pt, quat, q_seed=q, tol=1e-3)
             except UnreachableTargetError as exc:
@@ -141,7 +145,7 @@ class ArmExecutor:
         planned = []
         for seg in segments:
             try:
-                path = self.joint_path(seg.points, q)
+                path = self.joint_path(seg.points, q, seg.orientations)
                 self.check_table_clearance(path)
             except UnreachableTargetError as exc:
                 error = UnreachableTargetError(f"segment '{seg.name}': {exc}")

@@ -57,6 +57,18 @@ class Segment:
     gripper: str | None = None  # "close" | "open" | None
     dwell: float = 0.0
     """Held still this long (s) at the segment's end, before its gripper event."""
+    orientations: np.ndarray | None = None
+    """N×4 TCP orientation (x, y, z, w) at each waypoint; None: gripper down at the executor's
+    yaw all along."""
+
+    def __post_init__(self) -> None:
+        if self.orientations is not None:
+            o = np.asarray(self.orientations, dtype=float)
+            require(
+                o.shape == (len(self.points), 4) and bool(np.isfinite(o).all()),
+                f"segment '{self.name}': orientations must be {len(self.points)}×4 finite "
+                f"quaternions (one per waypoint), got shape {o.shape}",
+            )
 
 
 def line_path(a: np.ndarray, b: np.ndarray, step: float = 0.01) -> np.ndarray:

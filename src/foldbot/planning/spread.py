@@ -27,6 +27,7 @@ from foldbot.planning.flatten import (
     table_z,
 )
 from foldbot.planning.motion import MotionConfig, Segment, action_segments, line_path
+from foldbot.planning.tool import GRIPPER_DOWN, gripper_tilted_quaternion, slerp_quaternions
 
 
 @dataclass(frozen=True)
@@ -76,6 +77,15 @@ class SpreadConfig:
     grasps missed against 38 of 295 at 0, 31 flattened against 29, folds 24 against 22; seeking
     only where no cloth is seen within a cell, seeds 0–19: 17 of 144 missed, 14 flattened, as
     at 0)."""
+    grasp_tilt: float = 0.0
+    """Where no pair of corners can be spread gripper down, the pairs are tried again with the
+    tools tilted this much (rad; 0: never, a one-arm pull instead), at every hang margin: the +y
+    arm's wrist leans towards +y over its grasp and the other's towards −y (SpreadAction.tilt),
+    so arms that would meet over two corners close together keep apart. Planned on two UR5s
+    for 60 random pairs of corners 6–20 cm apart, 21 could be spread gripper down, 48 at 0.35
+    rad (20°), 50 at 0.5. Off: over towel_crumpled_two_arms' seeds 0–39 at 0.35, 3 towels took
+    a tilted spread and 30 flattened against 31 (seed 28 went from 0.43 to 0.90 instead of
+    four pulls; seed 14's tilted grasp missed and it ended unflattened)."""
     fault_grasp_offset: float = 0.0
     """Fault injection for tests (m; 0 in use): the first spread's grasps, its retry too, are
     aimed this far outside the perceived corners, onto bare table, so the recovery from a missed
@@ -112,6 +122,7 @@ class SpreadConfig:
             ("top_depth", 0.0, 0.02),
             ("seek_cloth", 0.0, 0.2),
             ("fault_grasp_offset", 0.0, 0.2),
+            ("grasp_tilt", 0.0, 0.6),
         ):
             v = getattr(self, name)
             require(
@@ -141,6 +152,11 @@ class SpreadAction:
     first_lift: float = 0.10
     """Straight up this far (m) off the heap before the rise to the hold, which is a straight
     line: a corner far out is not lifted high where the arm cannot reach."""
+    tilt: float = 0.0
+    """The tool's tilt at the grasp (rad; planning.tool.gripper_tilted_quaternion: > 0 leans
+    the wrist towards +y), turned to on the approach and back to gripper-down on the rise to
+    the hold; 0: gripper down all along. Two corners close together are taken with each wrist
+    leaning away from the other arm."""
 
     @property
     def place(self) -> np.ndarray:
@@ -186,6 +202,7 @@ SPREAD_SCALARS = (
     "lift_speed",
     "lay_speed",
     "first_lift",
+    "tilt",
 )
 """SpreadAction's times (s), speeds (m/s) and lengths (m), as as_dict writes them."""
 
@@ -313,6 +330,7 @@ def plan_spread(
     surface: np.ndarray | None = None,
     margin: float | None = None,
     pair: tuple[str, str] | None = None,
+    tilt: float = 0.0,
 ) -> SpreadPlan:
     """The spread of the towel of nominal `expected_size` (w, h; m) seen in `state`: the two
     adjacent corners `pair` (default: those the estimator is surest of, corner_pairs), held one
@@ -359,6 +377,7 @@ def plan_spread(
                 slow_descent=cfg.slow_descent,
                 lift_speed=cfg.lift_speed,
                 lay_speed=cfg.lay_speed,
+                tilt=side * tilt,
             )
         )
     return SpreadPlan(
@@ -389,13 +408,33 @@ def spread_segments(
     slow_from = grasp_tcp + up * min(action.slow_descent, float(pre_grasp[2] - grasp_tcp[2]))
     lifted = grasp_tcp + up * min(action.first_lift, max(action.hold[2] - grasp_tcp[2], 0.0) / 2)
     release_tcp = action.release + up * motion.grasp_depth
+    approach = line_path(current, pre_grasp)
+    come_down = line_path(pre_grasp, slow_from, 0.005)
+    descend = line_path(slow_from, grasp_tcp, 0.005)
+    lift = line_path(grasp_tcp, lifted)
+    rise = line_path(lifted, action.hold)
+    turn: dict[str, np.ndarray | None] = dict.fromkeys(("approach", "at_grasp", "rise"))
+    if action.tilt != 0.0:
+        down, tilted = GRIPPER_DOWN, gripper_tilted_quaternion(action.tilt)
+        turn["approach"] = slerp_quaternions(down, tilted, np.linspace(0, 1, len(approach)))
+        turn["at_grasp"] = tilted
+        turn["rise"] = slerp_quaternions(tilted, down, np.linspace(0, 1, len(rise)))
+
+    def held(points: np.ndarray) -> np.ndarray | None:
+        at = turn["at_grasp"]
+        return None if at is None else np.repeat(np.asarray(at)[None, :], len(points), axis=0)
+
     return [
-        Segment("approach", line_path(current, pre_grasp), motion.free_speed),
-        Segment("come_down", line_path(pre_grasp, slow_from, 0.005), motion.free_speed / 3),
-        Segment("descend", line_path(slow_from, grasp_tcp, 0.005), action.descend_speed, "close"),
-        Segment("lift", line_path(grasp_tcp, lifted), action.lift_speed),
+        Segment("approach", approach, motion.free_speed, orientations=turn["approach"]),
+        Segment("come_down", come_down, motion.free_speed / 3, orientations=held(come_down)),
+        Segment("descend", descend, action.descend_speed, "close", orientations=held(descend)),
+        Segment("lift", lift, action.lift_speed, orientations=held(lift)),
         Segment(
-            "spread", line_path(lifted, action.hold), action.lift_speed, dwell=action.hang_time
+            "spread",
+            rise,
+            action.lift_speed,
+            dwell=action.hang_time,
+            orientations=turn["rise"],
         ),
         Segment("lower", line_path(action.hold, action.touch), action.lay_speed),
         Segment("lay", line_path(action.touch, release_tcp), action.lay_speed, "open"),
