@@ -413,28 +413,42 @@ def spread_segments(
     descend = line_path(slow_from, grasp_tcp, 0.005)
     lift = line_path(grasp_tcp, lifted)
     rise = line_path(lifted, action.hold)
-    turn: dict[str, np.ndarray | None] = dict.fromkeys(("approach", "at_grasp", "rise"))
-    if action.tilt != 0.0:
-        down, tilted = GRIPPER_DOWN, gripper_tilted_quaternion(action.tilt)
-        turn["approach"] = slerp_quaternions(down, tilted, np.linspace(0, 1, len(approach)))
-        turn["at_grasp"] = tilted
-        turn["rise"] = slerp_quaternions(tilted, down, np.linspace(0, 1, len(rise)))
+    tilted = gripper_tilted_quaternion(action.tilt) if action.tilt else None
 
-    def held(points: np.ndarray) -> np.ndarray | None:
-        at = turn["at_grasp"]
-        return None if at is None else np.repeat(np.asarray(at)[None, :], len(points), axis=0)
+    def turned(points: np.ndarray, start: np.ndarray, end: np.ndarray) -> np.ndarray | None:
+        """The orientations along `points`, from `start` to `end`; None untilted (gripper
+        down, the executor's own)."""
+        if tilted is None:
+            return None
+        return slerp_quaternions(start, end, np.linspace(0.0, 1.0, len(points)))
 
     return [
-        Segment("approach", approach, motion.free_speed, orientations=turn["approach"]),
-        Segment("come_down", come_down, motion.free_speed / 3, orientations=held(come_down)),
-        Segment("descend", descend, action.descend_speed, "close", orientations=held(descend)),
-        Segment("lift", lift, action.lift_speed, orientations=held(lift)),
+        Segment(
+            "approach",
+            approach,
+            motion.free_speed,
+            orientations=turned(approach, GRIPPER_DOWN, tilted),
+        ),
+        Segment(
+            "come_down",
+            come_down,
+            motion.free_speed / 3,
+            orientations=turned(come_down, tilted, tilted),
+        ),
+        Segment(
+            "descend",
+            descend,
+            action.descend_speed,
+            "close",
+            orientations=turned(descend, tilted, tilted),
+        ),
+        Segment("lift", lift, action.lift_speed, orientations=turned(lift, tilted, tilted)),
         Segment(
             "spread",
             rise,
             action.lift_speed,
             dwell=action.hang_time,
-            orientations=turn["rise"],
+            orientations=turned(rise, tilted, GRIPPER_DOWN),
         ),
         Segment("lower", line_path(action.hold, action.touch), action.lay_speed),
         Segment("lay", line_path(action.touch, release_tcp), action.lay_speed, "open"),

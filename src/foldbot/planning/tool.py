@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
 
 from foldbot.errors import require
 
@@ -41,16 +42,6 @@ def gripper_tilted_quaternion(tilt: float) -> np.ndarray:
 
 def slerp_quaternions(a: np.ndarray, b: np.ndarray, fractions: np.ndarray) -> np.ndarray:
     """Orientations (N × 4) turned from `a` to `b` by each of `fractions` (0 to 1), the shorter
-    way round at a steady rate."""
-    a = np.asarray(a, dtype=float) / np.linalg.norm(a)
-    b = np.asarray(b, dtype=float) / np.linalg.norm(b)
-    dot = float(a @ b)
-    if dot < 0.0:
-        b, dot = -b, -dot
-    t = np.clip(np.asarray(fractions, dtype=float).reshape(-1, 1), 0.0, 1.0)
-    if dot > 0.9995:  # nearly the same orientation: a straight blend is exact enough
-        out = a + t * (b - a)
-    else:
-        theta = math.acos(dot)
-        out = (np.sin((1.0 - t) * theta) * a + np.sin(t * theta) * b) / math.sin(theta)
-    return out / np.linalg.norm(out, axis=1, keepdims=True)
+    way round at a steady rate (scipy's Slerp)."""
+    turn = Slerp([0.0, 1.0], Rotation.from_quat([a, b]))
+    return turn(np.clip(np.asarray(fractions, dtype=float).reshape(-1), 0.0, 1.0)).as_quat()
