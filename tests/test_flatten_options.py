@@ -34,7 +34,7 @@ KIND_OF_TYPE = {
     "int": {"count"},
     "float": {"number"},
     "float | None": {"number or none"},
-    "str": {"layer"},
+    "str": {"choice"},
 }
 
 
@@ -63,6 +63,7 @@ def test_the_action_budget_is_not_an_option():
         ("keep_yaw", False, False),
         ("spread_pull_from", 0.8, 0.8),
         ("spread_lay_speed", 0.05, 0.05),
+        ("spread_grasp_lean", "sides", "sides"),
     ],
 )
 def test_good_values_are_kept(name, value, expected):
@@ -75,6 +76,8 @@ def test_good_values_are_kept(name, value, expected):
     [
         ("keep_yaw", 1, "true or false"),
         ("grasp_layer", "middle", "one of all, top"),
+        ("spread_grasp_lean", "up", "one of sides, apart"),
+        ("spread_grasp_lean", 1.0, "one of sides, apart"),
         ("retries", 1.5, "an integer"),
         ("retries", True, "an integer"),
         ("grasp_inset", None, "a number (m)"),
@@ -145,6 +148,7 @@ def test_the_configs_get_the_options_and_keep_the_rest():
         ("keep_yaw=FALSE", ("keep_yaw", False)),
         ("retries=2", ("retries", 2)),
         ("spread_hang_time=0", ("spread_hang_time", 0.0)),
+        ("spread_grasp_lean=sides", ("spread_grasp_lean", "sides")),
     ],
 )
 def test_command_line_values_are_parsed(text, expected):
@@ -162,6 +166,7 @@ def test_command_line_values_are_parsed(text, expected):
         ("keep_yaw=no", ["keep_yaw", "'no'", "true or false"]),
         ("grasp_layer=all", []),  # fine: a layer's name
         ("retries=1.5", ["retries", "1.5", "an integer"]),
+        ("spread_grasp_lean=top", ["spread_grasp_lean", "'top'", "one of sides, apart"]),
         ("grasp_inset=0.2", ["grasp_inset must be in [0, 0.1], got 0.2"]),
     ],
 )

@@ -2,6 +2,7 @@
 take two perceived corners, lift, hang and lay it; the coverage rises."""
 
 import json
+import math
 import subprocess
 import sys
 
@@ -165,13 +166,30 @@ def test_over_the_pull_coverage_the_cell_pulls_instead_of_spreading(spread):
 @pytest.mark.slow
 def test_where_no_pair_can_be_spread_gripper_down_the_tools_tilt_apart():
     """Seed 14's heap: gripper down, the arms would meet over every pair of corners (the plans
-    refused, nothing moved); with the tools tilted 20° apart a pair is spread, instead of one
+    refused, nothing moved); with the tools tilted 20° along ±y a pair is spread, instead of one
     arm's pull."""
-    configs = {"flatten": {"max_actions": 1}, "spread": {"grasp_tilt": 0.35}}
-    report = flatten_crumpled(14, configs=configs)
+    spread = {"grasp_tilt": 0.35, "grasp_lean": "sides"}
+    report = flatten_crumpled(14, configs={"flatten": {"max_actions": 1}, "spread": spread})
     (action,) = report["actions"]
     assert action["kind"] == "flatten_spread" and action["grasp_success"] is True
     assert [arm["tilt"] for arm in action["arms"]] == [0.35, -0.35]  # each wrist leans outward
     assert {a["tool_tilt_rad"] for a in action["attempts"]} == {0.35}  # its retry too
     assert action["plans_tried"] > len(action["attempts"])  # refused gripper down first
     assert report["after"] > report["before"] + 0.1
+
+
+@pytest.mark.slow
+def test_tools_leaning_apart_lean_along_the_line_between_the_corners_in_the_cell():
+    """The same heap with the default lean: each wrist leans away from the other corner, and a
+    spread is tried instead of a pull. (Here its grasps, raised for the leaning palm to clear
+    the heap, close on no cloth: what is checked is the lean, not the grasp's luck.)"""
+    report = flatten_crumpled(
+        14, configs={"flatten": {"max_actions": 1}, "spread": {"grasp_tilt": 0.35}}
+    )
+    (action,) = report["actions"]
+    assert action["kind"] == "flatten_spread" and action["plans_tried"] > len(action["attempts"])
+    assert [arm["tilt"] for arm in action["arms"]] == [0.35, 0.35]
+    headings = [arm["tilt_heading"] for arm in action["arms"]]
+    assert math.cos(headings[0] - headings[1]) == pytest.approx(-1.0)  # apart, on one line
+    for attempt in action["attempts"]:
+        assert attempt["tool_tilt_rad"] == 0.35 and len(attempt["tool_headings_rad"]) == 2

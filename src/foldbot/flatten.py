@@ -474,9 +474,7 @@ def run_spreads(
                 if done is None:
                     break
                 plan, outcomes = done
-                attempts.append(
-                    pair_attempt(plan.actions, outcomes) | {"tool_tilt_rad": plan.actions[0].tilt}
-                )
+                attempts.append(pair_attempt(plan.actions, outcomes) | _tool_record(plan))
                 cell.park()
                 cell.wait(cfg.settle_time)
                 state, obs = cell.observe()
@@ -597,10 +595,19 @@ def _spread_once(
     ]
     if not pairs:
         log("  every pair of corners lies where the palm would press into the heap")
+    lean = spread.grasp_lean
     for tilt in (0.0, spread.grasp_tilt) if spread.grasp_tilt else (0.0,):
         for pair in pairs:
             for margin in spread.hang_margins:
-                plan = plan_spread(state, expected_size, spread, cfg, surface, margin, pair, tilt)
+                plan = plan_spread(
+                    state, expected_size, spread, cfg, surface, margin, pair, tilt, lean
+                )
+                if not plan.palm_clear:  # a lean lowers the palm's edge (spread._palm_heap)
+                    log(
+                        f"  {' + '.join(pair)}: the palm, tools tilted {math.degrees(tilt):.0f}°, "
+                        "would press into the heap"
+                    )
+                    break
                 cell.show(
                     state,
                     grasp_points=[a.grasp for a in plan.actions],
@@ -621,6 +628,14 @@ def _spread_once(
                     if failed_segment(exc) in MARGIN_FREE_SEGMENTS:
                         break  # the way to the corners fails at any margin: next pair
     return None
+
+
+def _tool_record(plan: SpreadPlan) -> dict:
+    """How a spread's tools were held at its grasps, for result.json: the +y arm's tilt (rad; 0
+    gripper down) and, tilted, each arm's lean heading (rad about z from +x)."""
+    tilt = plan.actions[0].tilt
+    headings = {"tool_headings_rad": [a.tilt_heading for a in plan.actions]} if tilt else {}
+    return {"tool_tilt_rad": tilt} | headings
 
 
 def _pull_instead(

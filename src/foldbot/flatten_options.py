@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 from foldbot.errors import ConfigError, option_word, options_from_args, split_name_value
 from foldbot.planning.flatten import GRASP_LAYERS, FlattenConfig
-from foldbot.planning.spread import SpreadConfig
+from foldbot.planning.spread import LEAN_MODES, SpreadConfig
 
 FlattenOptionValue = bool | int | float | str | None
 """What a flatten option holds: a switch, a count, a number (SI units), a name, or None."""
@@ -34,24 +34,26 @@ class FlattenOption:
     field: str
     """The field's name there."""
     kind: str
-    """switch, count, number, number or none, or layer (one of GRASP_LAYERS)."""
+    """switch, count, number, number or none, or choice (one of `choices`)."""
     unit: str = ""
     """The number's unit for help text: m, s, m/s, rad, or a coverage (top-view area / flat
     area)."""
+    choices: tuple[str, ...] = ()
+    """A choice's allowed names."""
 
 
-def _pull(field: str, kind: str, unit: str = "") -> FlattenOption:
-    return FlattenOption(FlattenConfig, field, kind, unit)
+def _pull(field: str, kind: str, unit: str = "", choices: tuple[str, ...] = ()) -> FlattenOption:
+    return FlattenOption(FlattenConfig, field, kind, unit, choices)
 
 
-def _spread(field: str, kind: str, unit: str = "") -> FlattenOption:
-    return FlattenOption(SpreadConfig, field, kind, unit)
+def _spread(field: str, kind: str, unit: str = "", choices: tuple[str, ...] = ()) -> FlattenOption:
+    return FlattenOption(SpreadConfig, field, kind, unit, choices)
 
 
 FLATTEN_OPTION_FIELDS: dict[str, FlattenOption] = {
     "target_coverage": _pull("target_coverage", "number", "coverage"),
     "finish_coverage": _pull("finish_coverage", "number or none", "coverage"),
-    "grasp_layer": _pull("grasp_layer", "layer"),
+    "grasp_layer": _pull("grasp_layer", "choice", choices=GRASP_LAYERS),
     "grasp_inset": _pull("grasp_inset", "number", "m"),
     "max_inset": _pull("max_inset", "number", "m"),
     "retries": _pull("retries", "count"),
@@ -73,6 +75,7 @@ FLATTEN_OPTION_FIELDS: dict[str, FlattenOption] = {
     "spread_top_depth": _spread("top_depth", "number", "m"),
     "spread_seek_cloth": _spread("seek_cloth", "number", "m"),
     "spread_grasp_tilt": _spread("grasp_tilt", "number", "rad"),
+    "spread_grasp_lean": _spread("grasp_lean", "choice", choices=LEAN_MODES),
 }
 """Option name → the config field it sets (see each field's docstring there for its meaning and
 what was measured)."""
@@ -97,7 +100,7 @@ def _allowed(name: str) -> str:
         "count": "an integer",
         "number": f"a number{unit}",
         "number or none": f"a number{unit}, or none",
-        "layer": f"one of {', '.join(GRASP_LAYERS)}",
+        "choice": f"one of {', '.join(option.choices)}",
     }[option.kind]
 
 
@@ -112,8 +115,8 @@ def check_flatten_option(name: str, value: object) -> FlattenOptionValue:
         if not isinstance(value, bool):
             raise bad
         return value
-    if kind == "layer":
-        if value not in GRASP_LAYERS:
+    if kind == "choice":
+        if value not in FLATTEN_OPTION_FIELDS[name].choices:
             raise bad
         return str(value)
     if value is None and kind == "number or none":
@@ -156,12 +159,12 @@ def flatten_configs(options: Mapping[str, object]) -> tuple[FlattenConfig, Sprea
 
 def parse_flatten_option(text: str) -> tuple[str, FlattenOptionValue]:
     """'NAME=VALUE' from the command line → (name, checked value). VALUE is true/false, an
-    integer, a number, none, or a grasp layer's name."""
+    integer, a number, none, or one of a choice's names."""
     name, raw = split_name_value(text, "flatten option", "finish_coverage=none", FLATTEN_OPTIONS)
     if name not in FLATTEN_OPTION_FIELDS:
         check_flatten_option(name, None)  # raises: unknown name, with the allowed ones
     try:
-        value = option_word(raw, GRASP_LAYERS)
+        value = option_word(raw, FLATTEN_OPTION_FIELDS[name].choices)
     except ValueError:
         raise ConfigError(f"flatten option {name} = {raw!r} must be {_allowed(name)}") from None
     return name, check_flatten_options({name: value})[name]

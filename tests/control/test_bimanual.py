@@ -172,3 +172,60 @@ def test_tools_tilted_apart_let_two_arms_take_corners_close_together(two_arms):
         tool_z = np.array(p.getMatrixFromQuaternion(ex.model.fk_tcp(held)[1])).reshape(3, 3)[:, 2]
         np.testing.assert_allclose(tool_z, [0, 0, -1], atol=0.01)  # gripper down at the hold
     assert world.steps == 0, "planning moves nothing"
+
+
+def test_tools_leaning_apart_take_two_corners_lying_along_x(two_arms):
+    """Two corners 11 cm apart along x: both forearms reach for the same y from either side and
+    meet gripper down and tilted along ±y; leaning each wrist away from the other corner along
+    the line between them (planning.spread's lean "apart") keeps them clear."""
+    import math
+
+    import pybullet as p
+
+    from foldbot.control.bimanual import check_arms_clear
+    from foldbot.errors import ArmsWouldCollideError
+    from foldbot.planning.motion import MotionConfig
+    from foldbot.planning.spread import SpreadAction, spread_segments
+
+    world, executors = two_arms
+    z = world.layout.table_height
+    grasps = [np.array([0.505, 0.001, z + 0.01]), np.array([0.615, -0.001, z + 0.01])]
+
+    def plan(tilt: float, apart: bool):
+        out = []
+        for k, (ex, side) in enumerate(zip(executors, (1.0, -1.0), strict=True)):
+            away = grasps[k][:2] - grasps[1 - k][:2]
+            lean = (
+                {"tilt": tilt, "tilt_heading": math.atan2(away[1], away[0])}
+                if apart
+                else {"tilt": side * tilt}
+            )
+            action = SpreadAction(
+                grasp=grasps[k],
+                hold=np.array([0.6, side * 0.15, z + 0.35]),
+                touch=np.array([0.6, side * 0.15, z + 0.305]),
+                release=np.array([0.3, side * 0.15, z + 0.02]),
+                **lean,
+            )
+            segments = spread_segments(action, ex.robot.tcp_pose()[0], MotionConfig())
+            out.append((ex, ex.plan(segments), action))
+        return out
+
+    for tilt, apart in ((0.0, False), (0.35, False)):
+        with pytest.raises(ArmsWouldCollideError, match="segment 'approach'"):
+            check_arms_clear([(ex, steps) for ex, steps, _ in plan(tilt, apart)])
+    leaning = plan(0.35, True)
+    check_arms_clear([(ex, steps) for ex, steps, _ in leaning])
+    for ex, steps, action in leaning:
+        at_grasp = {s.segment.name: s for s in steps}["descend"].joint_path[-1]
+        pos, quat = ex.model.fk_tcp(at_grasp)
+        np.testing.assert_allclose(
+            pos, action.grasp + [0, 0, MotionConfig().grasp_depth], atol=1e-3
+        )
+        tool_z = np.array(p.getMatrixFromQuaternion(quat)).reshape(3, 3)[:, 2]
+        # The wrist leans along x, away from the other corner: the tool points back towards it.
+        other = next(a for _, _, a in leaning if a is not action)
+        assert -tool_z[0] * np.sign(action.grasp[0] - other.grasp[0]) == pytest.approx(
+            math.sin(0.35), abs=0.01
+        )
+    assert world.steps == 0, "planning moves nothing"

@@ -1,3 +1,5 @@
+import math
+
 import numpy as np
 import pytest
 
@@ -9,17 +11,23 @@ from foldbot.planning.flatten import FlattenConfig
 from foldbot.planning.motion import MotionConfig
 from foldbot.planning.spread import (
     MARGIN_FREE_SEGMENTS,
+    SPREAD_SCALARS,
     SpreadAction,
     SpreadConfig,
     action_as_dict,
     action_from_dict,
     corner_pairs,
     motion_segments,
+    palm_underside_rise,
     plan_spread,
     spread_segments,
     spread_width,
 )
-from foldbot.planning.tool import GRIPPER_DOWN, gripper_tilted_quaternion
+from foldbot.planning.tool import (
+    GRIPPER_DOWN,
+    gripper_leaning_quaternion,
+    gripper_tilted_quaternion,
+)
 
 TABLE = 0.75
 W, H = 0.40, 0.30
@@ -262,6 +270,73 @@ def test_a_corner_under_a_heap_is_not_palm_clear():
     assert far_left.grasp[2] == pytest.approx(TABLE + 0.10 - flat.palm_clearance, abs=1e-6)
 
 
+def test_a_leaning_palm_comes_lower_on_the_side_the_wrist_leans_to():
+    """The palm's underside turns with the tool: 11 mm lower at its edge on the wrist's side at
+    20°, 6 mm higher at the other; past its edges, the edge's height."""
+    assert np.all(palm_underside_rise(np.array([-0.1, 0.0, 0.1]), 0.0) == 0.0)
+    low, mid, high = palm_underside_rise(np.array([0.06, 0.045 * math.sin(0.35), -0.06]), 0.35)
+    assert low == pytest.approx(0.045 * math.cos(0.35) - 0.025 * math.sin(0.35) - 0.045)
+    assert low == pytest.approx(-0.0113, abs=0.0001)
+    assert high == pytest.approx(0.045 * math.cos(0.35) + 0.025 * math.sin(0.35) - 0.045)
+    assert mid == pytest.approx(0.045 * math.cos(0.35) - 0.045)
+    np.testing.assert_allclose(
+        palm_underside_rise(np.array([0.02]), -0.35), palm_underside_rise(np.array([0.02]), 0.35)
+    )
+
+
+@pytest.mark.parametrize("side", [1.0, -1.0])
+def test_a_tilted_grasp_rises_over_cloth_where_the_palm_leans_and_less_elsewhere(side):
+    """A 6 cm heap 5 cm beside the +y arm's grasp (far_left, leaning to +y): on the side its
+    wrist leans to, the grasp rises 11 mm more than gripper down for the palm to clear it; on
+    the other side 6 mm less."""
+    flat = FlattenConfig()
+    state = heap_state(HEAP, [0.9] * 4)
+    pair = ("far_left", "near_left")
+
+    def far_left(plan):
+        return next(a for a in plan.actions if a.label == "spread far_left")
+
+    surface = _raster(flat, 0.0)
+    xy = far_left(plan_spread(state, (W, H), SpreadConfig(), flat, surface, pair=pair)).grasp
+    x, y = xy[0], xy[1] + side * 0.05
+    surface[
+        round((y - flat.workspace[2]) / flat.raster), round((x - flat.workspace[0]) / flat.raster)
+    ] = 0.06
+    down = plan_spread(state, (W, H), SpreadConfig(), flat, surface, pair=pair)
+    tilted = plan_spread(state, (W, H), SpreadConfig(), flat, surface, pair=pair, tilt=0.35)
+    assert far_left(tilted).tilt == 0.35  # the +y arm's wrist leans to +y
+    assert far_left(down).grasp[2] == pytest.approx(TABLE + 0.06 - flat.palm_clearance)
+    rise = palm_underside_rise(np.array([side * 0.1]), 0.35)[0]
+    assert far_left(tilted).grasp[2] == pytest.approx(far_left(down).grasp[2] - rise)
+    np.testing.assert_array_equal(far_left(tilted).grasp[:2], far_left(down).grasp[:2])
+
+
+def test_tools_leaning_apart_lean_along_the_line_between_the_corners():
+    """`lean="apart"`: each wrist leans away from the other corner, whichever way the pair
+    lies; two corners lying along x lean along x, where leaning along ±y cannot part them."""
+    along_x = [[0.40, 0.01], [0.40, -0.20], [0.60, -0.20], [0.52, 0.0]]
+    state = heap_state(along_x, [0.9] * 4)
+    pair = ("far_left", "near_left")  # (0.52, 0.0) and (0.40, 0.01)
+    plan = plan_spread(
+        state, (W, H), SpreadConfig(), FlattenConfig(), pair=pair, tilt=0.3, lean="apart"
+    )
+    for a in plan.actions:
+        other = next(b for b in plan.actions if b is not a)
+        away = a.grasp[:2] - other.grasp[:2]
+        assert a.tilt == 0.3
+        assert a.tilt_heading == pytest.approx(math.atan2(away[1], away[0]))
+        by = {s.name: s for s in spread_segments(a, np.array([0.45, 0.3, 1.0]), MotionConfig())}
+        np.testing.assert_allclose(
+            by["descend"].orientations[-1], gripper_leaning_quaternion(0.3, a.tilt_heading)
+        )
+    far = next(a for a in plan.actions if a.label == "spread far_left")
+    assert abs(math.cos(far.tilt_heading)) > 0.99 and math.cos(far.tilt_heading) > 0  # +x
+    with pytest.raises(ConfigError, match="lean must be one of sides, apart, got 'up'"):
+        plan_spread(state, (W, H), SpreadConfig(), FlattenConfig(), tilt=0.3, lean="up")
+    with pytest.raises(ConfigError, match="grasp_lean must be one of sides, apart, got 'x'"):
+        SpreadConfig(grasp_lean="x")
+
+
 def test_a_pair_just_missed_is_tried_last_after_the_edge_just_laid():
     state = heap_state(HEAP, [0.9, 0.2, 0.8, 0.85])
     assert corner_pairs(state)[0] == ("far_left", "near_left")
@@ -280,7 +355,9 @@ def test_an_action_travels_as_data_and_comes_back_the_same():
     # For a planner in another process (the ROS planner node): a spread's part with every speed
     # and its hang, or a pick-and-place, named by kind.
     cfg = SpreadConfig(hang_time=0.5, lay_speed=0.08)
-    plan = plan_spread(heap_state(HEAP, [0.9] * 4), (W, H), cfg, FlattenConfig(), tilt=0.2)
+    plan = plan_spread(
+        heap_state(HEAP, [0.9] * 4), (W, H), cfg, FlattenConfig(), tilt=0.2, lean="apart"
+    )
     for action in plan.actions:
         d = action_as_dict(action)
         assert d["kind"] == "spread" and d["hang_time"] == 0.5 and d["lay_speed"] == 0.08
@@ -288,7 +365,7 @@ def test_an_action_travels_as_data_and_comes_back_the_same():
         assert isinstance(back, SpreadAction) and back.label == action.label
         for k in ("grasp", "hold", "touch", "release"):
             assert np.array_equal(getattr(back, k), getattr(action, k))
-        for k in ("hang_time", "descend_speed", "slow_descent", "lift_speed", "lay_speed", "tilt"):
+        for k in SPREAD_SCALARS:
             assert getattr(back, k) == getattr(action, k)
         segs = [
             spread_segments(a, np.array([0.45, 0.3, 1.0]), MotionConfig()) for a in (action, back)

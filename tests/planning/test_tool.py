@@ -7,7 +7,12 @@ import pybullet as p
 import pytest
 
 from foldbot.errors import ConfigError
-from foldbot.planning.tool import GRIPPER_DOWN, gripper_tilted_quaternion, slerp_quaternions
+from foldbot.planning.tool import (
+    GRIPPER_DOWN,
+    gripper_leaning_quaternion,
+    gripper_tilted_quaternion,
+    slerp_quaternions,
+)
 from foldbot.sim.robots.base import gripper_down_quaternion
 
 
@@ -34,6 +39,40 @@ def test_a_tilt_leans_the_wrist_sideways_and_keeps_the_pads_level(tilt):
     np.testing.assert_allclose(r[:, 2], [0.0, -math.sin(tilt), -math.cos(tilt)], atol=1e-12)
     # The fingers close along world x, level with each other.
     np.testing.assert_allclose(r[:, 1], [-1.0, 0.0, 0.0], atol=1e-12)
+
+
+@pytest.mark.parametrize("heading", [0.0, 0.7, math.pi, -2.0])
+@pytest.mark.parametrize("tilt", [0.35, -0.2])
+def test_a_lean_tilts_the_wrist_towards_its_heading_and_keeps_the_pads_level(tilt, heading):
+    r = rotation(gripper_leaning_quaternion(tilt, heading))
+    toward = np.array([math.cos(heading), math.sin(heading), 0.0])
+    # The tool axis points down and back under the wrist: the wrist leans towards `heading`.
+    np.testing.assert_allclose(
+        r[:, 2], -math.sin(tilt) * toward + [0.0, 0.0, -math.cos(tilt)], atol=1e-12
+    )
+    # The fingers close across the lean, horizontally.
+    assert r[2, 1] == pytest.approx(0.0, abs=1e-12)
+    assert float(r[:, 1] @ toward) == pytest.approx(0.0, abs=1e-12)
+
+
+def test_leaning_towards_plus_y_is_the_sideways_tilt():
+    for tilt in (0.0, 0.35, -0.5):
+        np.testing.assert_allclose(
+            rotation(gripper_leaning_quaternion(tilt, math.pi / 2)),
+            rotation(gripper_tilted_quaternion(tilt)),
+            atol=1e-12,
+        )
+    # Upright, the heading only turns the fingers about the vertical: gripper down at that yaw.
+    np.testing.assert_allclose(
+        rotation(gripper_leaning_quaternion(0.0, 0.7)),
+        rotation(gripper_down_quaternion(0.7)),
+        atol=1e-12,
+    )
+
+
+def test_a_heading_must_be_finite():
+    with pytest.raises(ConfigError, match="heading must be finite, got inf"):
+        gripper_leaning_quaternion(0.3, float("inf"))
 
 
 def test_a_tilt_must_be_finite():

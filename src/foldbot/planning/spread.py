@@ -27,7 +27,11 @@ from foldbot.planning.flatten import (
     table_z,
 )
 from foldbot.planning.motion import MotionConfig, Segment, action_segments, line_path
-from foldbot.planning.tool import GRIPPER_DOWN, gripper_tilted_quaternion, slerp_quaternions
+from foldbot.planning.tool import GRIPPER_DOWN, gripper_leaning_quaternion, slerp_quaternions
+
+LEAN_MODES = ("sides", "apart")
+"""How plan_spread leans two tilted tools apart: along ±y (each arm's own side), or along the
+line between the two corners."""
 
 
 @dataclass(frozen=True)
@@ -79,13 +83,19 @@ class SpreadConfig:
     at 0)."""
     grasp_tilt: float = 0.0
     """Where no pair of corners can be spread gripper down, the pairs are tried again with the
-    tools tilted this much (rad; 0: never, a one-arm pull instead), at every hang margin: the +y
-    arm's wrist leans towards +y over its grasp and the other's towards −y (SpreadAction.tilt),
-    so arms that would meet over two corners close together keep apart. Planned on two UR5s
-    for 60 random pairs of corners 6–20 cm apart, 21 could be spread gripper down, 48 at 0.35
-    rad (20°), 50 at 0.5. Off: over towel_crumpled_two_arms' seeds 0–39 at 0.35, 3 towels took
-    a tilted spread and 30 flattened against 31 (seed 28 went from 0.43 to 0.90 instead of
-    four pulls; seed 14's tilted grasp missed and it ended unflattened)."""
+    tools tilted this much (rad; 0: never, a one-arm pull instead), at every hang margin, each
+    wrist leaning away from the other arm (`grasp_lean`), so arms that would meet over two
+    corners close together keep apart. Planned on two UR5s for 60 random pairs of corners
+    6–20 cm apart, 21 could be spread gripper down, 48 at 0.35 rad (20°) along ±y, 50 at 0.5,
+    56 at 0.35 leaning apart. Off: over towel_crumpled_two_arms' seeds 0–39 at 0.35, 5 towels
+    took a tilted spread; leaning apart 31 flattened and 24 folded, as gripper down (seed 39
+    flattened instead of diverging, seed 14 ended at 0.85 instead of flattened), along ±y 31
+    and 23 (30 and 23 before the grasps rose for the leaning palm)."""
+    grasp_lean: str = "apart"
+    """How the tools lean apart at `grasp_tilt` (LEAN_MODES): "apart", each wrist away from the
+    other corner along the line between them; "sides", the +y arm's towards +y and the other's
+    towards −y. Of those 60 pairs at 0.35 rad, "apart" spread every one "sides" could and 8
+    more lying near x, where the forearms reach for one y from either side."""
     fault_grasp_offset: float = 0.0
     """Fault injection for tests (m; 0 in use): the first spread's grasps, its retry too, are
     aimed this far outside the perceived corners, onto bare table, so the recovery from a missed
@@ -108,6 +118,11 @@ class SpreadConfig:
             and all(isinstance(m, int | float) and 0.0 <= m <= 0.3 for m in self.hang_margins),
             f"SpreadConfig.hang_margins must be 1 or more values in [0, 0.3] m, "
             f"got {self.hang_margins!r}",
+        )
+        require(
+            self.grasp_lean in LEAN_MODES,
+            f"SpreadConfig.grasp_lean must be one of {', '.join(LEAN_MODES)}, "
+            f"got {self.grasp_lean!r}",
         )
         for name, lo, hi in (
             ("max_hold_height", 0.1, 1.0),
@@ -157,6 +172,10 @@ class SpreadAction:
     the wrist towards +y), turned to on the approach and back to gripper-down on the rise to
     the hold; 0: gripper down all along. Two corners close together are taken with each wrist
     leaning away from the other arm."""
+    tilt_heading: float = math.pi / 2
+    """The world heading (rad about z from +x) the wrist leans towards at `tilt` > 0
+    (planning.tool.gripper_leaning_quaternion): π/2, towards +y, unless a spread leans the
+    tools apart along the line between its corners (plan_spread's `lean`)."""
 
     @property
     def place(self) -> np.ndarray:
@@ -203,6 +222,7 @@ SPREAD_SCALARS = (
     "lay_speed",
     "first_lift",
     "tilt",
+    "tilt_heading",
 )
 """SpreadAction's times (s), speeds (m/s) and lengths (m), as as_dict writes them."""
 
@@ -290,17 +310,72 @@ def _first_cloth(
     return 0.0
 
 
+PALM_UNDERSIDE = 0.045
+"""The palm's underside above the TCP (m; the URDF's gripper_base_link box, 1–6 cm above the
+flange, the TCP 10.5 cm)."""
+PALM_HALF_DEPTH = 0.025
+"""Half the palm's side across the fingers' closing axis (m): the edge a lean lowers."""
+
+
+def palm_underside_rise(offsets: np.ndarray, tilt: float) -> np.ndarray:
+    """How much higher (m) the palm's underside lies over points `offsets` (m, horizontal, along
+    the way the wrist leans from the TCP) with the tool leaning `tilt` rad about its closing
+    axis than gripper down: the underside turns with the tool, so it comes lower on the side
+    the wrist leans to (its edge there 11 mm lower at 0.35 rad, 3.9 cm out) and higher on the
+    other; past its edges, the edge's height."""
+    t = abs(float(tilt))
+    offsets = np.asarray(offsets, dtype=float)
+    if t == 0.0:
+        return np.zeros_like(offsets)
+    centre = PALM_UNDERSIDE * math.sin(t)  # the underside's middle, out along the lean
+    across = np.clip(
+        (offsets - centre) / math.cos(t), -PALM_HALF_DEPTH, PALM_HALF_DEPTH
+    )  # along the underside, from its middle
+    return PALM_UNDERSIDE * math.cos(t) - across * math.sin(t) - PALM_UNDERSIDE
+
+
+def _palm_heap(
+    surface: np.ndarray, xy: np.ndarray, flat: FlattenConfig, tilt: float, heading: float
+) -> float:
+    """The highest cloth (m above the table) the palm must clear over a grasp at `xy`, counted as
+    gripper down counts it (the top surface within `palm_radius`), each raster cell lowered by
+    how much higher the leaning palm's underside lies over it (palm_underside_rise; the wrist
+    leaning `tilt` rad towards `heading`); NaN where no cloth is known there."""
+    if tilt == 0.0:
+        return _surface_at(surface, xy, flat, flat.palm_radius)
+    ny, nx = surface.shape
+    i, j = _raster_cell(xy, flat)
+    r = max(1, math.ceil(flat.palm_radius / flat.raster))
+    j0, j1, i0, i1 = max(0, j - r), min(ny, j + r + 1), max(0, i - r), min(nx, i + r + 1)
+    if j0 >= j1 or i0 >= i1:
+        return float("nan")
+    jj, ii = np.mgrid[j0:j1, i0:i1]
+    win = surface[j0:j1, i0:i1]
+    keep = np.isfinite(win) & ((ii - i) ** 2 + (jj - j) ** 2 <= r * r)
+    if not keep.any():
+        return float("nan")
+    toward = math.copysign(1.0, tilt) * np.array([math.cos(heading), math.sin(heading)])
+    x0, _x1, y0, _y1 = flat.workspace
+    offsets = (x0 + ii[keep] * flat.raster - xy[0]) * toward[0] + (
+        y0 + jj[keep] * flat.raster - xy[1]
+    ) * toward[1]
+    return float(np.max(win[keep] - palm_underside_rise(offsets, tilt)))
+
+
 def _grasp_point(
     state: ClothState,
     label: str,
     surface: np.ndarray | None,
     flat: FlattenConfig,
     cfg: SpreadConfig,
+    tilt: float = 0.0,
+    heading: float = 0.0,
 ) -> tuple[np.ndarray, bool]:
     """Where the jaws close on the perceived corner `label`: `cfg.grasp_inset` inside it (inside
     the first cloth seen inward of it, where none is seen under it: cfg.seek_cloth), just
     under the top surface there, raised (as flattening pulls are) until the palm clears the
-    heap around; and whether the jaws still reach the cloth at that height."""
+    heap around (the tool leaning `tilt` rad towards `heading`: _palm_heap); and whether the
+    jaws still reach the cloth at that height."""
     corner = np.asarray(state.keypoints[label][0], dtype=float)
     centre = state.keypoint_array(CORNER_LABELS).mean(axis=0)
     inward = centre[:2] - corner[:2]
@@ -313,7 +388,7 @@ def _grasp_point(
     level, reached = flat.grasp_height, True
     if surface is not None:
         here = _surface_at(surface, xy, flat, flat.raster)
-        heap = _surface_at(surface, xy, flat, flat.palm_radius)
+        heap = _palm_heap(surface, xy, flat, tilt, heading)
         if math.isfinite(here):
             level = max(level, here - cfg.top_depth)
         if math.isfinite(heap):
@@ -331,22 +406,43 @@ def plan_spread(
     margin: float | None = None,
     pair: tuple[str, str] | None = None,
     tilt: float = 0.0,
+    lean: str = "sides",
 ) -> SpreadPlan:
     """The spread of the towel of nominal `expected_size` (w, h; m) seen in `state`: the two
     adjacent corners `pair` (default: those the estimator is surest of, corner_pairs), held one
     nominal side apart (spread_width) over cfg.center_xy + half the hang along x, the hanging
     far side `margin` (default the first of cfg.hang_margins) above the table, then laid to end
     centred on the workspace. `surface` (planning.flatten.cloth_surface) puts each grasp on the
-    top layer at the corner, with the palm clear of the heap (SpreadPlan.palm_clear)."""
+    top layer at the corner, with the palm clear of the heap (SpreadPlan.palm_clear). `tilt`
+    (rad) leans the tools at the grasps (SpreadAction.tilt), each wrist away from the other
+    arm: `lean` "sides", the +y arm's towards +y and the other's towards −y; "apart", each
+    along the line from the other corner to its own (LEAN_MODES)."""
     w, h = (float(v) for v in expected_size)
     require(
         math.isfinite(w) and math.isfinite(h) and w > 0.0 and h > 0.0,
         f"expected width × height must be > 0 m, got {w!r} × {h!r}",
     )
     margin = cfg.hang_margins[0] if margin is None else float(margin)
+    require(lean in LEAN_MODES, f"lean must be one of {', '.join(LEAN_MODES)}, got {lean!r}")
     labels = corner_pairs(state)[0] if pair is None else pair
     picked = [_grasp_point(state, k, surface, flat, cfg) for k in labels]
     grasps = [g for g, _ in picked]
+    # The corner further along +y is held on the +y side, so the arms' paths do not cross.
+    order = sorted(range(2), key=lambda i: -float(grasps[i][1]))
+    leaning: list[dict] = [{}, {}]
+    for side, i in zip((1.0, -1.0), order, strict=True):
+        away = grasps[i][:2] - grasps[1 - i][:2]
+        leaning[i] = (
+            {"tilt": side * tilt, "tilt_heading": math.pi / 2}
+            if lean == "sides"
+            else {"tilt": abs(tilt), "tilt_heading": math.atan2(away[1], away[0])}
+        )
+    if tilt:  # the grasps' xy stay; their height keeps the leaning palm clear
+        picked = [
+            _grasp_point(state, k, surface, flat, cfg, lean_i["tilt"], lean_i["tilt_heading"])
+            for k, lean_i in zip(labels, leaning, strict=True)
+        ]
+        grasps = [g for g, _ in picked]
     seen = float(np.linalg.norm(grasps[0][:2] - grasps[1][:2]))
     width = spread_width(seen, w, h)
     hang = w * h / width
@@ -355,8 +451,6 @@ def plan_spread(
     x0, _x1, _y0, _y1 = flat.workspace
     release_x = max(hold_x - hang, x0 + flat.margin)
     lift = min(hang + margin, cfg.max_hold_height)
-    # The corner further along +y is held on the +y side, so the arms' paths do not cross.
-    order = sorted(range(2), key=lambda i: -float(grasps[i][1]))
     actions = []
     for side, i in zip((1.0, -1.0), order, strict=True):
         y = cy + side * width / 2
@@ -377,7 +471,7 @@ def plan_spread(
                 slow_descent=cfg.slow_descent,
                 lift_speed=cfg.lift_speed,
                 lay_speed=cfg.lay_speed,
-                tilt=side * tilt,
+                **leaning[i],
             )
         )
     return SpreadPlan(
@@ -413,7 +507,7 @@ def spread_segments(
     descend = line_path(slow_from, grasp_tcp, 0.005)
     lift = line_path(grasp_tcp, lifted)
     rise = line_path(lifted, action.hold)
-    tilted = gripper_tilted_quaternion(action.tilt) if action.tilt else None
+    tilted = gripper_leaning_quaternion(action.tilt, action.tilt_heading) if action.tilt else None
 
     def turned(points: np.ndarray, start: np.ndarray, end: np.ndarray) -> np.ndarray | None:
         """The orientations along `points`, from `start` to `end`; None untilted (gripper

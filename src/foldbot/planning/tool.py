@@ -15,29 +15,27 @@ GRIPPER_DOWN = np.array([0.0, 1.0, 0.0, 0.0])
 """Gripper down at yaw 0 (sim.robots.base.gripper_down_quaternion(0)): Ry(π)."""
 
 
-def _multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product a·b of two (x, y, z, w) quaternions."""
-    ax, ay, az, aw = a
-    bx, by, bz, bw = b
-    return np.array(
-        [
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-            aw * bw - ax * bx - ay * by - az * bz,
-        ]
-    )
+def gripper_leaning_quaternion(tilt: float, heading: float) -> np.ndarray:
+    """The TCP's orientation with the wrist leaning `tilt` (rad) from straight down towards the
+    world heading `heading` (rad about z from +x; < 0 tilt leans the other way): the tool
+    points down and back under the wrist, and the fingers close across the lean, horizontally,
+    so both pads stay level as gripper down. This is R(tilt about the closing axis)·Rz(heading)·Ry(π),
+    the closing axis being (−sin heading, cos heading, 0)."""
+    require(math.isfinite(tilt), f"tilt must be finite, got {tilt!r}")
+    require(math.isfinite(heading), f"heading must be finite, got {heading!r}")
+    closing = np.array([-math.sin(heading), math.cos(heading), 0.0])
+    down = Rotation.from_quat(
+        [-math.sin(heading / 2), math.cos(heading / 2), 0.0, 0.0]
+    )  # sim.robots.base.gripper_down_quaternion(heading)
+    return (Rotation.from_rotvec(tilt * closing) * down).as_quat()
 
 
 def gripper_tilted_quaternion(tilt: float) -> np.ndarray:
     """The TCP's orientation with the fingers closing along world x and the tool axis tilted
     `tilt` (rad) from straight down about world x: at tilt > 0 the tool points down and
     towards −y, so the wrist above it leans towards +y. Both pads stay level, as gripper down.
-    This is Rx(−tilt)·Rz(π/2)·Ry(π)."""
-    require(math.isfinite(tilt), f"tilt must be finite, got {tilt!r}")
-    down_turned = np.array([-math.sqrt(0.5), math.sqrt(0.5), 0.0, 0.0])  # Rz(π/2)·Ry(π)
-    rx = np.array([-math.sin(tilt / 2), 0.0, 0.0, math.cos(tilt / 2)])
-    return _multiply(rx, down_turned)
+    This is Rx(−tilt)·Rz(π/2)·Ry(π): gripper_leaning_quaternion(tilt, π/2)."""
+    return gripper_leaning_quaternion(tilt, math.pi / 2)
 
 
 def slerp_quaternions(a: np.ndarray, b: np.ndarray, fractions: np.ndarray) -> np.ndarray:
