@@ -299,19 +299,31 @@ def _raster_cell(xy: np.ndarray, cfg: FlattenConfig) -> tuple[int, int]:
     return round((xy[0] - x0) / cfg.raster), round((xy[1] - y0) / cfg.raster)
 
 
-def _surface_at(surface: np.ndarray, xy: np.ndarray, cfg: FlattenConfig, radius: float) -> float:
-    """Highest surface height (m) within `radius` (m) of `xy`; NaN where none is known (also
-    off the raster: cloth can lie beyond the flattening workspace)."""
+def surface_window(
+    surface: np.ndarray, xy: np.ndarray, cfg: FlattenConfig, radius: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The known surface heights (m) of the raster cells within `radius` (m, at least one cell)
+    of `xy`, and those cells' world xy (K × 2); empty off the raster (cloth can lie beyond the
+    flattening workspace)."""
     ny, nx = surface.shape
     i, j = _raster_cell(xy, cfg)
     r = max(1, math.ceil(radius / cfg.raster))
     j0, j1, i0, i1 = max(0, j - r), min(ny, j + r + 1), max(0, i - r), min(nx, i + r + 1)
     if j0 >= j1 or i0 >= i1:
-        return float("nan")
+        return np.zeros(0), np.zeros((0, 2))
     jj, ii = np.mgrid[j0:j1, i0:i1]
     win = surface[j0:j1, i0:i1]
-    win = win[np.isfinite(win) & ((ii - i) ** 2 + (jj - j) ** 2 <= r * r)]
-    return float(win.max()) if win.size else float("nan")
+    keep = np.isfinite(win) & ((ii - i) ** 2 + (jj - j) ** 2 <= r * r)
+    x0, _x1, y0, _y1 = cfg.workspace
+    cells = np.c_[x0 + ii[keep] * cfg.raster, y0 + jj[keep] * cfg.raster]
+    return win[keep], cells
+
+
+def _surface_at(surface: np.ndarray, xy: np.ndarray, cfg: FlattenConfig, radius: float) -> float:
+    """Highest surface height (m) within `radius` (m) of `xy`; NaN where none is known (also
+    off the raster: cloth can lie beyond the flattening workspace)."""
+    heights, _ = surface_window(surface, xy, cfg, radius)
+    return float(heights.max()) if heights.size else float("nan")
 
 
 def table_z(plane: np.ndarray, xy: np.ndarray) -> float:

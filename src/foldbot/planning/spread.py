@@ -24,6 +24,7 @@ from foldbot.planning.flatten import (
     FlattenConfig,
     _raster_cell,
     _surface_at,
+    surface_window,
     table_z,
 )
 from foldbot.planning.motion import MotionConfig, Segment, action_segments, line_path
@@ -343,23 +344,12 @@ def _palm_heap(
     leaning `tilt` rad towards `heading`); NaN where no cloth is known there."""
     if tilt == 0.0:
         return _surface_at(surface, xy, flat, flat.palm_radius)
-    ny, nx = surface.shape
-    i, j = _raster_cell(xy, flat)
-    r = max(1, math.ceil(flat.palm_radius / flat.raster))
-    j0, j1, i0, i1 = max(0, j - r), min(ny, j + r + 1), max(0, i - r), min(nx, i + r + 1)
-    if j0 >= j1 or i0 >= i1:
-        return float("nan")
-    jj, ii = np.mgrid[j0:j1, i0:i1]
-    win = surface[j0:j1, i0:i1]
-    keep = np.isfinite(win) & ((ii - i) ** 2 + (jj - j) ** 2 <= r * r)
-    if not keep.any():
+    heights, cells = surface_window(surface, xy, flat, flat.palm_radius)
+    if not heights.size:
         return float("nan")
     toward = math.copysign(1.0, tilt) * np.array([math.cos(heading), math.sin(heading)])
-    x0, _x1, y0, _y1 = flat.workspace
-    offsets = (x0 + ii[keep] * flat.raster - xy[0]) * toward[0] + (
-        y0 + jj[keep] * flat.raster - xy[1]
-    ) * toward[1]
-    return float(np.max(win[keep] - palm_underside_rise(offsets, tilt)))
+    offsets = (cells[:, 0] - xy[0]) * toward[0] + (cells[:, 1] - xy[1]) * toward[1]
+    return float(np.max(heights - palm_underside_rise(offsets, tilt)))
 
 
 def _grasp_point(
