@@ -26,7 +26,6 @@ from foldbot.planning.spread import (
 from foldbot.planning.tool import (
     GRIPPER_DOWN,
     gripper_leaning_quaternion,
-    gripper_tilted_quaternion,
 )
 
 TABLE = 0.75
@@ -173,7 +172,7 @@ def test_a_tilted_spread_leans_each_wrist_away_from_the_other_arm_at_the_grasp()
             np.testing.assert_array_equal(getattr(a, k), getattr(b, k))
     for a in plan.actions:
         by = {s.name: s for s in spread_segments(a, np.array([0.45, 0.3, 1.0]), MotionConfig())}
-        tilted = gripper_tilted_quaternion(a.tilt)
+        tilted = gripper_leaning_quaternion(a.tilt, math.pi / 2)
         turn = by["approach"].orientations
         assert turn.shape == (len(by["approach"].points), 4)
         np.testing.assert_allclose(turn[0], GRIPPER_DOWN)  # turned on the way in

@@ -10,7 +10,6 @@ from foldbot.errors import ConfigError
 from foldbot.planning.tool import (
     GRIPPER_DOWN,
     gripper_leaning_quaternion,
-    gripper_tilted_quaternion,
     slerp_quaternions,
 )
 from foldbot.sim.robots.base import gripper_down_quaternion
@@ -26,7 +25,7 @@ def test_gripper_down_is_the_robots_gripper_down():
 
 def test_untilted_the_gripper_points_down_with_the_fingers_closing_along_x():
     np.testing.assert_allclose(
-        rotation(gripper_tilted_quaternion(0.0)),
+        rotation(gripper_leaning_quaternion(0.0, math.pi / 2)),
         rotation(gripper_down_quaternion(math.pi / 2)),
         atol=1e-12,
     )
@@ -34,7 +33,7 @@ def test_untilted_the_gripper_points_down_with_the_fingers_closing_along_x():
 
 @pytest.mark.parametrize("tilt", [0.35, -0.35, 0.6])
 def test_a_tilt_leans_the_wrist_sideways_and_keeps_the_pads_level(tilt):
-    r = rotation(gripper_tilted_quaternion(tilt))
+    r = rotation(gripper_leaning_quaternion(tilt, math.pi / 2))
     # The tool axis (TCP z) points down and towards −y at tilt > 0: the wrist above leans to +y.
     np.testing.assert_allclose(r[:, 2], [0.0, -math.sin(tilt), -math.cos(tilt)], atol=1e-12)
     # The fingers close along world x, level with each other.
@@ -55,14 +54,7 @@ def test_a_lean_tilts_the_wrist_towards_its_heading_and_keeps_the_pads_level(til
     assert float(r[:, 1] @ toward) == pytest.approx(0.0, abs=1e-12)
 
 
-def test_leaning_towards_plus_y_is_the_sideways_tilt():
-    for tilt in (0.0, 0.35, -0.5):
-        np.testing.assert_allclose(
-            rotation(gripper_leaning_quaternion(tilt, math.pi / 2)),
-            rotation(gripper_tilted_quaternion(tilt)),
-            atol=1e-12,
-        )
-    # Upright, the heading only turns the fingers about the vertical: gripper down at that yaw.
+def test_upright_the_heading_only_turns_the_fingers_about_the_vertical():
     np.testing.assert_allclose(
         rotation(gripper_leaning_quaternion(0.0, 0.7)),
         rotation(gripper_down_quaternion(0.7)),
@@ -77,11 +69,11 @@ def test_a_heading_must_be_finite():
 
 def test_a_tilt_must_be_finite():
     with pytest.raises(ConfigError, match="tilt must be finite, got nan"):
-        gripper_tilted_quaternion(float("nan"))
+        gripper_leaning_quaternion(float("nan"), 0.0)
 
 
 def test_a_turn_runs_from_one_orientation_to_the_other_at_a_steady_rate():
-    a, b = GRIPPER_DOWN, gripper_tilted_quaternion(0.4)
+    a, b = GRIPPER_DOWN, gripper_leaning_quaternion(0.4, math.pi / 2)
     turn = slerp_quaternions(a, b, np.linspace(0.0, 1.0, 5))
     assert turn.shape == (5, 4)
     np.testing.assert_allclose(np.linalg.norm(turn, axis=1), 1.0)

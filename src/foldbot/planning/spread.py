@@ -169,8 +169,8 @@ class SpreadAction:
     """Straight up this far (m) off the heap before the rise to the hold, which is a straight
     line: a corner far out is not lifted high where the arm cannot reach."""
     tilt: float = 0.0
-    """The tool's tilt at the grasp (rad; planning.tool.gripper_tilted_quaternion: > 0 leans
-    the wrist towards +y), turned to on the approach and back to gripper-down on the rise to
+    """The tool's tilt at the grasp (rad; planning.tool.gripper_leaning_quaternion: > 0 leans
+    the wrist towards `tilt_heading`, +y unless set), turned to on the approach and back to gripper-down on the rise to
     the hold; 0: gripper down all along. Two corners close together are taken with each wrist
     leaning away from the other arm."""
     tilt_heading: float = math.pi / 2

@@ -30,14 +30,6 @@ def gripper_leaning_quaternion(tilt: float, heading: float) -> np.ndarray:
     return (Rotation.from_rotvec(tilt * closing) * down).as_quat()
 
 
-def gripper_tilted_quaternion(tilt: float) -> np.ndarray:
-    """The TCP's orientation with the fingers closing along world x and the tool axis tilted
-    `tilt` (rad) from straight down about world x: at tilt > 0 the tool points down and
-    towards −y, so the wrist above it leans towards +y. Both pads stay level, as gripper down.
-    This is Rx(−tilt)·Rz(π/2)·Ry(π): gripper_leaning_quaternion(tilt, π/2)."""
-    return gripper_leaning_quaternion(tilt, math.pi / 2)
-
-
 def slerp_quaternions(a: np.ndarray, b: np.ndarray, fractions: np.ndarray) -> np.ndarray:
     """Orientations (N × 4) turned from `a` to `b` by each of `fractions` (0 to 1), the shorter
     way round at a steady rate (scipy's Slerp)."""
