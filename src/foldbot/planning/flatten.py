@@ -367,7 +367,9 @@ def _nearest_on_outline(poly: np.ndarray, point: np.ndarray) -> np.ndarray:
     return foot[int(np.argmin(np.linalg.norm(foot - point, axis=1)))]
 
 
-def _grasp_level(surface: np.ndarray | None, xy: np.ndarray, cfg: FlattenConfig):
+def grasp_level(
+    surface: np.ndarray | None, xy: np.ndarray, cfg: FlattenConfig
+) -> tuple[float, bool]:
     """Grasp height above the table (m) at `xy` — table level, raised until the palm clears the
     heap around — and whether cloth reaches up to the jaws there."""
     if surface is None:
@@ -400,7 +402,7 @@ def _edge_grasp(
         inward = centroid - nearest
         inward = inward / max(float(np.linalg.norm(inward)), 1e-9)
         first = nearest + inward * cfg.grasp_inset
-    level, ok = _grasp_level(surface, first, cfg)
+    level, ok = grasp_level(surface, first, cfg)
     if ok:
         return first, level, True
     steps = int((cfg.max_inset - cfg.grasp_inset) / cfg.raster)
@@ -408,7 +410,7 @@ def _edge_grasp(
         xy = first + inward * (k * cfg.raster)
         if cv2.pointPolygonTest(contour, (float(xy[0]), float(xy[1])), False) < 0:
             break
-        lv, ok = _grasp_level(surface, xy, cfg)
+        lv, ok = grasp_level(surface, xy, cfg)
         if ok:
             return xy, lv, True
     return first, level, False

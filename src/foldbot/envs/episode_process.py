@@ -1,0 +1,234 @@
+"""One crumpled-towel episode simulated in a process of its own, driven by pick-and-place steps.
+
+Bullet's soft-body solver keeps process-global state, so an episode reproduces from its seed only
+as the first simulation in its process (README, Determinism): a second crumple in one process
+lands centimetres elsewhere. Each episode of an environment therefore runs in a fresh child
+process (`python -m foldbot.envs.episode_process`, as `foldbot bench` gives each episode a fresh
+worker; not multiprocessing's spawn, which would re-run an unguarded caller's script), talking
+over a socket pair; only small values cross it: the camera's frame and each step's outcome.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import socket
+import subprocess
+import sys
+import traceback
+from dataclasses import dataclass
+from multiprocessing.connection import Connection
+from typing import Any
+
+import numpy as np
+
+from foldbot import metrics
+from foldbot.carry import execute_action
+from foldbot.errors import FoldbotError, SimulationDivergedError, UnreachableTargetError
+from foldbot.pipeline import EpisodeConfig, SimCell, build_sim_cell, crumple_start, make_estimator
+from foldbot.planning.flatten import FlattenConfig, cloth_surface, grasp_level, pull_action, table_z
+from foldbot.sim.cloth import settle
+from foldbot.sim.world import SimWorld
+from foldbot.types import Observation
+
+_CHILD = "from foldbot.envs.episode_process import serve_socket as serve; serve"
+"""What the child runs (`python -c`), given its socket's file descriptor."""
+REPLY_TIMEOUT_S = 900.0
+"""Longest wall time (s) one reset or step may take before the child is given up as hung."""
+
+
+@dataclass(frozen=True)
+class StepOutcome:
+    """What one reset or pick-and-place step ended on: the camera's frame, the cloth's coverage
+    (GROUND TRUTH, for the reward) and how the step went."""
+
+    observation: Observation
+    coverage: float
+    """Top-view area of the cloth over its flat area (metrics.coverage, from the simulator)."""
+    grasp_success: bool | None = None
+    """Whether the jaws held cloth when they closed; None where no grasp was tried."""
+    grasp_reason: str = ""
+    infeasible: str | None = None
+    """Why the arm could not do the step (nothing moved), or None."""
+    grasp: tuple[float, float, float] | None = None
+    """Where the jaws closed (world, m): the pick point at the height the depth image gave."""
+    place: tuple[float, float, float] | None = None
+    """Where the jaws opened (world, m)."""
+    sim_seconds: float = 0.0
+    """Simulated time the step took (s)."""
+
+
+class EpisodeFailed(FoldbotError):
+    """The episode could not go on: a foldbot error in the child (the crumple threw the towel
+    out of the workspace, the camera lost the cloth …); its message is the child's."""
+
+
+class EpisodeDiverged(EpisodeFailed):
+    """The simulated cloth blew up in the child; its message is the monitor's."""
+
+
+def pick_and_place(
+    cell: SimCell,
+    pick_xy: np.ndarray,
+    place_xy: np.ndarray,
+    flatten: FlattenConfig,
+) -> dict[str, Any]:
+    """Grasp the cloth at `pick_xy` and let go over `place_xy` (world, m) with the cell's arm, as
+    a flattening pull does: the grasp height comes from the depth image (raised so the palm
+    clears heaped cloth), the release `flatten.release_height` over the table, the place kept
+    `flatten.margin` inside the workspace. Park and settle after. Perception only, no ground
+    truth; an unreachable step moves nothing and says why."""
+    state, obs = cell.observe()
+    if not state.detected:
+        raise FoldbotError(f"the cell's camera sees no cloth: {state.reason}")
+    surface = cloth_surface(obs, state, flatten)
+    level, _reaches = grasp_level(surface, pick_xy, flatten)
+    grasp = np.array([pick_xy[0], pick_xy[1], table_z(state.table_plane, pick_xy) + level])
+    action = pull_action(grasp, place_xy, state.table_plane, flatten, "pick-and-place")
+    record: dict[str, Any] = {
+        "grasp": tuple(float(v) for v in action.grasp),
+        "place": tuple(float(v) for v in action.place),
+    }
+    try:
+        outcome = execute_action(cell, action)
+    except UnreachableTargetError as exc:
+        return record | {"infeasible": str(exc)}
+    cell.park()
+    cell.wait(flatten.settle_time)
+    return record | {
+        "grasp_success": bool(outcome["grasp_success"]),
+        "grasp_reason": str(outcome["grasp_reason"]),
+    }
+
+
+def _diverge_at(sim_time: float):
+    """Fault injection: a world step hook that raises the divergence monitor's error once the
+    simulated clock passes `sim_time` (s), to exercise the reporting path."""
+
+    def hook(world: SimWorld) -> None:
+        if world.sim_time >= sim_time:
+            raise SimulationDivergedError(f"injected divergence at {world.sim_time:.3f} s")
+
+    return hook
+
+
+def _serve(conn: Connection) -> None:
+    """The child: take ("episode", EpisodeConfig, FlattenConfig, fault), build the cell, settle
+    and crumple the towel (the episode's seed), reply with the first frame, then run each
+    ("step", pick_xy, place_xy) until ("close",) or the parent goes away. `fault`: None, or the
+    simulated seconds into the first step at which a divergence is injected."""
+    try:
+        _kind, episode, flatten, fault = conn.recv()
+        with SimWorld(episode.sim) as world:
+            parts = build_sim_cell(episode, world)
+            try:
+                settle(world, parts.cloth)
+                cell = SimCell(
+                    world,
+                    parts.robot,
+                    parts.executor,
+                    parts.camera,
+                    make_estimator(episode, parts.oracle),
+                    episode.motion,
+                    park=episode.park,
+                )
+                crumple_start(episode, world, parts.cloth)
+                faces, area = parts.mesh.faces, parts.mesh.area
+
+                def outcome(t0: float, **step: Any) -> StepOutcome:
+                    _state, obs = cell.observe()
+                    cover = metrics.coverage(parts.oracle.cloth_vertices(), faces, area)
+                    return StepOutcome(obs, cover, sim_seconds=world.sim_time - t0, **step)
+
+                conn.send(("ok", outcome(world.sim_time)))
+                if fault is not None:
+                    world.add_step_hook(_diverge_at(world.sim_time + fault))
+                while True:
+                    message = conn.recv()
+                    if message[0] == "close":
+                        break
+                    _kind, pick_xy, place_xy = message
+                    t0 = world.sim_time
+                    step = pick_and_place(cell, pick_xy, place_xy, flatten)
+                    conn.send(("ok", outcome(t0, **step)))
+            finally:
+                parts.model_world.close()
+    except SimulationDivergedError as exc:
+        conn.send(("diverged", str(exc)))
+    except (EOFError, BrokenPipeError):  # the parent went away
+        pass
+    except FoldbotError as exc:
+        conn.send(("failed", f"{type(exc).__name__}: {exc}"))
+    except Exception as exc:  # a bug: its traceback goes to the parent
+        conn.send(("error", f"{type(exc).__name__}: {exc}", traceback.format_exc()))
+    finally:
+        conn.close()
+
+
+def serve_socket(fd: int) -> None:
+    """The child's entry point: serve the episode over the socket inherited as `fd`."""
+    _serve(Connection(fd))
+
+
+class EpisodeProcess:
+    """A crumpled-towel episode running in a fresh child process: `first` is the frame it starts
+    on; `step` runs one pick-and-place; `close` ends it. Raises EpisodeDiverged when the cloth
+    blows up, EpisodeFailed for another foldbot error in the child, RuntimeError (with the
+    child's traceback) for anything else."""
+
+    def __init__(
+        self, episode: EpisodeConfig, flatten: FlattenConfig, fault_diverge_s: float | None = None
+    ) -> None:
+        ours, theirs = socket.socketpair()
+        with theirs:
+            self._process = subprocess.Popen(
+                [sys.executable, "-c", f"{_CHILD}({theirs.fileno()})"],
+                pass_fds=[theirs.fileno()],
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL,  # Bullet's banner; errors come back over the socket
+            )
+        self._conn = Connection(ours.detach())
+        self._conn.send(("episode", episode, flatten, fault_diverge_s))
+        self.first: StepOutcome = self._reply("reset")
+
+    def step(self, pick_xy: np.ndarray, place_xy: np.ndarray) -> StepOutcome:
+        self._conn.send(("step", np.asarray(pick_xy, float), np.asarray(place_xy, float)))
+        return self._reply("step")
+
+    def _reply(self, what: str) -> StepOutcome:
+        if not self._conn.poll(REPLY_TIMEOUT_S):
+            self.close()
+            raise FoldbotError(f"the episode's {what} took longer than {REPLY_TIMEOUT_S:.0f} s")
+        try:
+            reply = self._conn.recv()
+        except EOFError:
+            try:
+                code = self._process.wait(5.0)
+            except subprocess.TimeoutExpired:
+                code = None
+            raise FoldbotError(
+                f"the episode's process ended during its {what} (exit code {code})"
+            ) from None
+        if reply[0] == "ok":
+            return reply[1]
+        self.close()
+        if reply[0] == "diverged":
+            raise EpisodeDiverged(reply[1])
+        if reply[0] == "failed":
+            raise EpisodeFailed(reply[1])
+        raise RuntimeError(f"the episode's {what} failed: {reply[1]}\n{reply[2]}")
+
+    @property
+    def alive(self) -> bool:
+        return self._process.poll() is None
+
+    def close(self) -> None:
+        """End the child (politely, then by force) and release the socket; safe to call twice."""
+        if self.alive and not self._conn.closed:
+            with contextlib.suppress(OSError):
+                self._conn.send(("close",))
+            try:
+                self._process.wait(10.0)
+            except subprocess.TimeoutExpired:
+                self._process.kill()
+                self._process.wait(5.0)
+        self._conn.close()
