@@ -2,7 +2,9 @@
 
 import json
 
-from foldbot.envs.evaluate import main, summary, table
+import numpy as np
+
+from foldbot.envs.evaluate import main, read_episode, summary, table
 
 
 def test_a_policy_over_seeds_writes_its_rows(tmp_path, capsys):
@@ -56,3 +58,27 @@ def test_bad_arguments_are_refused(capsys):
     assert "has 2 arms" in capsys.readouterr().err
     assert main(["--seeds", "0", "--workers", "0"]) == 2
     assert "--workers must be ≥ 1, got 0" in capsys.readouterr().err
+
+
+def test_recorded_episodes_hold_their_transitions_and_are_not_run_again(tmp_path, capsys):
+    args = ["--policy", "pulls", "--seeds", "0", "--resolution", "5", "--record", str(tmp_path)]
+    assert main(args) == 0
+    (path,) = tmp_path.glob("*.npz")
+    assert path.name == "towel_flatten-s0000.npz"
+    assert not list(tmp_path.glob(".*"))  # nothing half-written left beside it
+    ep = read_episode(path)
+    t = len(ep["action"])
+    assert 1 <= t <= 6
+    assert ep["rgb"].shape == (t + 1, 120, 160, 3) and ep["rgb"].dtype == np.uint8
+    assert ep["depth"].shape == (t + 1, 120, 160) and ep["coverage"].shape == (t + 1,)
+    assert ep["action"].shape == (t, 4) and np.all(np.abs(ep["action"]) <= 1.0)
+    np.testing.assert_allclose(ep["reward"], np.diff(ep["coverage"]), atol=1e-6)
+    assert ep["terminated"][-1] or ep["truncated"][-1]
+    assert not (ep["terminated"][:-1] | ep["truncated"][:-1]).any()
+    assert int(ep["seed"]) == 0 and str(ep["policy"]) == "pulls"
+    assert str(ep["suite"]) == "towel_crumpled"
+    capsys.readouterr()
+    stamp = path.stat().st_mtime_ns
+    assert main(args) == 0
+    assert "1 seeds already recorded" in capsys.readouterr().out
+    assert path.stat().st_mtime_ns == stamp

@@ -5,18 +5,24 @@
 Each seed is the suite's towel (`--suite`, default towel_crumpled); a towel counts as flattened
 when the coverage reaches the environment's goal (0.9) within its steps (6), issue 6's target.
 Prints a per-seed table and the success rate with its 95 % interval, and writes them as JSON.
+
+`--record DIR` also keeps every episode's transitions for learning, one file per seed
+(DIR/towel_flatten-sNNNN.npz, written whole or not at all; `read_episode` loads one). A seed
+already recorded there is not run again, so an interrupted recording resumes.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from tqdm import tqdm
 
 from foldbot.bench.suite import parse_seeds
@@ -29,13 +35,57 @@ POLICIES = ("pulls", "random")
 """Baselines by name: the one-arm flattening pulls, or uniform random pick-and-place."""
 
 
-def run_seed(config: TowelFlattenConfig, policy_name: str, seed: int) -> dict[str, Any]:
-    """One episode of `policy_name` on the towel of `seed`: its coverage after each step."""
+RECORD_NAME = "towel_flatten-s{:04d}.npz"
+"""An episode's file under --record DIR."""
+
+
+def write_episode(path: Path, steps: dict[str, list], row: dict[str, Any]) -> None:
+    """Save one episode's transitions as an .npz, atomically (a hidden file renamed into
+    place): `rgb`, `depth` (T+1 frames: the reset's, then one after each step), `action` (T × 4),
+    `reward`, `coverage` (T+1), `grasp_success` (T; False where no grasp was tried),
+    `terminated`, `truncated` (T), and `seed`, `suite_seed`, `policy`, `suite`."""
+    tmp = path.with_name(f".{path.name}.partial-{os.getpid()}")
+    with tmp.open("wb") as f:
+        np.savez_compressed(
+            f,
+            rgb=np.stack(steps["rgb"]),
+            depth=np.stack(steps["depth"]),
+            action=np.asarray(steps["action"], np.float32).reshape(-1, 4),
+            reward=np.asarray(steps["reward"], np.float32),
+            coverage=np.asarray(steps["coverage"], np.float32),
+            grasp_success=np.asarray(steps["grasp_success"], bool),
+            terminated=np.asarray(steps["terminated"], bool),
+            truncated=np.asarray(steps["truncated"], bool),
+            seed=row["seed"],
+            suite_seed=row["suite_seed"],
+            policy=row["policy"],
+            suite=row["suite"],
+        )
+    tmp.replace(path)
+
+
+def read_episode(path: Path) -> dict[str, np.ndarray]:
+    """One recorded episode (write_episode's arrays) as a dict of arrays."""
+    with np.load(path) as data:
+        return {k: data[k] for k in data.files}
+
+
+def run_seed(
+    config: TowelFlattenConfig, policy_name: str, seed: int, record: Path | None = None
+) -> dict[str, Any]:
+    """One episode of `policy_name` on the towel of `seed`: its coverage after each step; with
+    `record`, its transitions saved there (write_episode)."""
     env = TowelFlattenEnv(config)
     try:
         policy = PullPolicy(env) if policy_name == "pulls" else RandomPolicy(env, seed)
         wall = time.perf_counter()
-        _obs, info = env.reset(seed=seed)
+        obs, info = env.reset(seed=seed)
+        steps: dict[str, list] = {
+            "rgb": [obs["rgb"]],
+            "depth": [obs["depth"]],
+            "coverage": [info["coverage"]],
+            **{k: [] for k in ("action", "reward", "grasp_success", "terminated", "truncated")},
+        }
         row: dict[str, Any] = {
             "seed": seed,
             "suite_seed": info["seed"],
@@ -53,17 +103,31 @@ def run_seed(config: TowelFlattenConfig, policy_name: str, seed: int) -> dict[st
             if action is None:  # the policy sees nothing left to do
                 row["stopped"] = True
                 break
-            _obs, _reward, terminated, truncated, info = env.step(action)
+            obs, reward, terminated, truncated, info = env.step(action)
             done = terminated or truncated
             if info.get("diverged"):
                 row["diverged"] = info["diverged"]
                 break
+            for key, value in (
+                ("rgb", obs["rgb"]),
+                ("depth", obs["depth"]),
+                ("coverage", info["coverage"]),
+                ("action", action),
+                ("reward", reward),
+                ("grasp_success", bool(info["grasp_success"])),
+                ("terminated", terminated),
+                ("truncated", truncated),
+            ):
+                steps[key].append(value)
             row["coverage"].append(info["coverage"])
             row["grasps_held"] += bool(info["grasp_success"])
             row["infeasible"] += info["infeasible"] is not None
         row["success"] = bool(info["is_success"]) and row["diverged"] is None
         row["steps"] = info["steps"]
         row["wall_seconds"] = time.perf_counter() - wall
+        if record is not None and row["diverged"] is None:  # a diverged episode is not data
+            row["policy"], row["suite"] = policy_name, config.suite
+            write_episode(record / RECORD_NAME.format(seed), steps, row)
         return row
     finally:
         env.close()
@@ -115,6 +179,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--workers", type=int, default=1, help="episodes at once (default 1)")
     parser.add_argument("--out", type=Path, default=None, help="write the rows as JSON here")
+    parser.add_argument(
+        "--record", type=Path, default=None, help="keep each episode's transitions in this folder"
+    )
     args = parser.parse_args(argv)
     try:
         seeds = parse_seeds(args.seeds)
@@ -125,8 +192,14 @@ def main(argv: list[str] | None = None) -> int:
     except FoldbotError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    if args.record is not None:
+        args.record.mkdir(parents=True, exist_ok=True)
+        done = [s for s in seeds if (args.record / RECORD_NAME.format(s)).exists()]
+        if done:
+            print(f"{len(done)} seeds already recorded in {args.record}: not run again")
+        seeds = [s for s in seeds if s not in done]
     with ThreadPoolExecutor(args.workers) as pool:
-        futures = [pool.submit(run_seed, config, args.policy, s) for s in seeds]
+        futures = [pool.submit(run_seed, config, args.policy, s, args.record) for s in seeds]
         rows = [f.result() for f in tqdm(futures, desc=args.policy, unit="towel")]
     result = {"policy": args.policy, "suite": args.suite, **summary(rows), "rows": rows}
     print(table(rows))
