@@ -216,3 +216,22 @@ def test_the_random_policy_draws_from_the_action_space(env):
     first = a({})
     assert env.action_space.contains(first)
     np.testing.assert_array_equal(first, b({}))
+
+
+def test_it_runs_in_gymnasiums_vector_envs():
+    """Two environments stepped together in worker processes (AsyncVectorEnv), as a learner
+    runs them; each worker's episodes still run in their own child processes."""
+    make = lambda: TowelFlattenEnv(**SMALL)  # noqa: E731
+    envs = gym.vector.AsyncVectorEnv([make, make])
+    try:
+        obs, info = envs.reset(seed=[0, 1])
+        assert obs["rgb"].shape == (2, 48, 64, 3)
+        assert list(info["seed"]) == [0, 1]
+        actions = np.zeros((2, 4), np.float32)  # the workspace's centre, pick and place
+        obs, reward, terminated, truncated, info = envs.step(actions)
+        assert reward.shape == (2,) and obs["depth"].shape == (2, 48, 64)
+        assert list(info["steps"]) == [1, 1]
+        assert np.all((info["coverage"] > 0.1) & (info["coverage"] < 1.2))
+        assert not terminated.any() and not truncated.any()
+    finally:
+        envs.close()

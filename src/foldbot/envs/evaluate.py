@@ -95,6 +95,7 @@ def run_seed(
             "grasps_held": 0,
             "infeasible": 0,
             "diverged": None,
+            "failed": None,
             "stopped": False,
         }
         done = False
@@ -105,8 +106,9 @@ def run_seed(
                 break
             obs, reward, terminated, truncated, info = env.step(action)
             done = terminated or truncated
-            if info.get("diverged"):
-                row["diverged"] = info["diverged"]
+            if info.get("diverged") or info.get("failed"):
+                row["diverged"] = info.get("diverged")
+                row["failed"] = info.get("failed")
                 break
             for key, value in (
                 ("rgb", obs["rgb"]),
@@ -122,10 +124,10 @@ def run_seed(
             row["coverage"].append(info["coverage"])
             row["grasps_held"] += bool(info["grasp_success"])
             row["infeasible"] += info["infeasible"] is not None
-        row["success"] = bool(info["is_success"]) and row["diverged"] is None
+        row["success"] = bool(info["is_success"]) and not (row["diverged"] or row["failed"])
         row["steps"] = info["steps"]
         row["wall_seconds"] = time.perf_counter() - wall
-        if record is not None and row["diverged"] is None:  # a diverged episode is not data
+        if record is not None and not (row["diverged"] or row["failed"]):  # not data
             row["policy"], row["suite"] = policy_name, config.suite
             write_episode(record / RECORD_NAME.format(seed), steps, row)
         return row
@@ -142,6 +144,7 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "success_rate": ok / n if n else None,
         "interval_95": success_interval(ok, n),
         "diverged": sum(r["diverged"] is not None for r in rows),
+        "failed": sum(r.get("failed") is not None for r in rows),
     }
 
 
@@ -156,8 +159,8 @@ def table(rows: list[dict[str, Any]]) -> str:
             f" (ran {r['suite_seed']})" if r["suite_seed"] != r["seed"] else ""
         )
         steps = " → ".join(f"{c:.2f}" for c in r["coverage"]) or "–"
-        if r["diverged"]:
-            steps += " → diverged"
+        if r["diverged"] or r.get("failed"):
+            steps += " → diverged" if r["diverged"] else " → failed"
         held = f"{r['grasps_held']} of {r['steps']}"
         lines.append(
             f"| {seed} | {r['coverage_start']:.2f} | {steps} | {held} | "
@@ -206,7 +209,8 @@ def main(argv: list[str] | None = None) -> int:
     lo, hi = result["interval_95"] or (0.0, 0.0)
     print(
         f"{args.policy}: flattened {result['flattened']} of {result['episodes']} "
-        f"(95 % interval {lo:.0%}–{hi:.0%}), diverged {result['diverged']}"
+        f"(95 % interval {lo:.0%}–{hi:.0%}), diverged {result['diverged']}, "
+        f"failed otherwise {result['failed']}"
     )
     if args.out is not None:
         args.out.parent.mkdir(parents=True, exist_ok=True)

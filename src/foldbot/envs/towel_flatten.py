@@ -16,9 +16,10 @@ episode is a benchmark suite's towel for the reset's seed, crumpled by the same 
 - **Reward**: the change in coverage (cloth area seen from above over its flat area; ground
   truth, shared/notes/metrics.md) that the step made.
 - **Success and the end**: terminated once the coverage reaches `goal_coverage` (0.9, the
-  issue's flattening target; `info["is_success"]`) or when the cloth blows up
-  (`info["diverged"]`, reward 0: a diverged step is reported, never scored); truncated after
-  `max_steps` (6, the issue's budget) actions.
+  issue's flattening target; `info["is_success"]`), when the cloth blows up
+  (`info["diverged"]`) or when the episode cannot go on (`info["failed"]`: the camera lost the
+  cloth …), those two with reward 0: reported, never scored; truncated after `max_steps` (6,
+  the issue's budget) actions.
 - **Randomisation** (the suite's, per seed): towel sides 25–45 cm, position ±3 cm, yaw ±15°,
   and the crumple (pinch point, lift, drag). `reset(seed=N)` is `foldbot bench --suite
   towel_crumpled --seeds N`'s towel, crumpled alike. Where that crumple fails (the heap blows
@@ -275,10 +276,11 @@ class TowelFlattenEnv(gym.Env):
         self._steps += 1
         try:
             outcome = self._episode.step(pick_xy, place_xy)
-        except EpisodeDiverged as exc:
+        except EpisodeFailed as exc:  # reported in info, never scored
             self._ended = True
             self._close_episode()
-            info = self._info(before, diverged=str(exc), is_success=False)
+            why = "diverged" if isinstance(exc, EpisodeDiverged) else "failed"
+            info = self._info(before, **{why: str(exc)}, is_success=False)
             return self._obs(before), 0.0, True, False, info
         self._last = outcome
         reward = float(outcome.coverage - before.coverage)
