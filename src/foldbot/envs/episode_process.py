@@ -22,10 +22,19 @@ from typing import Any
 import numpy as np
 
 from foldbot import metrics
-from foldbot.carry import execute_action
-from foldbot.errors import FoldbotError, SimulationDivergedError, UnreachableTargetError
+from foldbot.carry import execute_action, execute_together
+from foldbot.errors import (
+    ArmsWouldCollideError,
+    ConfigError,
+    FoldbotError,
+    SimulationDivergedError,
+    UnreachableTargetError,
+    failed_segment,
+)
+from foldbot.flatten_options import flatten_configs
 from foldbot.pipeline import EpisodeConfig, SimCell, build_sim_cell, crumple_start, make_estimator
 from foldbot.planning.flatten import FlattenConfig, cloth_surface, grasp_level, pull_action, table_z
+from foldbot.planning.spread import MARGIN_FREE_SEGMENTS, SpreadConfig, plan_spread_at
 from foldbot.sim.cloth import settle
 from foldbot.sim.world import SimWorld
 from foldbot.types import Observation
@@ -49,10 +58,11 @@ class StepOutcome:
     grasp_reason: str = ""
     infeasible: str | None = None
     """Why the arm could not do the step (nothing moved), or None."""
-    grasp: tuple[float, float, float] | None = None
-    """Where the jaws closed (world, m): the pick point at the height the depth image gave."""
-    place: tuple[float, float, float] | None = None
-    """Where the jaws opened (world, m)."""
+    grasp: tuple[float, ...] | None = None
+    """Where the jaws closed (world, m): the pick point at the height the depth image gave,
+    (x, y, z); a spread's two, the +y arm's first, (x, y, z, x, y, z)."""
+    place: tuple[float, ...] | None = None
+    """Where the jaws opened (world, m), as `grasp`."""
     sim_seconds: float = 0.0
     """Simulated time the step took (s)."""
 
@@ -100,6 +110,54 @@ def pick_and_place(
     }
 
 
+def spread_at(
+    cell: SimCell,
+    a_xy: np.ndarray,
+    b_xy: np.ndarray,
+    flatten: FlattenConfig,
+    spread: SpreadConfig,
+    expected_size: tuple[float, float],
+) -> dict[str, Any]:
+    """Grasp the cloth at table points `a_xy` and `b_xy` (world, m) with the two arms, lift,
+    spread, hang and lay it as the two-arm flattening spreads do (planning.spread.plan_spread_at,
+    at each of `spread.hang_margins` until both arms reach), then park and settle. Perception
+    only; a spread the arms cannot make, or whose palm would press into the heap, moves nothing
+    and says why."""
+    state, obs = cell.observe()
+    if not state.detected:
+        raise FoldbotError(f"the cell's camera sees no cloth: {state.reason}")
+    surface = cloth_surface(obs, state, flatten)
+    why = ""
+    for margin in spread.hang_margins:
+        plan = plan_spread_at(state, (a_xy, b_xy), expected_size, spread, flatten, surface, margin)
+        record: dict[str, Any] = {
+            "grasp": tuple(float(v) for v in plan.actions[0].grasp)
+            + tuple(float(v) for v in plan.actions[1].grasp),
+            "place": tuple(float(v) for v in plan.actions[0].release)
+            + tuple(float(v) for v in plan.actions[1].release),
+        }
+        if not plan.palm_clear:
+            return record | {"infeasible": "the palm would press into the heap at a grasp"}
+        try:
+            outcomes = execute_together(cell, [(0, plan.actions[0]), (1, plan.actions[1])])
+        except (UnreachableTargetError, ArmsWouldCollideError) as exc:
+            why = f"hung {margin * 1000:.0f} mm clear: {exc}"
+            if failed_segment(exc) in MARGIN_FREE_SEGMENTS:
+                break  # the way to the grasps fails at any margin
+            continue
+        cell.park()
+        cell.wait(flatten.settle_time)
+        return record | {
+            "grasp_success": bool(outcomes[0]["carried"]),
+            "grasp_reason": "; ".join(o["grasp_reason"] for o in outcomes),
+        }
+    return record | {"infeasible": f"the arms cannot make this spread ({why})"}
+
+
+PRIMITIVES = ("pick_and_place", "spread")
+"""What one step does: one arm's pick-and-place, or two arms' spread."""
+
+
 def _diverge_at(sim_time: float):
     """Fault injection: a world step hook that raises the divergence monitor's error once the
     simulated clock passes `sim_time` (s), to exercise the reporting path."""
@@ -112,12 +170,15 @@ def _diverge_at(sim_time: float):
 
 
 def _serve(conn: Connection) -> None:
-    """The child: take ("episode", EpisodeConfig, FlattenConfig, fault), build the cell, settle
-    and crumple the towel (the episode's seed), reply with the first frame, then run each
-    ("step", pick_xy, place_xy) until ("close",) or the parent goes away. `fault`: None, or the
-    simulated seconds into the first step at which a divergence is injected."""
+    """The child: take ("episode", EpisodeConfig, fault), build the cell, settle and crumple the
+    towel (the episode's seed), reply with the first frame, then run each ("step", primitive,
+    p, q) (PRIMITIVES: pick at p and place at q, or spread from p and q) until ("close",) or the
+    parent goes away. The pulls' and spreads' settings are the episode's flatten options.
+    `fault`: None, or the simulated seconds into the first step at which a divergence is
+    injected."""
     try:
-        _kind, episode, flatten, fault = conn.recv()
+        _kind, episode, fault = conn.recv()
+        pulls, spreads = flatten_configs(episode.flatten_options)
         with SimWorld(episode.sim) as world:
             parts = build_sim_cell(episode, world)
             try:
@@ -130,7 +191,9 @@ def _serve(conn: Connection) -> None:
                     make_estimator(episode, parts.oracle),
                     episode.motion,
                     park=episode.park,
+                    more_executors=parts.more_executors,
                 )
+                size = (parts.spec.width, parts.spec.height)  # the item, as the suites tell it
                 crumple_start(episode, world, parts.cloth)
                 faces, area = parts.mesh.faces, parts.mesh.area
 
@@ -146,9 +209,12 @@ def _serve(conn: Connection) -> None:
                     message = conn.recv()
                     if message[0] == "close":
                         break
-                    _kind, pick_xy, place_xy = message
+                    _kind, primitive, p, q = message
                     t0 = world.sim_time
-                    step = pick_and_place(cell, pick_xy, place_xy, flatten)
+                    if primitive == "spread":
+                        step = spread_at(cell, p, q, pulls, spreads, size)
+                    else:
+                        step = pick_and_place(cell, p, q, pulls)
                     conn.send(("ok", outcome(t0, **step)))
             finally:
                 parts.model_world.close()
@@ -175,9 +241,7 @@ class EpisodeProcess:
     blows up, EpisodeFailed for another foldbot error in the child, RuntimeError (with the
     child's traceback) for anything else."""
 
-    def __init__(
-        self, episode: EpisodeConfig, flatten: FlattenConfig, fault_diverge_s: float | None = None
-    ) -> None:
+    def __init__(self, episode: EpisodeConfig, fault_diverge_s: float | None = None) -> None:
         ours, theirs = socket.socketpair()
         with theirs:
             self._process = subprocess.Popen(
@@ -187,11 +251,14 @@ class EpisodeProcess:
                 stdout=subprocess.DEVNULL,  # Bullet's banner; errors come back over the socket
             )
         self._conn = Connection(ours.detach())
-        self._conn.send(("episode", episode, flatten, fault_diverge_s))
+        self._conn.send(("episode", episode, fault_diverge_s))
         self.first: StepOutcome = self._reply("reset")
 
-    def step(self, pick_xy: np.ndarray, place_xy: np.ndarray) -> StepOutcome:
-        self._conn.send(("step", np.asarray(pick_xy, float), np.asarray(place_xy, float)))
+    def step(self, primitive: str, p: np.ndarray, q: np.ndarray) -> StepOutcome:
+        """Run one step: `primitive` (PRIMITIVES) from table points p and q (world, m)."""
+        if primitive not in PRIMITIVES:
+            raise ConfigError(f"unknown primitive {primitive!r}; allowed: {', '.join(PRIMITIVES)}")
+        self._conn.send(("step", primitive, np.asarray(p, float), np.asarray(q, float)))
         return self._reply("step")
 
     def _reply(self, what: str) -> StepOutcome:

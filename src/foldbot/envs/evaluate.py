@@ -1,8 +1,10 @@
 """Run a baseline policy on TowelFlatten over seeds and report how many towels it flattened.
 
     python -m foldbot.envs.evaluate --policy pulls --seeds 0-19 --workers 2 --out runs/env/pulls.json
+    python -m foldbot.envs.evaluate --env spread --policy spreads --seeds 0-19 --workers 2
 
-Each seed is the suite's towel (`--suite`, default towel_crumpled); a towel counts as flattened
+Each seed is the suite's towel (`--suite`, default the environment's: towel_crumpled for
+TowelFlatten, towel_crumpled_two_arms for TowelSpread); a towel counts as flattened
 when the coverage reaches the environment's goal (0.9) within its steps (6), issue 6's target.
 Prints a per-seed table and the success rate with its 95 % interval, and writes them as JSON.
 
@@ -27,12 +29,24 @@ from tqdm import tqdm
 
 from foldbot.bench.suite import parse_seeds
 from foldbot.bench.summary import success_interval
-from foldbot.envs.policies import PullPolicy, RandomPolicy
-from foldbot.envs.towel_flatten import TowelFlattenConfig, TowelFlattenEnv
+from foldbot.envs.policies import PullPolicy, RandomPolicy, SpreadPolicy
+from foldbot.envs.towel_flatten import TowelFlattenConfig, TowelFlattenEnv, TowelSpreadEnv
 from foldbot.errors import FoldbotError
 
-POLICIES = ("pulls", "random")
-"""Baselines by name: the one-arm flattening pulls, or uniform random pick-and-place."""
+ENVS = {"flatten": TowelFlattenEnv, "spread": TowelSpreadEnv}
+"""The environments by name: TowelFlatten (one arm, pick-and-place), TowelSpread (two arms)."""
+POLICIES = {"pulls": ("flatten",), "spreads": ("spread",), "random": ("flatten", "spread")}
+"""Baselines by name, with the environments each drives: the one-arm flattening pulls, the
+two-arm spreads, or uniform random actions."""
+
+
+def make_policy(name: str, env: TowelFlattenEnv, seed: int):
+    """The baseline `name` (POLICIES) for `env`."""
+    if name == "pulls":
+        return PullPolicy(env)
+    if name == "spreads":
+        return SpreadPolicy(env)
+    return RandomPolicy(env, seed)
 
 
 RECORD_NAME = "towel_flatten-s{:04d}.npz"
@@ -71,13 +85,18 @@ def read_episode(path: Path) -> dict[str, np.ndarray]:
 
 
 def run_seed(
-    config: TowelFlattenConfig, policy_name: str, seed: int, record: Path | None = None
+    config: TowelFlattenConfig,
+    policy_name: str,
+    seed: int,
+    record: Path | None = None,
+    env_name: str = "flatten",
 ) -> dict[str, Any]:
-    """One episode of `policy_name` on the towel of `seed`: its coverage after each step; with
-    `record`, its transitions saved there (write_episode)."""
-    env = TowelFlattenEnv(config)
+    """One episode of `policy_name` on the towel of `seed` in the environment `env_name`
+    (ENVS): its coverage after each step; with `record`, its transitions saved there
+    (write_episode)."""
+    env = ENVS[env_name](config)
     try:
-        policy = PullPolicy(env) if policy_name == "pulls" else RandomPolicy(env, seed)
+        policy = make_policy(policy_name, env, seed)
         wall = time.perf_counter()
         obs, info = env.reset(seed=seed)
         steps: dict[str, list] = {
@@ -172,11 +191,23 @@ def table(rows: list[dict[str, Any]]) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="python -m foldbot.envs.evaluate",
-        description="Run a baseline policy on foldbot/TowelFlatten-v0 over seeds.",
+        description="Run a baseline policy on foldbot/TowelFlatten-v0 or TowelSpread-v0 over "
+        "seeds.",
     )
-    parser.add_argument("--policy", choices=POLICIES, default="pulls", help="default: pulls")
+    parser.add_argument(
+        "--env",
+        choices=tuple(ENVS),
+        default="flatten",
+        help="flatten (one arm, the default) or spread (two arms)",
+    )
+    parser.add_argument(
+        "--policy",
+        choices=tuple(POLICIES),
+        default=None,
+        help="pulls (flatten), spreads (spread) or random; default: the environment's baseline",
+    )
     parser.add_argument("--seeds", default="0-9", help="e.g. 0-19 or 1,4,7 (default 0-9)")
-    parser.add_argument("--suite", default="towel_crumpled", help="default: towel_crumpled")
+    parser.add_argument("--suite", default=None, help="default: the environment's")
     parser.add_argument(
         "--resolution", type=int, default=None, help="vertices along the longer side"
     )
@@ -186,10 +217,17 @@ def main(argv: list[str] | None = None) -> int:
         "--record", type=Path, default=None, help="keep each episode's transitions in this folder"
     )
     args = parser.parse_args(argv)
+    env_cls = ENVS[args.env]
+    policy = args.policy or ("pulls" if args.env == "flatten" else "spreads")
     try:
+        if args.env not in POLICIES[policy]:
+            raise FoldbotError(
+                f"policy {policy!r} drives {' or '.join(POLICIES[policy])}, not --env {args.env}"
+            )
         seeds = parse_seeds(args.seeds)
-        config = TowelFlattenConfig(suite=args.suite, resolution=args.resolution)
-        TowelFlattenEnv(config).close()  # the suite and settings, checked before any episode
+        suite = {} if args.suite is None else {"suite": args.suite}
+        config = env_cls.CONFIG(resolution=args.resolution, **suite)
+        env_cls(config).close()  # the suite and settings, checked before any episode
         if args.workers < 1:
             raise FoldbotError(f"--workers must be ≥ 1, got {args.workers}")
     except FoldbotError as exc:
@@ -202,13 +240,19 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{len(done)} seeds already recorded in {args.record}: not run again")
         seeds = [s for s in seeds if s not in done]
     with ThreadPoolExecutor(args.workers) as pool:
-        futures = [pool.submit(run_seed, config, args.policy, s, args.record) for s in seeds]
-        rows = [f.result() for f in tqdm(futures, desc=args.policy, unit="towel")]
-    result = {"policy": args.policy, "suite": args.suite, **summary(rows), "rows": rows}
+        futures = [pool.submit(run_seed, config, policy, s, args.record, args.env) for s in seeds]
+        rows = [f.result() for f in tqdm(futures, desc=policy, unit="towel")]
+    result = {
+        "env": args.env,
+        "policy": policy,
+        "suite": config.suite,
+        **summary(rows),
+        "rows": rows,
+    }
     print(table(rows))
     lo, hi = result["interval_95"] or (0.0, 0.0)
     print(
-        f"{args.policy}: flattened {result['flattened']} of {result['episodes']} "
+        f"{policy}: flattened {result['flattened']} of {result['episodes']} "
         f"(95 % interval {lo:.0%}–{hi:.0%}), diverged {result['diverged']}, "
         f"failed otherwise {result['failed']}"
     )

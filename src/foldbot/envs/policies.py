@@ -1,10 +1,12 @@
 """Baseline policies for TowelFlatten: what a learned policy is measured against.
 
-- `RandomPolicy`: a uniform draw over the action space (seeded).
+- `RandomPolicy`: a uniform draw over the action space (seeded), for either environment.
 - `PullPolicy`: the flattening pulls `foldbot fold --start crumpled` runs with one arm
   (planning.flatten.plan_pulls), as a policy: it sees the camera's full frame
   (`env.unwrapped.observation`) and the towel's nominal size (`info["towel_size_m"]`), nothing
   of the simulator's state.
+- `SpreadPolicy`: for TowelSpread, the two-arm flattening spreads' choice of grasps: the pair of
+  adjacent perceived corners the estimator is surest of, each taken just inside its corner.
 """
 
 from __future__ import annotations
@@ -13,9 +15,11 @@ from typing import Any
 
 import numpy as np
 
-from foldbot.envs.towel_flatten import TowelFlattenEnv
+from foldbot.envs.towel_flatten import TowelFlattenEnv, TowelSpreadEnv
+from foldbot.errors import FoldbotError
 from foldbot.perception.estimator import VisionEstimator
 from foldbot.planning.flatten import cloth_surface, plan_pulls
+from foldbot.planning.spread import corner_pairs, plan_spread
 
 
 class RandomPolicy:
@@ -72,3 +76,54 @@ class PullPolicy:
         inward = inward / max(float(np.linalg.norm(inward)), 1e-9)
         step = min(self.misses * self.cfg.retry_step, self.cfg.max_inset)
         return self.env.world_to_action(pick + inward * step, place)
+
+
+class SpreadPolicy:
+    """The two-arm flattening spreads (flatten.run_spreads) as a policy for TowelSpread: of the
+    four pairs of adjacent perceived corners, the one the estimator is surest of (the edge the
+    last spread laid down ranked late), palm-clear pairs first, each grasped where the spreads
+    grasp it (planning.spread.plan_spread). Where the environment could not make the last
+    spread (nothing moved), the next pair on the same frame. The closed loop also tries lower
+    hang margins and tilted tools before giving a pair up; the environment's spread tries the
+    margins itself."""
+
+    def __init__(self, env: TowelSpreadEnv) -> None:
+        self.env = env.unwrapped
+        if not isinstance(self.env, TowelSpreadEnv):
+            raise FoldbotError(f"SpreadPolicy drives TowelSpread, not {type(self.env).__name__}")
+        self.estimator = VisionEstimator()
+        self.reset()
+
+    def reset(self) -> None:
+        """A new towel: nothing laid, nothing tried."""
+        self.laid: np.ndarray | None = None
+        self.tried: set[tuple[str, str]] = set()
+
+    def __call__(self, info: dict[str, Any]) -> np.ndarray | None:
+        """The next spread's two grasp points as an action, or None when no corners are seen."""
+        if info.get("infeasible") is None:
+            self.tried = set()  # the cloth moved (or this is the first frame): every pair again
+            if info.get("grasp_success") and info.get("place") is not None:
+                self.laid = np.asarray(info["place"], dtype=float).reshape(2, 3)
+        obs = self.env.observation
+        state = self.estimator.estimate(obs)
+        if not state.detected:
+            return None
+        surface = cloth_surface(obs, state, self.env.flatten)
+        size = info["towel_size_m"]
+        plans = []
+        try:
+            pairs = corner_pairs(state, self.laid)
+        except (FoldbotError, KeyError):  # fewer than four corners seen
+            return None
+        for pair in pairs:
+            if pair in self.tried:
+                continue
+            plan = plan_spread(state, size, self.env.spread, self.env.flatten, surface, pair=pair)
+            plans.append((not plan.palm_clear, len(plans), pair, plan))
+        if not plans:
+            return None
+        _, _, pair, plan = min(plans)
+        self.tried.add(pair)
+        a, b = (act.grasp[:2] for act in plan.actions)
+        return self.env.world_to_action(a, b)

@@ -1,4 +1,5 @@
-"""TowelFlatten: a crumpled towel to flatten by pick-and-place, as a Gymnasium environment.
+"""TowelFlatten: a crumpled towel to flatten by pick-and-place, as a Gymnasium environment
+(and TowelSpread, at the end: the same with two arms, whose step is a spread).
 
 The task of issue 6's crumpled suites, opened to any policy (a learned one, a scripted one): each
 episode is a benchmark suite's towel for the reset's seed, crumpled by the same draws as in
@@ -53,7 +54,6 @@ from foldbot.envs.episode_process import (
 from foldbot.errors import ConfigError, FoldbotError, require
 from foldbot.flatten_options import flatten_configs
 from foldbot.pipeline import EpisodeConfig, seeded_towel
-from foldbot.planning.flatten import FlattenConfig
 from foldbot.types import Observation
 
 MAX_SEED = 2**31 - 1
@@ -119,9 +119,18 @@ class TowelFlattenConfig:
         )
 
 
-def episode_config(cfg: TowelFlattenConfig, seed: int) -> EpisodeConfig:
+@dataclass(frozen=True)
+class TowelSpreadConfig(TowelFlattenConfig):
+    """TowelSpread's episodes: a two-arm suite's crumpled towels."""
+
+    suite: str = "towel_crumpled_two_arms"
+    """Benchmark suite whose episode for the reset's seed is the towel: a two-arm suite with
+    crumpled starts."""
+
+
+def episode_config(cfg: TowelFlattenConfig, seed: int, arms: int = 1) -> EpisodeConfig:
     """The suite's episode for `seed` (its towel, crumple and cloth), at `cfg.resolution`;
-    ConfigError for a suite this task cannot run (no crumpled start, or two arms)."""
+    ConfigError for a suite this task cannot run (no crumpled start, or not `arms` arms)."""
     suite = load_suite(cfg.suite, seeds=[seed])
     spec = suite.episodes[0]
     require(
@@ -129,10 +138,15 @@ def episode_config(cfg: TowelFlattenConfig, seed: int) -> EpisodeConfig:
         f"suite {suite.name!r} starts its {spec.garment}s {spec.start}; TowelFlatten needs a "
         'towel suite with start = "crumpled" (e.g. towel_crumpled)',
     )
+    task, example = ("TowelFlatten", "towel_crumpled") if arms == 1 else ("TowelSpread", "")
     require(
-        spec.arms == 1,
-        f"suite {suite.name!r} has {spec.arms} arms; TowelFlatten's pick-and-place is one "
-        "arm's (e.g. towel_crumpled)",
+        spec.arms == arms,
+        f"suite {suite.name!r} has {spec.arms} arm{'s' if spec.arms > 1 else ''}; "
+        + (
+            f"{task}'s pick-and-place is one arm's (e.g. {example})"
+            if arms == 1
+            else "TowelSpread's spread is two arms' (e.g. towel_crumpled_two_arms)"
+        ),
     )
     if cfg.resolution is not None:
         spec = dataclasses.replace(spec, towel_resolution=cfg.resolution)
@@ -143,17 +157,23 @@ class TowelFlattenEnv(gym.Env):
     """Flatten a crumpled towel by pick-and-place from the RGB-D camera (module docstring)."""
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 1}
+    ARMS: ClassVar[int] = 1
+    """Arms in the cell the suite must have."""
+    PRIMITIVE: ClassVar[str] = "pick_and_place"
+    """What a step does with the action's two points (episode_process.PRIMITIVES)."""
+    CONFIG: ClassVar[type[TowelFlattenConfig]] = TowelFlattenConfig
 
     def __init__(
         self, config: TowelFlattenConfig | None = None, render_mode: str | None = None, **fields
     ) -> None:
         """`config`, or its fields by name (`gymnasium.make(..., resolution=5)`)."""
+        name = self.CONFIG.__name__
         if config is not None and fields:
-            raise ConfigError(f"give a TowelFlattenConfig or its fields, not both: {fields}")
+            raise ConfigError(f"give a {name} or its fields, not both: {fields}")
         try:
-            self.config = config if config is not None else TowelFlattenConfig(**fields)
+            self.config = config if config is not None else self.CONFIG(**fields)
         except TypeError as exc:
-            allowed = ", ".join(f.name for f in dataclasses.fields(TowelFlattenConfig))
+            allowed = ", ".join(f.name for f in dataclasses.fields(self.CONFIG))
             raise ConfigError(f"{exc}; allowed: {allowed}") from None
         require(
             render_mode is None or render_mode in self.metadata["render_modes"],
@@ -161,8 +181,9 @@ class TowelFlattenEnv(gym.Env):
             f"got {render_mode!r}",
         )
         self.render_mode = render_mode
-        probe = episode_config(self.config, 0)  # the suite is checked before any reset
-        self.flatten: FlattenConfig = flatten_configs(probe.flatten_options)[0]
+        probe = episode_config(self.config, 0, self.ARMS)  # the suite, checked before a reset
+        self.flatten, self.spread = flatten_configs(probe.flatten_options)
+        """The suite's pull and spread settings (workspace, grasp heights, hang margins)."""
         h, w = self.config.image_size
         self.observation_space = spaces.Dict(
             {
@@ -245,9 +266,9 @@ class TowelFlattenEnv(gym.Env):
         self._ended = True
         skipped: dict[int, str] = {}
         for _ in range(RESET_TRIES):
-            episode = episode_config(self.config, episode_seed)
+            episode = episode_config(self.config, episode_seed, self.ARMS)
             try:
-                self._episode = EpisodeProcess(episode, self.flatten, self.config.fault_diverge_s)
+                self._episode = EpisodeProcess(episode, self.config.fault_diverge_s)
                 break
             except EpisodeFailed as exc:  # the crumple failed: the next seed, drawn
                 skipped[episode_seed] = str(exc)
@@ -271,11 +292,11 @@ class TowelFlattenEnv(gym.Env):
             )
         if self._episode is None or self._last is None:
             raise ConfigError("call reset() before step()")
-        pick_xy, place_xy = self.action_to_world(action)
+        p, q = self.action_to_world(action)
         before = self._last
         self._steps += 1
         try:
-            outcome = self._episode.step(pick_xy, place_xy)
+            outcome = self._episode.step(self.PRIMITIVE, p, q)
         except EpisodeFailed as exc:  # reported in info, never scored
             self._ended = True
             self._close_episode()
@@ -313,3 +334,19 @@ class TowelFlattenEnv(gym.Env):
     def close(self) -> None:
         self._close_episode()
         super().close()
+
+
+class TowelSpreadEnv(TowelFlattenEnv):
+    """TowelSpread: the same task in the two-arm cell, where a step is a spread (FlingBot's
+    action, two grasp points). The action is (a x, a y, b x, b y) in [-1, 1] over the same
+    workspace: both arms grasp, each at its point (the +y arm at the point further along +y;
+    gripper down, at the height the depth image gives there, the palm clear of the heap), lift
+    the towel, spread the points one nominal side apart, hang it and lay it down across the
+    workspace, as the two-arm flattening spreads do (planning.spread.plan_spread_at). A spread
+    the arms cannot make, or whose palm would press into the heap, moves nothing
+    (`info["infeasible"]` says why). Episodes are `towel_crumpled_two_arms`' towels by default;
+    reward, ends and randomisation as TowelFlatten's."""
+
+    ARMS = 2
+    PRIMITIVE = "spread"
+    CONFIG = TowelSpreadConfig

@@ -374,6 +374,21 @@ def _grasp_point(
         0.0 if surface is None else _first_cloth(surface, corner[:2], inward, flat, cfg.seek_cloth)
     )
     xy = corner[:2] + inward * (onto + cfg.grasp_inset - cfg.fault_grasp_offset)
+    return _grasp_at(state, xy, surface, flat, cfg, tilt, heading)
+
+
+def _grasp_at(
+    state: ClothState,
+    xy: np.ndarray,
+    surface: np.ndarray | None,
+    flat: FlattenConfig,
+    cfg: SpreadConfig,
+    tilt: float = 0.0,
+    heading: float = 0.0,
+) -> tuple[np.ndarray, bool]:
+    """Where the jaws close at table point `xy`: just under the top surface there, raised until
+    the palm (leaning `tilt` rad towards `heading`) clears the heap around; and whether the jaws
+    still reach the cloth at that height."""
     z_table = table_z(state.table_plane, xy)
     level, reached = flat.grasp_height, True
     if surface is not None:
@@ -432,7 +447,56 @@ def plan_spread(
             _grasp_point(state, k, surface, flat, cfg, lean_i["tilt"], lean_i["tilt_heading"])
             for k, lean_i in zip(labels, leaning, strict=True)
         ]
-        grasps = [g for g, _ in picked]
+    return _spread_plan(state, picked, labels, order, leaning, (w, h), cfg, flat, margin)
+
+
+def plan_spread_at(
+    state: ClothState,
+    points: tuple[np.ndarray, np.ndarray],
+    expected_size: tuple[float, float],
+    cfg: SpreadConfig,
+    flat: FlattenConfig,
+    surface: np.ndarray | None = None,
+    margin: float | None = None,
+) -> SpreadPlan:
+    """A spread from two given table points (x, y; world m) instead of two perceived corners,
+    gripper down: each grasped just under the top surface seen there, the palm clear of the heap,
+    then held, hung and laid as plan_spread's. For a policy that chooses where to grasp
+    (foldbot.envs' TowelSpread); the plan's `corners` are "pick_a" and "pick_b"."""
+    w, h = (float(v) for v in expected_size)
+    require(
+        math.isfinite(w) and math.isfinite(h) and w > 0.0 and h > 0.0,
+        f"expected width × height must be > 0 m, got {w!r} × {h!r}",
+    )
+    xy = [np.asarray(p, dtype=float).reshape(-1)[:2] for p in points]
+    require(
+        len(xy) == 2 and all(v.shape == (2,) and np.all(np.isfinite(v)) for v in xy),
+        f"a spread takes two finite table points (x, y), got {points!r}",
+    )
+    margin = cfg.hang_margins[0] if margin is None else float(margin)
+    picked = [_grasp_at(state, v, surface, flat, cfg) for v in xy]
+    order = sorted(range(2), key=lambda i: -float(picked[i][0][1]))
+    leaning: list[dict] = [{}, {}]
+    return _spread_plan(
+        state, picked, ("pick_a", "pick_b"), order, leaning, (w, h), cfg, flat, margin
+    )
+
+
+def _spread_plan(
+    state: ClothState,
+    picked: list[tuple[np.ndarray, bool]],
+    labels: tuple[str, str],
+    order: list[int],
+    leaning: list[dict],
+    expected_size: tuple[float, float],
+    cfg: SpreadConfig,
+    flat: FlattenConfig,
+    margin: float,
+) -> SpreadPlan:
+    """The spread once its grasps are chosen: `picked` (grasp point, jaws reach cloth) per label,
+    `order` the +y arm's grasp first, `leaning` each grasp's tool tilt (SpreadAction fields)."""
+    w, h = expected_size
+    grasps = [g for g, _ in picked]
     seen = float(np.linalg.norm(grasps[0][:2] - grasps[1][:2]))
     width = spread_width(seen, w, h)
     hang = w * h / width
