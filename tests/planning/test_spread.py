@@ -20,6 +20,7 @@ from foldbot.planning.spread import (
     motion_segments,
     palm_underside_rise,
     plan_spread,
+    plan_spread_at,
     spread_segments,
     spread_width,
 )
@@ -447,3 +448,34 @@ def test_a_corner_seen_out_on_the_table_is_grasped_on_the_first_cloth_inward():
 def test_seek_cloth_out_of_range_is_named():
     with pytest.raises(ConfigError, match=r"seek_cloth must be in \[0, 0.2\], got 0.5"):
         SpreadConfig(seek_cloth=0.5)
+
+
+def test_a_spread_from_two_chosen_points_grasps_there_and_spreads_as_from_corners():
+    """plan_spread_at (a policy's two grasp points): the jaws close on the points themselves, on
+    the surface seen there, and the hold, hang and lay are the corners' spread's."""
+    cfg, flat = SpreadConfig(), FlattenConfig()
+    state = heap_state(HEAP, [0.9] * 4)
+    surface = _raster(flat, 0.05)
+    a, b = np.array([0.42, -0.05]), np.array([0.50, 0.09])
+    plan = plan_spread_at(state, (a, b), (W, H), cfg, flat, surface)
+    assert plan.corners == ("pick_b", "pick_a")  # the +y point's arm first
+    np.testing.assert_allclose(plan.actions[0].grasp[:2], b)
+    np.testing.assert_allclose(plan.actions[1].grasp[:2], a)
+    for act in plan.actions:
+        assert act.grasp[2] == pytest.approx(TABLE + 0.05 - cfg.top_depth, abs=1e-6)
+        assert act.tilt == 0.0
+    # The same grasps taken as corners spread the same way.
+    corners = heap_state([b, a, [0.6, 0.0], [0.6, 0.1]], [0.9] * 4)
+    as_corners = plan_spread(corners, (W, H), cfg, flat, surface, pair=("near_left", "near_right"))
+    assert plan.width == pytest.approx(as_corners.width)
+    for mine, theirs in zip(plan.actions, as_corners.actions, strict=True):
+        np.testing.assert_allclose(mine.hold, theirs.hold)
+        np.testing.assert_allclose(mine.release, theirs.release)
+
+
+@pytest.mark.parametrize(
+    "points", [(np.array([0.4, 0.0]),), (np.array([0.4, np.nan]), np.array([0.5, 0.1]))]
+)
+def test_bad_spread_points_are_named(points):
+    with pytest.raises(ConfigError, match="a spread takes two finite table points"):
+        plan_spread_at(heap_state(HEAP, [0.9] * 4), points, (W, H), SpreadConfig(), FlattenConfig())
