@@ -1,4 +1,4 @@
-"""Baseline policies for TowelFlatten: what a learned policy is measured against.
+"""Baseline policies for TowelFlatten and TowelSpread: what a learned policy is measured against.
 
 - `RandomPolicy`: a uniform draw over the action space (seeded), for either environment.
 - `PullPolicy`: the flattening pulls `foldbot fold --start crumpled` runs with one arm
