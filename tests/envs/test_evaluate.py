@@ -76,7 +76,8 @@ def test_recorded_episodes_hold_their_transitions_and_are_not_run_again(tmp_path
     assert ep["terminated"][-1] or ep["truncated"][-1]
     assert not (ep["terminated"][:-1] | ep["truncated"][:-1]).any()
     assert int(ep["seed"]) == 0 and str(ep["policy"]) == "pulls"
-    assert str(ep["suite"]) == "towel_crumpled"
+    assert str(ep["suite"]) == "towel_crumpled" and str(ep["env"]) == "flatten"
+    assert not bool(ep["stopped"])
     capsys.readouterr()
     stamp = path.stat().st_mtime_ns
     assert main(args) == 0

@@ -9,7 +9,8 @@ when the coverage reaches the environment's goal (0.9) within its steps (6), iss
 Prints a per-seed table and the success rate with its 95 % interval, and writes them as JSON.
 
 `--record DIR` also keeps every episode's transitions for learning, one file per seed
-(DIR/towel_flatten-sNNNN.npz, written whole or not at all; `read_episode` loads one). A seed
+(DIR/towel_flatten-sNNNN.npz, or towel_spread-…; written whole or not at all; `read_episode`
+loads one). A seed
 already recorded there is not run again, so an interrupted recording resumes.
 """
 
@@ -49,15 +50,16 @@ def make_policy(name: str, env: TowelFlattenEnv, seed: int):
     return RandomPolicy(env, seed)
 
 
-RECORD_NAME = "towel_flatten-s{:04d}.npz"
-"""An episode's file under --record DIR."""
+RECORD_NAME = "towel_{env}-s{seed:04d}.npz"
+"""An episode's file under --record DIR (env: flatten or spread)."""
 
 
 def write_episode(path: Path, steps: dict[str, list], row: dict[str, Any]) -> None:
     """Save one episode's transitions as an .npz, atomically (a hidden file renamed into
     place): `rgb`, `depth` (T+1 frames: the reset's, then one after each step), `action` (T × 4),
     `reward`, `coverage` (T+1), `grasp_success` (T; False where no grasp was tried),
-    `terminated`, `truncated` (T), and `seed`, `suite_seed`, `policy`, `suite`."""
+    `terminated`, `truncated` (T), and `seed`, `suite_seed`, `env`, `policy`, `suite`,
+    `stopped` (the policy saw nothing left to do before the episode ended)."""
     tmp = path.with_name(f".{path.name}.partial-{os.getpid()}")
     with tmp.open("wb") as f:
         np.savez_compressed(
@@ -72,8 +74,10 @@ def write_episode(path: Path, steps: dict[str, list], row: dict[str, Any]) -> No
             truncated=np.asarray(steps["truncated"], bool),
             seed=row["seed"],
             suite_seed=row["suite_seed"],
+            env=row["env"],
             policy=row["policy"],
             suite=row["suite"],
+            stopped=row["stopped"],
         )
     tmp.replace(path)
 
@@ -147,8 +151,8 @@ def run_seed(
         row["steps"] = info["steps"]
         row["wall_seconds"] = time.perf_counter() - wall
         if record is not None and not (row["diverged"] or row["failed"]):  # not data
-            row["policy"], row["suite"] = policy_name, config.suite
-            write_episode(record / RECORD_NAME.format(seed), steps, row)
+            row |= {"env": env_name, "policy": policy_name, "suite": config.suite}
+            write_episode(record / RECORD_NAME.format(env=env_name, seed=seed), steps, row)
         return row
     finally:
         env.close()
@@ -235,7 +239,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if args.record is not None:
         args.record.mkdir(parents=True, exist_ok=True)
-        done = [s for s in seeds if (args.record / RECORD_NAME.format(s)).exists()]
+        done = [
+            s for s in seeds if (args.record / RECORD_NAME.format(env=args.env, seed=s)).exists()
+        ]
         if done:
             print(f"{len(done)} seeds already recorded in {args.record}: not run again")
         seeds = [s for s in seeds if s not in done]
