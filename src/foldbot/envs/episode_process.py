@@ -32,6 +32,7 @@ from foldbot.errors import (
     failed_segment,
 )
 from foldbot.flatten_options import flatten_configs
+from foldbot.perception.state import ClothState
 from foldbot.pipeline import EpisodeConfig, SimCell, build_sim_cell, crumple_start, make_estimator
 from foldbot.planning.flatten import FlattenConfig, cloth_surface, grasp_level, pull_action, table_z
 from foldbot.planning.spread import MARGIN_FREE_SEGMENTS, SpreadConfig, plan_spread_at
@@ -78,6 +79,8 @@ class EpisodeDiverged(EpisodeFailed):
 
 def pick_and_place(
     cell: SimCell,
+    state: ClothState,
+    obs: Observation,
     pick_xy: np.ndarray,
     place_xy: np.ndarray,
     flatten: FlattenConfig,
@@ -85,9 +88,9 @@ def pick_and_place(
     """Grasp the cloth at `pick_xy` and let go over `place_xy` (world, m) with the cell's arm, as
     a flattening pull does: the grasp height comes from the depth image (raised so the palm
     clears heaped cloth), the release `flatten.release_height` over the table, the place kept
-    `flatten.margin` inside the workspace. Park and settle after. Perception only, no ground
-    truth; an unreachable step moves nothing and says why."""
-    state, obs = cell.observe()
+    `flatten.margin` inside the workspace, both planned on the frame the policy was shown (`obs`,
+    seen as `state`). Park and settle after. Perception only, no ground truth; an unreachable
+    step moves nothing and says why."""
     if not state.detected:
         raise FoldbotError(f"the cell's camera sees no cloth: {state.reason}")
     surface = cloth_surface(obs, state, flatten)
@@ -112,6 +115,8 @@ def pick_and_place(
 
 def spread_at(
     cell: SimCell,
+    state: ClothState,
+    obs: Observation,
     a_xy: np.ndarray,
     b_xy: np.ndarray,
     flatten: FlattenConfig,
@@ -120,10 +125,9 @@ def spread_at(
 ) -> dict[str, Any]:
     """Grasp the cloth at table points `a_xy` and `b_xy` (world, m) with the two arms, lift,
     spread, hang and lay it as the two-arm flattening spreads do (planning.spread.plan_spread_at,
-    at each of `spread.hang_margins` until both arms reach), then park and settle. Perception
-    only; a spread the arms cannot make, or whose palm would press into the heap, moves nothing
-    and says why."""
-    state, obs = cell.observe()
+    at each of `spread.hang_margins` until both arms reach) on the frame the policy was shown,
+    then park and settle. Perception only; a spread the arms cannot make, or whose palm would
+    press into the heap, moves nothing and says why."""
     if not state.detected:
         raise FoldbotError(f"the cell's camera sees no cloth: {state.reason}")
     surface = cloth_surface(obs, state, flatten)
@@ -197,10 +201,12 @@ def _serve(conn: Connection) -> None:
                 crumple_start(episode, world, parts.cloth)
                 faces, area = parts.mesh.faces, parts.mesh.area
 
+                seen: list = []  # the frame last sent, (state, obs): the next step plans on it
+
                 def outcome(t0: float, **step: Any) -> StepOutcome:
-                    _state, obs = cell.observe()
+                    seen[:] = cell.observe()
                     cover = metrics.coverage(parts.oracle.cloth_vertices(), faces, area)
-                    return StepOutcome(obs, cover, sim_seconds=world.sim_time - t0, **step)
+                    return StepOutcome(seen[1], cover, sim_seconds=world.sim_time - t0, **step)
 
                 conn.send(("ok", outcome(world.sim_time)))
                 if fault is not None:
@@ -212,9 +218,9 @@ def _serve(conn: Connection) -> None:
                     _kind, primitive, p, q = message
                     t0 = world.sim_time
                     if primitive == "spread":
-                        step = spread_at(cell, p, q, pulls, spreads, size)
+                        step = spread_at(cell, *seen, p, q, pulls, spreads, size)
                     else:
-                        step = pick_and_place(cell, p, q, pulls)
+                        step = pick_and_place(cell, *seen, p, q, pulls)
                     conn.send(("ok", outcome(t0, **step)))
             finally:
                 parts.model_world.close()

@@ -114,8 +114,6 @@ def run_seed(
             "suite_seed": info["seed"],
             "skipped_seeds": sorted(info["skipped_seeds"]),
             "coverage_start": info["coverage"],
-            "coverage": [],
-            "grasps_held": 0,
             "infeasible": 0,
             "diverged": None,
             "failed": None,
@@ -144,9 +142,9 @@ def run_seed(
                 ("truncated", truncated),
             ):
                 steps[key].append(value)
-            row["coverage"].append(info["coverage"])
-            row["grasps_held"] += bool(info["grasp_success"])
             row["infeasible"] += info["infeasible"] is not None
+        row["coverage"] = steps["coverage"][1:]
+        row["grasps_held"] = sum(steps["grasp_success"])
         row["success"] = bool(info["is_success"]) and not (row["diverged"] or row["failed"])
         row["steps"] = info["steps"]
         row["wall_seconds"] = time.perf_counter() - wall
