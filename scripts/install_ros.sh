@@ -9,9 +9,9 @@ set -euo pipefail
 VENV=${1:-.venv}
 PKGS="ros-core python3-rospy python3-rosbag python3-roslaunch python3-message-filters \
 python3-std-msgs python3-sensor-msgs python3-geometry-msgs python3-trajectory-msgs \
-python3-rosgraph-msgs python3-tf2-msgs"
+python3-rosgraph-msgs python3-tf2-msgs python3-actionlib python3-actionlib-msgs python3-genpy"
 
-if /usr/bin/python3 -c "import rospy, rosbag, message_filters, sensor_msgs.msg, trajectory_msgs.msg, tf2_msgs.msg" 2>/dev/null \
+if /usr/bin/python3 -c "import rospy, rosbag, message_filters, sensor_msgs.msg, trajectory_msgs.msg, tf2_msgs.msg, actionlib, actionlib_msgs.msg, genpy" 2>/dev/null \
    && command -v roslaunch >/dev/null && command -v roscore >/dev/null; then
   echo "ROS 1 already installed"
 else

@@ -40,6 +40,22 @@ from foldbot.commands.ros_fold import add_arguments, fold_args_text
             "--perception 'oracle' is not available over ROS",
         ),
         (["ros-fold", "--out", "{tmp}/e", "--suite", "smoke", "--arms", "2"], "drop --arms"),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--arms", "2", "--arm-interface", "actions"],
+            "--arm-interface actions drives one arm, got --arms 2",
+        ),
+        (
+            [
+                "ros-fold",
+                "--out",
+                "{tmp}/e",
+                "--arm-interface",
+                "actions",
+                "--real-time-factor",
+                "0",
+            ],
+            "--real-time-factor must be > 0, got 0.0",
+        ),
         (["ros-replay", "{tmp}/missing.bag", "--rate", "0"], "--rate"),
         (["export-bag", "{tmp}", "--out", "{tmp}/x.txt"], "must end in .bag"),
     ],

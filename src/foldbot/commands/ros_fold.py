@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import shlex
 import shutil
@@ -19,6 +20,7 @@ from pathlib import Path
 from foldbot import errors
 from foldbot.commands import fold
 from foldbot.errors import ConfigError, FoldbotError, OutputError
+from foldbot.ros.node_args import ARM_INTERFACES
 
 ROS_PACKAGE_DIR = Path(__file__).resolve().parents[3] / "ros"
 """The repository's ROS package folder (holds foldbot_ros/)."""
@@ -66,6 +68,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--port", type=int, default=11311, help="ROS master port (started if none runs there)"
+    )
+    parser.add_argument(
+        "--arm-interface",
+        choices=ARM_INTERFACES,
+        default="topics",
+        help="topics: the sim node's lockstep commands (repeatable); actions: "
+        "control_msgs/FollowJointTrajectory and GripperCommand as a real arm's drivers serve "
+        "them, the cell running on at real-time pace (one arm)",
+    )
+    parser.add_argument(
+        "--real-time-factor",
+        type=float,
+        default=1.0,
+        help="with --arm-interface actions: simulated seconds per wall second (default 1)",
     )
 
 
@@ -138,6 +154,13 @@ def run(args: argparse.Namespace) -> int:
             f"--perception {cfg.perception!r} is not available over ROS: the perception node "
             "is vision (RGB-D) only; use `foldbot fold --perception oracle` for the oracle"
         )
+    if args.arm_interface == "actions" and cfg.arms != 1:
+        raise ConfigError(
+            f"--arm-interface actions drives one arm, got --arms {cfg.arms}: a two-arm cell's "
+            "pairs move on one clock over arm/joint_trajectory (--arm-interface topics)"
+        )
+    if not (math.isfinite(args.real_time_factor) and args.real_time_factor > 0):
+        raise ConfigError(f"--real-time-factor must be > 0, got {args.real_time_factor!r}")
     if not (1 <= args.port <= 65535):
         raise ConfigError(f"--port must be in 1–65535, got {args.port}")
     rate = args.video_fps if args.camera_rate is None else args.camera_rate
@@ -170,6 +193,8 @@ def run(args: argparse.Namespace) -> int:
         f"fold_args:={fold_args_text(args)}",
         f"camera_rate:={rate}",
         f"record:={args.record.resolve() if args.record else ''}",
+        f"arm_interface:={args.arm_interface}",
+        f"real_time_factor:={args.real_time_factor!r}",
     ]
     result_file = out / "result.json"
     before = result_file.stat().st_mtime_ns if result_file.is_file() else None

@@ -35,6 +35,10 @@ TOPICS = {
     "plan_request": "planner/request",
     "plan_response": "planner/response",
     "episode": "task/result",
+    # The actions interface (`--arm-interface actions`): ur_robot_driver's trajectory controller
+    # and ros_control's gripper action controller, by their usual names.
+    "trajectory_action": "scaled_pos_joint_traj_controller/follow_joint_trajectory",
+    "gripper_action": "gripper_controller/gripper_cmd",
 }
 """Every topic the nodes use (relative names resolve in the launch namespace)."""
 

@@ -12,6 +12,12 @@ from foldbot.pipeline import EpisodeConfig
 
 FOLD_ARGS_PARAM = "/foldbot/fold_args"
 CAMERA_RATE_PARAM = "/foldbot/camera_rate"
+ARM_INTERFACE_PARAM = "/foldbot/arm_interface"
+"""How the task node drives the arm: "topics" (the sim node's own lockstep commands) or "actions"
+(control_msgs' FollowJointTrajectory and GripperCommand, as a real arm's drivers serve them)."""
+ARM_INTERFACES = ("topics", "actions")
+REAL_TIME_FACTOR_PARAM = "/foldbot/real_time_factor"
+"""With the actions interface: simulated seconds per wall second the sim node runs at."""
 ERROR_FILE_PARAM = "/foldbot/error_file"
 """Where the task node writes its error (JSON: error, error_type) when the fold fails, for
 `foldbot ros-fold` to report; empty: nowhere."""

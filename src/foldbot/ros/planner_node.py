@@ -41,7 +41,17 @@ from foldbot.ros.publish import publish_when_heard
 from foldbot.sim.robots import make_robot
 from foldbot.sim.world import SimWorld
 
-REQUEST_KINDS = ("stage", "garment", "action", "together", "lift", "time", "time_together", "park")
+REQUEST_KINDS = (
+    "stage",
+    "garment",
+    "action",
+    "together",
+    "lift",
+    "time",
+    "time_together",
+    "park",
+    "tracking",
+)
 """What the planner node answers (MotionPlanner.handle)."""
 
 
@@ -147,7 +157,9 @@ class MotionPlanner:
         time: a step's joint path, starting where the arm now is → its trajectory (ruckig);
         time_together: several arms' steps → one trajectory moving them on one clock;
         park: the joint-space trajectory of every arm to its park pose (home or out of view, as
-        the episode says)."""
+        the episode says);
+        tracking: an arm's commanded and measured joints (a trajectory driver's feedback) → the
+        distance between the TCPs they put the tool at, per sample and the largest (m)."""
         kind = req.get("kind")
         if kind not in REQUEST_KINDS:
             raise FoldbotError(
@@ -174,6 +186,21 @@ class MotionPlanner:
         if kind == "time":
             arm = self._arm(req)
             return {"trajectory": self._trajectory(req.get("name", ""), self._timed(req), arm)}
+        if kind == "tracking":
+            arm = self._arm(req)
+            desired = np.array(req["desired"], dtype=float).reshape(-1, self.robots[arm].dof)
+            actual = np.array(req["actual"], dtype=float).reshape(-1, self.robots[arm].dof)
+            if desired.shape != actual.shape:
+                raise FoldbotError(
+                    f"tracking needs as many measured joints as commanded, got "
+                    f"{len(actual)} and {len(desired)}"
+                )
+            fk = self.robots[arm].fk_tcp
+            errors = [
+                float(np.linalg.norm(fk(a)[0] - fk(d)[0]))
+                for d, a in zip(desired, actual, strict=True)
+            ]
+            return {"errors": errors, "max_tracking_error": max(errors, default=0.0)}
         if kind == "time_together":
             arms = [self._arm(step) for step in req["steps"]]
             if arms != sorted(set(arms)):

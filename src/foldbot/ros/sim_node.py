@@ -40,7 +40,14 @@ from foldbot.ros import (
     arm_prefixes,
     convert,
 )
-from foldbot.ros.node_args import CAMERA_RATE_PARAM, FOLD_ARGS_PARAM, parse_fold_args
+from foldbot.ros.node_args import (
+    ARM_INTERFACE_PARAM,
+    ARM_INTERFACES,
+    CAMERA_RATE_PARAM,
+    FOLD_ARGS_PARAM,
+    REAL_TIME_FACTOR_PARAM,
+    parse_fold_args,
+)
 from foldbot.sim.cloth import settle
 from foldbot.sim.world import SimWorld
 
@@ -82,8 +89,29 @@ def gripper_command(text: str, arms: int) -> tuple[str, int]:
 class SimNode:
     """Owns the simulated cell; every PyBullet call happens on the main thread."""
 
-    def __init__(self, fold_args: str, camera_rate: float) -> None:
+    def __init__(
+        self,
+        fold_args: str,
+        camera_rate: float,
+        arm_interface: str = "topics",
+        real_time_factor: float = 1.0,
+    ) -> None:
         _args, self.cfg = parse_fold_args(fold_args)
+        if arm_interface not in ARM_INTERFACES:
+            raise FoldbotError(
+                f"arm interface must be one of {', '.join(ARM_INTERFACES)}, got {arm_interface!r}"
+            )
+        if arm_interface == "actions" and self.cfg.arms != 1:
+            raise FoldbotError(
+                f"the arm interface 'actions' drives one arm, this cell has {self.cfg.arms}: a "
+                "two-arm cell's pairs move on one clock over arm/joint_trajectory (topics)"
+            )
+        if not (np.isfinite(real_time_factor) and real_time_factor > 0):
+            raise FoldbotError(f"real_time_factor must be > 0, got {real_time_factor!r}")
+        self.arm_interface = arm_interface
+        self.real_time_factor = real_time_factor
+        self._pace_origin: tuple[float, float] | None = None
+        """(simulated s, wall s) where real-time pacing started (the actions interface only)."""
         self.world = SimWorld(self.cfg.sim)
         self.parts = build_sim_cell(self.cfg, self.world)
         self.executors = (self.parts.executor, *self.parts.more_executors)
@@ -113,18 +141,27 @@ class SimNode:
             "truth": rospy.Publisher(TOPICS["ground_truth"], PointCloud2, **latch),
             "mesh": rospy.Publisher(TOPICS["ground_truth_mesh"], String, **latch),
         }
-        for topic, kind, cls in (
-            (TOPICS["trajectory"], "trajectory", JointTrajectoryMsg),
-            (TOPICS["gripper"], "gripper", String),
-            (TOPICS["wait"], "wait", Float64),
-            (TOPICS["ground_truth_request"], "ground_truth", Empty),
-        ):
+        commands = [(TOPICS["ground_truth_request"], "ground_truth", Empty)]
+        if arm_interface == "topics":
+            commands += [
+                (TOPICS["trajectory"], "trajectory", JointTrajectoryMsg),
+                (TOPICS["gripper"], "gripper", String),
+                (TOPICS["wait"], "wait", Float64),
+            ]
+        for topic, kind, cls in commands:
             rospy.Subscriber(topic, cls, lambda msg, k=kind: self.commands.put((k, msg)))
         self.world.add_step_hook(self._on_step)
+        self.drivers = None
+        if arm_interface == "actions":
+            from foldbot.ros.drivers import SimDrivers
+
+            self.drivers = SimDrivers(self)
 
     # ------------------------------------------------------------------ publishing
     def _on_step(self, world: SimWorld) -> None:
         t = world.sim_time
+        if self._pace_origin is not None:
+            self._pace(t)
         if t + 1e-9 >= self._next_clock:
             self._next_clock = t + 0.01
             self.pub["clock"].publish(Clock(clock=convert.stamp_of(t)))
@@ -134,6 +171,14 @@ class SimNode:
         if t + 1e-9 >= self._next_frame:
             self._next_frame = t + self.camera_period
             self.publish_frame()
+
+    def _pace(self, t: float) -> None:
+        """Hold the simulated clock to the wall clock (× real_time_factor), as a real cell's is;
+        a step that takes longer than real time only falls behind."""
+        sim0, wall0 = self._pace_origin
+        ahead = (t - sim0) / self.real_time_factor - (time.monotonic() - wall0)
+        if ahead > 0:
+            time.sleep(ahead)
 
     def _publish_joints(self) -> None:
         names: list[str] = []
@@ -209,9 +254,14 @@ class SimNode:
         self.pub["result"].publish(convert.string_msg(payload))
 
     # ------------------------------------------------------------------ commands
-    def execute_trajectory(self, msg: JointTrajectoryMsg) -> dict:
+    def execute_trajectory(
+        self, msg: JointTrajectoryMsg, on_check=None, times_pos_vel=None
+    ) -> dict:
+        """Play a trajectory at the physics step; `on_check(k, t, q_cmd, q)` (the actions
+        interface's feedback and path tolerances) is called at the tracking checks and may raise
+        to stop the arm where it is."""
         arms = trajectory_arms(list(msg.joint_names), self.arm_joints)
-        times, pos, vel = convert.trajectory_arrays(msg)
+        times, pos, vel = times_pos_vel or convert.trajectory_arrays(msg)
         dt = self.world.time_step
         n = round(times[-1] / dt)
         if len(times) == n + 1 and np.allclose(times, np.arange(n + 1) * dt, atol=1e-6):
@@ -241,6 +291,9 @@ class SimNode:
                 for i, (ex, _cols) in enumerate(moved):
                     err = float(np.linalg.norm(ex.robot.tcp_pose()[0] - tcp_ref[i, k]))
                     max_err[i] = max(max_err[i], err)
+                if on_check is not None:
+                    q_now = np.concatenate([ex.robot.joint_positions() for ex, _c in moved])
+                    on_check(k, (k + 1) * dt, q_cmd[k], q_now)
         return {
             "duration": float(times[-1]),
             "max_tracking_error": max(max_err),
@@ -308,10 +361,23 @@ class SimNode:
         self.publish_ground_truth()
         self.wait_for_camera_subscribers()
         self.report({"command": "ready", "ok": True, "frame_stamp": self.publish_frame()})
+        if self.drivers is not None:
+            self.drivers.start()
+            self._pace_origin = (self.world.sim_time, time.monotonic())
         while not rospy.is_shutdown():
             try:
-                kind, msg = self.commands.get(timeout=0.1)
+                kind, msg = (
+                    self.commands.get(timeout=0.1)
+                    if self.drivers is None
+                    else self.commands.get_nowait()
+                )
             except queue.Empty:
+                if self.drivers is not None and not self._run_on():
+                    return
+                continue
+            if self.drivers is not None and kind != "ground_truth":
+                if not self.drivers.execute(kind, msg):
+                    return
                 continue
             try:
                 out = self.execute(kind, msg)
@@ -330,11 +396,32 @@ class SimNode:
                 continue
             self.report({"command": kind, "ok": True, **out, "frame_stamp": self.publish_frame()})
 
+    def _run_on(self) -> bool:
+        """One physics step of the cell left to itself (the actions interface): the cloth
+        settles, the camera streams. A divergence is reported and ends the node (False)."""
+        try:
+            self.world.step()
+        except FoldbotError as exc:
+            self.fail("run", exc)
+            return False
+        return True
+
+    def fail(self, kind: str, exc: FoldbotError) -> None:
+        """Report an error on sim/result (the task node raises it) and, for a divergence, stop."""
+        self.report(
+            {"command": kind, "ok": False, "error": str(exc), "error_type": type(exc).__name__}
+        )
+        if type(exc).__name__ == "SimulationDivergedError":
+            rospy.signal_shutdown("the simulation diverged")
+
 
 def main(argv: list[str] | None = None) -> int:
     rospy.init_node("foldbot_sim", argv=argv if argv is not None else sys.argv)
     node = SimNode(
-        rospy.get_param(FOLD_ARGS_PARAM), float(rospy.get_param(CAMERA_RATE_PARAM, 10.0))
+        rospy.get_param(FOLD_ARGS_PARAM),
+        float(rospy.get_param(CAMERA_RATE_PARAM, 10.0)),
+        rospy.get_param(ARM_INTERFACE_PARAM, "topics"),
+        float(rospy.get_param(REAL_TIME_FACTOR_PARAM, 1.0)),
     )
     try:
         node.spin()

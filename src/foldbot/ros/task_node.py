@@ -50,11 +50,17 @@ from foldbot.pipeline import (
 from foldbot.planning.actions import FoldAction, FoldPlan
 from foldbot.planning.garment_recipes import GarmentPlan
 from foldbot.planning.spread import SpreadAction, action_as_dict
-from foldbot.ros import CAMERA_FRAME, TOPICS, WORLD_FRAME, convert
+from foldbot.ros import CAMERA_FRAME, TOPICS, WORLD_FRAME, arm_joint_names, convert
 from foldbot.ros.frames import StaticFrames
-from foldbot.ros.node_args import ERROR_FILE_PARAM, FOLD_ARGS_PARAM, parse_fold_args
+from foldbot.ros.node_args import (
+    ARM_INTERFACE_PARAM,
+    ERROR_FILE_PARAM,
+    FOLD_ARGS_PARAM,
+    parse_fold_args,
+)
 from foldbot.ros.publish import publish_when_heard
 from foldbot.sim.layout import CellLayout
+from foldbot.sim.robots import robot_class
 from foldbot.types import GraspResult, Observation
 
 REPLY_TIMEOUT_S = 300.0
@@ -102,7 +108,18 @@ class RosCell(FoldCell):
         with self._lock:
             self.video = None
 
-    def __init__(self, layout: CellLayout, video: EpisodeWriter | None, arms: int = 1) -> None:
+    def __init__(
+        self,
+        layout: CellLayout,
+        video: EpisodeWriter | None,
+        arms: int = 1,
+        arm_interface: str = "topics",
+        joint_names: tuple[str, ...] = (),
+    ) -> None:
+        """`arm_interface` "actions" drives the arm through its drivers' actions
+        (foldbot.ros.drivers.ActionArm: one arm, whose `joint_names` they are) and reads where
+        it left the cell from /joint_states and the camera stream; "topics" through the sim
+        node's commands and reports."""
         self.table_height = layout.table_height
         self.video = video
         self.bases_y = tuple(lay.robot_base_xyz[1] for lay in layout.arm_layouts(arms))
@@ -131,7 +148,14 @@ class RosCell(FoldCell):
         camera is registered onto it, as the perception node does)."""
         self.latest_state: ClothState | None = None
         self.overlay: dict = {}
-        self.rest_stamp = 0.0
+        self._planned: list[dict] = []
+        """The last planned action's steps (the actions interface sends those up to a gripper
+        event as one goal)."""
+        self._ran: dict[int, float] = {}
+        """Steps (by id) already moved through in a chain: their tracking error (m)."""
+        self.rest_stamp: float | None = 0.0
+        """The stamp of the frame the cell rests in (None: the next frame after _frame_after)."""
+        self._frame_after = 0.0
         self.truth = _Inbox()
         self.mesh = _Inbox()
         self.pub_traj = rospy.Publisher(TOPICS["trajectory"], JointTrajectoryMsg, queue_size=5)
@@ -163,6 +187,11 @@ class RosCell(FoldCell):
             queue_size=200,
             buff_size=2**26,
         )
+        self.driver = None
+        if arm_interface == "actions":
+            from foldbot.ros.drivers import ActionArm
+
+            self.driver = ActionArm(arm_joint_names(joint_names, 1)[0], self.raise_reported_error)
 
     # ------------------------------------------------------------------ subscriptions
     def _on_clock(self, msg: Clock) -> None:
@@ -232,6 +261,39 @@ class RosCell(FoldCell):
         self._at_rest(reply)
         return reply
 
+    def raise_reported_error(self) -> None:
+        """Raise the error the sim node reported, if it has (e.g. the cloth diverged while the
+        arm's driver had a goal): with the actions interface no other reply would come."""
+        with self.results.cond:
+            failed = [r for r in self.results.items if not r.get("ok")]
+        if failed:
+            raise errors.reported_error(failed[0], "the cell")
+
+    def _settle(self, ended: float = 0.0) -> None:
+        """Where the arm's driver left the cell: the arm's joints from a /joint_states stamped
+        after the command ended (`ended`, s, or the clock now); the camera frame to observe is
+        the first after it, taken when `observe` asks (a real cell's camera streams; nothing
+        waits for a frame between motions)."""
+        since = max(self._clock, ended)
+        self.rest_qs = [self.driver.joints_after(since, REPLY_TIMEOUT_S)]
+        self._frame_after = since
+        self.rest_stamp = None
+
+    def _first_frame_after(self, since: float) -> float:
+        """The stamp of the first camera frame at or after `since` (s), waited for."""
+        deadline = time.monotonic() + REPLY_TIMEOUT_S
+        with self.perceived:
+            while True:
+                later = [stamp for stamp in self.frames if stamp >= round(since, 6)]
+                if later:
+                    return min(later)
+                self.raise_reported_error()
+                if time.monotonic() > deadline or rospy.is_shutdown():
+                    raise errors.FoldbotError(
+                        f"no camera frame after t = {since:.3f} s within {REPLY_TIMEOUT_S:.0f} s"
+                    )
+                self.perceived.wait(0.2)
+
     def _at_rest(self, reply: dict) -> None:
         """Where a sim node's report left the cell: its frame, every arm's joints, its clock."""
         self.rest_stamp = float(reply["frame_stamp"])
@@ -262,7 +324,14 @@ class RosCell(FoldCell):
         return [q.tolist() for q in self.rest_qs]
 
     def _gripper(self, command: str, arm: int) -> dict:
-        """Open or close `arm`'s gripper (the sim node's gripper/command: "close", "close 1")."""
+        """Open or close `arm`'s gripper (the sim node's gripper/command: "close", "close 1"; or
+        the gripper driver's GripperCommand, where a grasp holds when the jaws stall)."""
+        if self.driver is not None:
+            held, text = self.driver.grip(command == "close", f"gripper {command}", REPLY_TIMEOUT_S)
+            self._settle()
+            if command != "close":
+                return {}
+            return {"grasp": {"success": held, "vertex_ids": [], "reason": text}}
         text = command if self.arms == 1 else f"{command} {arm}"
         return self._command(self.pub_gripper, String(data=text), f"gripper {text}")
 
@@ -306,6 +375,8 @@ class RosCell(FoldCell):
         if not reply.get("ok"):
             raise errors.reported_error(reply, "preparing the cloth")
         self._at_rest(reply)
+        if self.driver is not None:
+            self.driver.wait_for_servers()
         return reply
 
     def _have_frame(self, key: float) -> bool:
@@ -317,23 +388,48 @@ class RosCell(FoldCell):
             and key in self.depths
         )
 
+    def _perceived_frame(self, key: float) -> float | None:
+        """The frame to observe: the resting one, or with a streaming cell (the actions
+        interface) the first perceived since, should perception have passed over it."""
+        if self._have_frame(key):
+            return key
+        if self.driver is not None:
+            later = [k for k in self.states if k > key and self._have_frame(k)]
+            if later:
+                return min(later)
+        return None
+
     def observe(self) -> tuple[ClothState, Observation]:
+        if self.rest_stamp is None:  # the actions interface: the first frame since the rest
+            self.rest_stamp = self._first_frame_after(self._frame_after)
         key = round(self.rest_stamp, 6)
         deadline = time.monotonic() + REPLY_TIMEOUT_S
         ask_again = time.monotonic() + FRAME_RETRY_S
         while True:
             with self.perceived:
-                while not self._have_frame(key) and time.monotonic() < ask_again:
+                while self._perceived_frame(key) is None and time.monotonic() < ask_again:
                     if time.monotonic() > deadline or rospy.is_shutdown():
                         raise errors.FoldbotError(
                             f"no perception result for the frame at t = {self.rest_stamp:.3f} s"
                         )
                     self.perceived.wait(0.2)
-                if self._have_frame(key):
+                found = self._perceived_frame(key)
+                if found is not None:
+                    if found != key:  # a later frame of the streaming cell
+                        key = found
+                        self.rest_stamp = found
                     break
             # A subscriber that joined late missed the frame (frames are not latched): the
-            # resting cell publishes it again at the same stamp (a zero-second wait).
+            # resting cell publishes it again at the same stamp (a zero-second wait); a cell
+            # that streams (the actions interface) gives the next frame.
+            rospy.logwarn(
+                "no perception of the frame at t = %.3f s within %.0f s; asking for another",
+                self.rest_stamp,
+                FRAME_RETRY_S,
+            )
             self.wait(0.0)
+            if self.rest_stamp is None:
+                self.rest_stamp = self._first_frame_after(self._frame_after)
             key = round(self.rest_stamp, 6)
             ask_again = time.monotonic() + FRAME_RETRY_S
         with self.perceived:
@@ -403,11 +499,13 @@ class RosCell(FoldCell):
     def plan_action(self, action: FoldAction) -> list[dict]:
         # A two-arm cell, as SimCell: the active arm first, else the other (the planner node
         # checks each against the other arm where it stands).
-        return self.plan_on_an_able_arm(
+        steps = self.plan_on_an_able_arm(
             lambda arm: self._plan("action", action=action.as_dict(), arm=arm, qs=self._qs())[
                 "steps"
             ]
         )
+        self._planned, self._ran = steps, {}  # the actions interface runs them in chains
+        return steps
 
     def plan_together(
         self, actions: list[tuple[int, FoldAction | SpreadAction]]
@@ -449,6 +547,10 @@ class RosCell(FoldCell):
         return logs
 
     def _follow(self, traj: dict) -> dict:
+        if self.driver is not None:
+            _times, errs = self._follow_through_driver(traj)
+            err = float(errs.max(initial=0.0))
+            return {"max_tracking_error": err, "arms": [0], "tracking_errors": [err]}
         msg = convert.trajectory_msg(
             traj["joint_names"],
             np.array(traj["times"]),
@@ -459,12 +561,35 @@ class RosCell(FoldCell):
         )
         return self._command(self.pub_traj, msg, f"trajectory '{traj['name']}'")
 
-    def run_step(self, step: dict) -> StepLog:
-        # Time the planned joint path from where the arm really is (it may be off by the
-        # tracking error), then follow it and apply the step's gripper event.
+    def _follow_through_driver(self, traj: dict) -> tuple[np.ndarray, np.ndarray]:
+        """One FollowJointTrajectory goal; the driver's feedback as (time from the start, TCP
+        tracking error on the planner node's kinematic model) per sample."""
+        # It ends no sooner than its duration after it was sent (the clock reaching this node
+        # may lag the driver's result by a step or two: the arm is all but still then).
+        ended = self._clock + float(traj["times"][-1])
+        times, desired, actual = self.driver.follow(
+            traj["joint_names"],
+            np.array(traj["times"]),
+            np.array(traj["positions"]),
+            np.array(traj["velocities"]),
+            f"trajectory '{traj['name']}'",
+            REPLY_TIMEOUT_S,
+        )
+        errs = np.zeros(0)
+        if len(desired):
+            errs = np.array(
+                self._plan("tracking", arm=0, desired=desired.tolist(), actual=actual.tolist())[
+                    "errors"
+                ]
+            )
+        self._settle(ended)
+        return times, errs
+
+    def _time_step(self, step: dict, start: np.ndarray) -> dict:
+        """A planned step's trajectory from joints `start` (the planner node's ruckig)."""
         path = np.array(step["path"], dtype=float)
-        path[0] = self.joint_positions()
-        traj = self._plan(
+        path[0] = start
+        return self._plan(
             "time",
             name=step["name"],
             arm=self.active,
@@ -473,14 +598,61 @@ class RosCell(FoldCell):
             speed=step["speed"],
             dwell=step.get("dwell", 0.0),
         )["trajectory"]
-        reply = self._follow(traj)
+
+    def _run_chain(self, step: dict) -> None:
+        """The actions interface: `step` and the planned steps after it up to the next gripper
+        event, as one goal (the arm comes to rest between them as in the lockstep cell, but
+        never waits on a round trip with the cloth hanging). Each later step is timed from
+        where the one before is commanded to end; each step's tracking is kept for its log."""
+        planned = self._planned
+        i = next((k for k, s in enumerate(planned) if s is step), None)
+        chain = [step]
+        if i is not None:
+            while chain[-1]["gripper"] is None and i + 1 < len(planned):
+                i += 1
+                chain.append(planned[i])
+        trajs = [self._time_step(chain[0], self.joint_positions())]
+        for nxt in chain[1:]:
+            trajs.append(self._time_step(nxt, np.array(trajs[-1]["positions"][-1])))
+        times, pos, vel, ends = [0.0], [trajs[0]["positions"][0]], [trajs[0]["velocities"][0]], []
+        for traj in trajs:  # each one's first sample is the one before's last
+            t0 = times[-1]
+            times += [t0 + t for t in traj["times"][1:]]
+            pos += traj["positions"][1:]
+            vel += traj["velocities"][1:]
+            ends.append(times[-1])
+        fb_times, errs = self._follow_through_driver(
+            {
+                "name": " + ".join(t["name"] for t in trajs),
+                "joint_names": trajs[0]["joint_names"],
+                "times": times,
+                "positions": pos,
+                "velocities": vel,
+            }
+        )
+        start = 0.0
+        for s, end in zip(chain, ends, strict=True):
+            mine = errs[(fb_times > start - 1e-9) & (fb_times <= end + 1e-9)]
+            self._ran[id(s)] = float(mine.max(initial=0.0))
+            start = end
+
+    def run_step(self, step: dict) -> StepLog:
+        if self.driver is not None:
+            if id(step) not in self._ran:
+                self._run_chain(step)
+            err = self._ran.pop(id(step))
+        else:
+            # Time the planned joint path from where the arm really is (it may be off by the
+            # tracking error), then follow it and apply the step's gripper event.
+            reply = self._follow(self._time_step(step, self.joint_positions()))
+            err = float(reply["max_tracking_error"])
         grasp = None
         if step["gripper"] == "close":
             g = self._gripper("close", self.active)["grasp"]
             grasp = GraspResult(bool(g["success"]), tuple(g["vertex_ids"]), g["reason"])
         elif step["gripper"] == "open":
             self._gripper("open", self.active)
-        return StepLog(step["name"], float(reply["max_tracking_error"]), grasp)
+        return StepLog(step["name"], err, grasp)
 
     def release_and_lift(self) -> None:
         self._gripper("open", self.active)
@@ -494,6 +666,16 @@ class RosCell(FoldCell):
             self._follow(traj)
 
     def wait(self, seconds: float) -> None:
+        if self.driver is not None:  # a real cell rests by itself: wait on its clock
+            until = self._clock + seconds
+            deadline = time.monotonic() + REPLY_TIMEOUT_S
+            while self._clock < until:
+                self.raise_reported_error()
+                if time.monotonic() > deadline or rospy.is_shutdown():
+                    raise errors.FoldbotError(f"the cell's clock did not reach {until:.3f} s")
+                time.sleep(0.005)
+            self._settle()
+            return
         self._command(self.pub_wait, Float64(data=float(seconds)), "wait")
 
     def show(self, state: ClothState | None = None, **overlay: Any) -> None:
@@ -508,14 +690,20 @@ class RosCell(FoldCell):
         )
 
 
-def run_task(fold_args: str, log=rospy.loginfo) -> dict:
+def run_task(fold_args: str, log=rospy.loginfo, arm_interface: str = "topics") -> dict:
     """Fold over topics and write the episode folder; returns result.json's content."""
     args, cfg = parse_fold_args(fold_args)
     layout = cfg.sim.layout
     writer = EpisodeWriter(args.out, overwrite=args.overwrite, fps=max(cfg.video_fps, 1.0))
     wall0 = time.perf_counter()
     with writer, contextlib.ExitStack() as stack:
-        cell = RosCell(layout, writer if cfg.video_fps > 0 else None, cfg.arms)
+        cell = RosCell(
+            layout,
+            writer if cfg.video_fps > 0 else None,
+            cfg.arms,
+            arm_interface,
+            robot_class(cfg.robot).ARM_JOINT_NAMES,
+        )
         stack.callback(cell.stop_video)  # before the writer closes the video, error or not
         cell.wait_ready()
         initial = convert.cloud_array(cell.truth.take(lambda m: True, "initial ground truth"))
@@ -569,6 +757,7 @@ def run_task(fold_args: str, log=rospy.loginfo) -> dict:
                 cfg, seeded_garment(cfg)[1], initial, record.initial_state
             )
             result["transport"] = "ros"
+            result["arm_interface"] = arm_interface
             writer.write_result(result)
             path = writer.commit()
     result["out_dir"] = str(Path(path))
@@ -579,7 +768,10 @@ def main(argv: list[str] | None = None) -> int:
     rospy.init_node("foldbot_task", argv=argv if argv is not None else sys.argv)
     pub = rospy.Publisher(TOPICS["episode"], String, queue_size=1, latch=True)
     try:
-        result = run_task(rospy.get_param(FOLD_ARGS_PARAM))
+        result = run_task(
+            rospy.get_param(FOLD_ARGS_PARAM),
+            arm_interface=rospy.get_param(ARM_INTERFACE_PARAM, "topics"),
+        )
     except errors.FoldbotError as exc:
         failure = {"ok": False, "error": str(exc), "error_type": type(exc).__name__}
         if getattr(exc, "__notes__", None):  # where the video up to the error was left

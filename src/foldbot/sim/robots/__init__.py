@@ -17,12 +17,17 @@ ROBOT_NAMES: tuple[str, ...] = ("ur5", "panda")
 _REGISTRY: dict[str, type[Robot]] = {"ur5": UR5, "panda": Panda}
 
 
-def make_robot(name: str, client: int, layout: CellLayout) -> Robot:
-    """Load robot `name` into PyBullet client `client`, mounted as `layout` says."""
+def robot_class(name: str) -> type[Robot]:
+    """The class of robot `name` (its joint names, limits, …) without loading it."""
     cls = _REGISTRY.get(name) if isinstance(name, str) else None
     if cls is None:
         raise ConfigError(f"unknown robot {name!r}; allowed: {', '.join(ROBOT_NAMES)}")
-    return cls(client, layout)
+    return cls
+
+
+def make_robot(name: str, client: int, layout: CellLayout) -> Robot:
+    """Load robot `name` into PyBullet client `client`, mounted as `layout` says."""
+    return robot_class(name)(client, layout)
 
 
 __all__ = [
@@ -33,4 +38,5 @@ __all__ = [
     "Robot",
     "gripper_down_quaternion",
     "make_robot",
+    "robot_class",
 ]

@@ -1,0 +1,78 @@
+"""Drives a sim node through its drivers' actions as a client of a real UR5's would, and prints
+what came back as JSON (run by test_drivers.py in its own process: rospy allows one node per
+process)."""
+
+import json
+import time
+
+import numpy as np
+import rospy
+from actionlib import SimpleActionClient
+from actionlib_msgs.msg import GoalStatus
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import CameraInfo, Image, JointState
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from foldbot.ros import TOPICS
+from foldbot.ros.control_msgs import msg
+from foldbot.sim.robots import robot_class
+
+rospy.init_node("driver_probe")
+for topic, cls in (("color", Image), ("depth", Image), ("color_info", CameraInfo)):
+    rospy.Subscriber(TOPICS[topic], cls, lambda m: None)  # the sim node waits for a camera reader
+joints: dict[str, float] = {}
+rospy.Subscriber(
+    "/joint_states", JointState, lambda m: joints.update(zip(m.name, m.position, strict=True))
+)
+clock = [0.0]
+rospy.Subscriber("/clock", Clock, lambda m: clock.__setitem__(0, m.clock.to_sec()))
+arm = SimpleActionClient(TOPICS["trajectory_action"], msg.FollowJointTrajectoryAction)
+gripper = SimpleActionClient(TOPICS["gripper_action"], msg.GripperCommandAction)
+deadline = time.monotonic() + 240
+while not (
+    arm.wait_for_server(rospy.Duration(0.2)) and gripper.wait_for_server(rospy.Duration(0.2))
+):
+    assert time.monotonic() < deadline, "no action servers"
+while not joints:
+    time.sleep(0.05)
+names = list(robot_class("ur5").ARM_JOINT_NAMES)
+out: dict = {}
+
+
+def follow(joint_names, points, **goal_fields):
+    feedback = []
+    goal = msg.FollowJointTrajectoryGoal(
+        trajectory=JointTrajectory(joint_names=joint_names, points=points), **goal_fields
+    )
+    arm.send_goal(goal, feedback_cb=feedback.append)
+    arm.wait_for_result()
+    result = arm.get_result()
+    return arm.get_state(), result.error_code, result.error_string, len(feedback)
+
+
+def point(q, t):
+    return JointTrajectoryPoint(positions=list(q), time_from_start=rospy.Duration.from_sec(t))
+
+
+q0 = np.array([joints[n] for n in names])
+out["bad_joints"] = follow(["elbow_joint"], [point([0.0], 1.0)])
+# Joints in another order than the driver's, the first point a second from now.
+target = q0 + np.array([0.15, 0.0, 0.0, 0.0, 0.0, 0.0])
+order = names[::-1]
+out["move"] = follow(order, [point([target[names.index(n)] for n in order], 1.0)])
+time.sleep(0.2)
+out["moved_to"] = float(np.abs(np.array([joints[n] for n in names]) - target).max())
+tight = [msg.JointTolerance(name=n, position=1e-7) for n in names]
+out["tight_path"] = follow(names, [point(q0, 1.0)], path_tolerance=tight)
+w0, c0 = time.monotonic(), clock[0]
+time.sleep(2.0)
+out["rate"] = (clock[0] - c0) / (time.monotonic() - w0)
+for name, position in (("close", 0.0), ("open", 0.085), ("bad", -1.0)):
+    goal = msg.GripperCommandGoal()
+    goal.command.position = position
+    gripper.send_goal(goal)
+    gripper.wait_for_result()
+    r = gripper.get_result()
+    out[name] = [gripper.get_state(), r.stalled, r.reached_goal, gripper.get_goal_status_text()]
+out["succeeded"] = GoalStatus.SUCCEEDED
+print("PROBE " + json.dumps(out), flush=True)
