@@ -18,6 +18,7 @@ def build_parser() -> argparse.ArgumentParser:
         eval_perception,
         export_bag,
         fold,
+        ros_cell,
         ros_fold,
         ros_replay,
         score,
@@ -36,6 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
         "compare": (compare, "two benchmark runs of the same towels, episode by episode"),
         "score": (score, "recompute an episode's metrics from cloth.npz and result.json"),
         "ros-fold": (ros_fold, "fold over ROS 1 topics (roslaunch) and write the episode folder"),
+        "ros-cell": (ros_cell, "the simulated cell alone, served as a real one (drivers, camera)"),
         "ros-replay": (ros_replay, "replay a recorded bag through perception; compare keypoints"),
         "export-bag": (export_bag, "write an episode folder as a ROS 1 bag (no ROS needed)"),
     }

@@ -56,6 +56,32 @@ from foldbot.commands.ros_fold import add_arguments, fold_args_text
             ],
             "--real-time-factor must be > 0, got 0.0",
         ),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--cell", "real", "--arms", "2"],
+            "--cell real: --arms 2",
+        ),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--cell", "real", "--start", "crumpled"],
+            "--cell real: --start crumpled: a flat start",
+        ),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--cell", "real", "--arm-interface", "topics"],
+            "--cell real: --arm-interface topics: a real cell is driven through its drivers' "
+            "actions",
+        ),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--cell", "real", "--real-time-factor", "2"],
+            "a real cell runs at its own pace",
+        ),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--cell", "real", "--camera-rate", "5"],
+            "--cell real: --camera-rate: a real cell's camera streams at its own rate",
+        ),
+        (["ros-cell", "--arms", "2"], "--arms 2: the cell serves one arm's driver actions"),
+        (["ros-cell", "--start", "crumpled"], "--start crumpled: the cell lays a flat cloth"),
+        (["ros-cell", "--camera-rate", "0"], "--camera-rate must be > 0 frames per s, got 0.0"),
+        (["ros-cell", "--real-time-factor", "-1"], "--real-time-factor must be > 0, got -1.0"),
+        (["ros-cell", "--port", "0"], "--port must be in 1–65535, got 0"),
         (["ros-replay", "{tmp}/missing.bag", "--rate", "0"], "--rate"),
         (["export-bag", "{tmp}", "--out", "{tmp}/x.txt"], "must end in .bag"),
     ],
@@ -222,3 +248,36 @@ def test_ros_fold_hands_the_nodes_a_suite_episode(tmp_path, monkeypatch):
     _node_args, node_cfg = parse_fold_args(ros_fold.fold_args_text(args))
     assert node_cfg == fold.config_from_args(args)
     assert dict(node_cfg.flatten_options) == {"spread_hang_time": 0.8}
+
+
+def test_a_real_cells_master_is_the_environments_unless_a_port_is_given(monkeypatch):
+    """`ros-fold --cell real` joins the running cell's master: ROS_MASTER_URI as the shell
+    has it (a real robot's master may be another machine), or the local --port asked for."""
+    from foldbot.commands.ros_fold import ros_env
+
+    monkeypatch.setenv("ROS_MASTER_URI", "http://robot-pc:11311")
+    assert ros_env(None)["ROS_MASTER_URI"] == "http://robot-pc:11311"
+    assert ros_env(12345)["ROS_MASTER_URI"] == "http://localhost:12345"
+    monkeypatch.delenv("ROS_MASTER_URI")
+    assert ros_env(None)["ROS_MASTER_URI"] == "http://localhost:11311"
+
+
+def test_ros_cell_lays_the_cloth_ros_fold_would(tmp_path):
+    """`ros-cell` takes `foldbot fold`'s cloth options but no episode folder: the sim node it
+    starts builds the EpisodeConfig `ros-fold` would hand it for the same options."""
+    from foldbot.commands import ros_cell, ros_fold
+    from foldbot.ros.node_args import parse_fold_args
+
+    cell_parser, fold_parser = argparse.ArgumentParser(), argparse.ArgumentParser()
+    ros_cell.add_arguments(cell_parser)
+    ros_fold.add_arguments(fold_parser)
+    options = ["--seed", "4", "--width", "0.28", "--resolution", "9", "--cloth", "friction=0.8"]
+    with pytest.raises(SystemExit):  # no episode folder to name
+        cell_parser.parse_args([*options, "--out", str(tmp_path)])
+    cell_args = cell_parser.parse_args(options)
+    cell_args.out = tmp_path / "unused"
+    fold_args = fold_parser.parse_args([*options, "--out", str(tmp_path / "unused")])
+    assert (
+        parse_fold_args(fold_args_text(cell_args))[1]
+        == parse_fold_args(fold_args_text(fold_args))[1]
+    )

@@ -199,6 +199,20 @@ def test_commit_without_result_fails_and_cleans_up(tmp_path: Path) -> None:
     assert list(tmp_path.iterdir()) == []
 
 
+def test_an_unscored_episode_commits_without_the_cloth_only_when_asked(tmp_path: Path) -> None:
+    # A real cell's fold has no ground-truth cloth: result.json with its metrics None.
+    faces, initial, final = cloth()
+    unscored = {**result_for(faces, initial, final), "scored": False, "success": None}
+    with pytest.raises(OutputError, match=r"cloth\.npz"), EpisodeWriter(tmp_path / "ep") as w:
+        w.write_result(unscored)
+    assert list(tmp_path.iterdir()) == []
+    with EpisodeWriter(tmp_path / "ep") as w:
+        w.write_result(unscored)
+        w.commit(require_cloth=False)
+    assert sorted(p.name for p in (tmp_path / "ep").iterdir()) == ["result.json"]
+    assert not is_episode_dir(tmp_path / "ep")  # nothing there to rescore
+
+
 def test_missing_result_keys_named(tmp_path: Path) -> None:
     faces, initial, final = cloth()
     result = result_for(faces, initial, final)

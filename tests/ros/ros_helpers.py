@@ -17,3 +17,16 @@ def free_port() -> int:
     with socket.socket() as s:
         s.bind(("localhost", 0))
         return s.getsockname()[1]
+
+
+def wait_for_master(port: int, timeout_s: float = 60.0) -> None:
+    """Wait until the ROS master on `port` answers (a cell started in the background)."""
+    import time
+
+    import rosgraph
+
+    master = rosgraph.Master("/test_wait", master_uri=f"http://localhost:{port}")
+    deadline = time.monotonic() + timeout_s
+    while not master.is_online():
+        assert time.monotonic() < deadline, f"no ROS master on port {port} within {timeout_s} s"
+        time.sleep(0.2)

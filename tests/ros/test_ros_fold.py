@@ -3,13 +3,15 @@ episode folder, the recorded bag, replay through perception, and an exported bag
 
 import json
 import os
+import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
-from ros_helpers import free_port, requires_ros
+from ros_helpers import free_port, requires_ros, wait_for_master
 
 from foldbot.garments import GARMENT_KEYPOINTS
 from foldbot.io.episode import REQUIRED_RESULT_KEYS, rescore
@@ -266,6 +268,151 @@ def test_a_fold_through_a_real_arms_driver_interface(tmp_path):
     assert result["coverage"] < 0.8  # half the towel lies over the other half
     # Tracking measured from the driver's feedback, on the planner node's kinematic model.
     assert all(0.0 < a["max_tracking_error_m"] < 0.01 for a in carries)
+
+
+SCORE_SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "score_on_sim_cell.py"
+SIM_NODES_OWN = ("sim/", "arm/", "gripper/command", "gripper/grasp", "ground_truth/")
+"""Topics only the simulated cell has: its lockstep commands and reports and its ground truth
+(a real cell's drivers have none of them). /clock is rospy's own where /use_sim_time is set."""
+
+
+def test_a_fold_on_a_running_cell_as_on_a_real_one(tmp_path):
+    # `ros-cell` brings the simulated cell up alone, served as a real one (driver actions,
+    # /joint_states, the camera's topics); `ros-fold --cell real` folds on it with no ready
+    # handshake and no ground truth, and leaves the fold unscored. Scored afterwards from the
+    # cell's ground truth by scripts/score_on_sim_cell.py (for comparison only).
+    import threading
+
+    import rosgraph
+
+    from foldbot.commands.ros_fold import ros_env
+
+    port = free_port()
+    cell = subprocess.Popen(
+        [sys.executable, "-m", "foldbot.cli", "ros-cell", "--resolution", "8",
+         "--camera-rate", "2", "--port", str(port), "--seed", "1"],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
+    )  # fmt: skip
+    touched: set[tuple[str, str]] = set()
+    done = threading.Event()
+
+    def watch_the_task_node() -> None:  # what /foldbot_task publishes and subscribes to
+        master = rosgraph.Master("/test_watch", master_uri=f"http://localhost:{port}")
+        while not done.wait(0.3):
+            try:
+                pubs, subs, _ = master.getSystemState()
+            except Exception:  # the master not up yet
+                continue
+            for kind, entries in (("pub", pubs), ("sub", subs)):
+                touched.update((kind, t) for t, nodes in entries if "/foldbot_task" in nodes)
+
+    watcher = threading.Thread(target=watch_the_task_node, daemon=True)
+    watcher.start()
+    out = tmp_path / "episode"
+    try:
+        wait_for_master(port)
+        proc = foldbot(
+            "ros-fold", "--cell", "real", "--resolution", "8", "--video-fps", "2",
+            "--recipe", "diagonal", "--seed", "1", "--out", str(out), "--port", str(port),
+        )  # fmt: skip
+        done.set()
+        assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+        assert "fold done on the real cell, not scored" in proc.stdout
+        score = subprocess.run(
+            [sys.executable, str(SCORE_SCRIPT), str(out), "--port", str(port)],
+            capture_output=True, text=True, timeout=120, check=False,
+            env=ros_env(port),
+        )  # fmt: skip
+    finally:
+        done.set()
+        os.killpg(cell.pid, signal.SIGINT)
+        log = cell.communicate(timeout=60)[0]
+    assert score.returncode == 0, score.stderr[-3000:] + log[-3000:]
+    assert cell.returncode == 0 and "the simulated cell stopped" in log
+    # The episode: unscored, with what the camera saw, and no cloth.npz (no ground truth).
+    names = {p.name for p in out.iterdir()}
+    assert {"result.json", "video.mp4", "overlay_initial.png", "overlay_final.png"} <= names
+    assert "cloth.npz" not in names
+    result = json.loads((out / "result.json").read_text())
+    assert set(REQUIRED_RESULT_KEYS) <= result.keys()
+    assert result["cell"] == "real" and result["scored"] is False
+    assert result["success"] is None and result["fold_error_mm"] is None
+    seen = result["perceived"]
+    assert seen["verified"] and 0.4 < seen["coverage_ratio"] < 0.6  # a triangle: half the area
+    assert any(t["grasp_success"] for t in result["actions"][0]["attempts"])
+    # The task node used the drivers' actions, /joint_states and the camera, nothing of the
+    # sim node's own.
+    topics = {t for _kind, t in touched}
+    assert "/joint_states" in topics and "/camera/color/image_raw" in topics
+    assert any("follow_joint_trajectory" in t for t in topics)
+    assert not [
+        t for t in topics if any(t.lstrip("/").startswith(o.lstrip("/")) for o in SIM_NODES_OWN)
+    ]
+    # It folded: the cell's ground truth, read afterwards, scores the triangle.
+    truth = json.loads(score.stdout.strip().splitlines()[-1])
+    assert truth["coverage"] < 0.6 and truth["fold_error_mm"] < 20.0, truth
+
+
+def descendants(pid: int) -> list[tuple[int, str]]:
+    """Every process under `pid` (pid, command line), from ps."""
+    rows = subprocess.run(
+        ["ps", "-eo", "pid=,ppid=,args="], capture_output=True, text=True, check=True
+    ).stdout.splitlines()
+    table = [(int(a), int(b), rest) for a, b, rest in (r.split(None, 2) for r in rows if r.strip())]
+    found, frontier = [], {pid}
+    while frontier:
+        kids = [(p, args) for p, parent, args in table if parent in frontier]
+        found += kids
+        frontier = {p for p, _ in kids}
+    return found
+
+
+def test_a_real_cell_that_goes_away_mid_fold_ends_it_named(tmp_path):
+    # The cell's node dies mid-fold (a driver crash): no goal would ever be answered. The fold
+    # ends within seconds, naming the driver that went, not after its 300 s reply timeout,
+    # and leaves no episode folder.
+    port = free_port()
+    cell = subprocess.Popen(
+        [sys.executable, "-m", "foldbot.cli", "ros-cell", "--resolution", "5",
+         "--camera-rate", "2", "--port", str(port)],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
+    )  # fmt: skip
+    out = tmp_path / "episode"
+    try:
+        wait_for_master(port)
+        fold = subprocess.Popen(
+            [sys.executable, "-m", "foldbot.cli", "ros-fold", "--cell", "real",
+             "--resolution", "5", "--video-fps", "2", "--out", str(out), "--port", str(port)],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        )  # fmt: skip
+        seen = []
+        for line in fold.stdout:  # until the first carry starts
+            seen.append(line)
+            if "stage 1, action 1" in line:
+                break
+        assert "stage 1, action 1" in seen[-1], "".join(seen[-50:])
+        time.sleep(1.0)  # the arm under way
+        sim = [pid for pid, args in descendants(cell.pid) if "foldbot_ros/nodes/sim_node" in args]
+        assert len(sim) == 1, descendants(cell.pid)  # this cell's sim node, no other test's
+        os.kill(sim[0], signal.SIGKILL)
+        gone = time.monotonic()
+        stdout, stderr = fold.communicate(timeout=200)
+        took = time.monotonic() - gone
+    finally:
+        os.killpg(cell.pid, signal.SIGINT)
+        cell.communicate(timeout=60)
+    assert fold.returncode == 2, stdout[-2000:] + stderr[-2000:]
+    assert "over ROS: the driver went away: nothing serves" in stderr, stderr[-3000:]
+    assert took < 120, took
+    assert not out.exists()
+
+
+def test_a_real_cell_needs_its_master_running(tmp_path):
+    port = free_port()
+    proc = foldbot("ros-fold", "--cell", "real", "--out", str(tmp_path / "e"), "--port", str(port))
+    assert proc.returncode == 2
+    assert f"no ROS master answers at http://localhost:{port}" in proc.stderr
+    assert not (tmp_path / "e").exists()
 
 
 def test_a_failed_ros_fold_names_the_task_nodes_error(tmp_path):

@@ -97,9 +97,10 @@ def add_flatten_option(parser: argparse.ArgumentParser, where: str) -> None:
     )
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Options of `foldbot fold`: an episode's, and `--suite`."""
-    add_episode_arguments(parser)
+def add_arguments(parser: argparse.ArgumentParser, output: bool = True) -> None:
+    """Options of `foldbot fold`: an episode's, and `--suite` (`output` False: without the
+    episode folder's --out and --overwrite, or --gui)."""
+    add_episode_arguments(parser, output)
     parser.add_argument(
         "--suite",
         default=None,
@@ -131,9 +132,9 @@ SUITE_OVER = ("loop_option", "cloth", "flatten_option")
 them: a trial of one of its episodes."""
 
 
-def add_episode_arguments(parser: argparse.ArgumentParser) -> None:
+def add_episode_arguments(parser: argparse.ArgumentParser, output: bool = True) -> None:
     """The options that define one fold episode (`foldbot fold` and `foldbot ros-fold` add
-    `--suite` and `--episode`)."""
+    `--suite` and `--episode`); `output` False leaves out --out, --overwrite and --gui."""
     parser.add_argument(
         "--garment",
         default="towel",
@@ -246,6 +247,9 @@ def add_episode_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--video-fps", type=float, default=10.0, help="video frames per simulated second (0 = off)"
     )
+    if not output:
+        parser.set_defaults(out=None, overwrite=False, gui=False)
+        return
     parser.add_argument("--out", type=Path, required=True, help="episode output folder")
     parser.add_argument(
         "--overwrite", action="store_true", help="replace DIR if it holds an earlier episode"

@@ -1,6 +1,8 @@
 """`foldbot ros-fold`: fold a towel, T-shirt or pants over ROS 1 topics, with one arm or two —
 roslaunch brings up the sim, perception, planner and task nodes (and roscore when none runs) —
 and write the same episode folder as `foldbot fold`. `--record BAG` records the run with rosbag.
+`--cell real` folds on a cell that is already running (a real UR5's and gripper's drivers and an
+RGB-D camera, or `foldbot ros-cell`): no sim node, and the fold is not scored.
 
 Needs ROS 1 from Debian (scripts/install_ros.sh)."""
 
@@ -15,13 +17,17 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 from foldbot import errors
 from foldbot.commands import fold
 from foldbot.errors import ConfigError, FoldbotError, OutputError
-from foldbot.ros.node_args import ARM_INTERFACES
+from foldbot.ros.node_args import ARM_INTERFACES, CELLS
 
+DEFAULT_PORT = 11311
+MASTER_WAIT_S = 15.0
+"""How long `--cell real` waits for the running cell's ROS master to answer."""
 ROS_PACKAGE_DIR = Path(__file__).resolve().parents[3] / "ros"
 """The repository's ROS package folder (holds foldbot_ros/)."""
 
@@ -41,16 +47,18 @@ def ros_missing() -> str | None:
     return None
 
 
-def ros_env(port: int) -> dict[str, str]:
+def ros_env(port: int | None) -> dict[str, str]:
     """Environment for ROS processes: our package on ROS_PACKAGE_PATH, this interpreter's bin
-    first on PATH (the nodes' `python3`), the master on `port`."""
+    first on PATH (the nodes' `python3`), the master on `port` (None: the environment's
+    ROS_MASTER_URI where set, else port 11311)."""
     env = dict(os.environ)
     paths = [str(ROS_PACKAGE_DIR), "/usr/share"]
     if env.get("ROS_PACKAGE_PATH"):
         paths.append(env["ROS_PACKAGE_PATH"])
     env["ROS_PACKAGE_PATH"] = os.pathsep.join(paths)
     env["PATH"] = os.pathsep.join([str(Path(sys.executable).parent), env.get("PATH", "")])
-    env["ROS_MASTER_URI"] = f"http://localhost:{port}"
+    if port is not None or not env.get("ROS_MASTER_URI"):
+        env["ROS_MASTER_URI"] = f"http://localhost:{DEFAULT_PORT if port is None else port}"
     env.setdefault("ROS_HOSTNAME", "localhost")
     env["PYTHONUNBUFFERED"] = "1"
     return env
@@ -66,23 +74,69 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="camera frames per simulated second during motions (default: --video-fps)",
     )
+    add_master_port(parser, "started if none runs there")
     parser.add_argument(
-        "--port", type=int, default=11311, help="ROS master port (started if none runs there)"
+        "--cell",
+        choices=CELLS,
+        default="sim",
+        help="sim (default): start the sim node, which scores the fold; real: fold on a cell "
+        "already running on the ROS master (a UR5's and gripper's drivers and an RGB-D camera, "
+        "or `foldbot ros-cell`) through its drivers' actions, one arm, from a flat start; the "
+        "fold is not scored (no ground truth): result.json gives what the camera saw",
     )
     parser.add_argument(
         "--arm-interface",
         choices=ARM_INTERFACES,
-        default="topics",
-        help="topics: the sim node's lockstep commands (repeatable); actions: "
-        "control_msgs/FollowJointTrajectory and GripperCommand as a real arm's drivers serve "
-        "them, the cell running on at real-time pace (one arm)",
+        default=None,
+        help="topics (default with --cell sim): the sim node's lockstep commands "
+        "(repeatable); actions (--cell real's): control_msgs/FollowJointTrajectory and "
+        "GripperCommand as a real arm's drivers serve them, the cell running on at real-time "
+        "pace (one arm)",
     )
+    add_real_time_factor(parser, "with --cell sim --arm-interface actions: ")
+
+
+def add_master_port(parser: argparse.ArgumentParser, started: str) -> None:
+    parser.add_argument(
+        "--port",
+        type=int,
+        default=None,
+        help=f"ROS master port on this machine ({started}; default: ROS_MASTER_URI where set "
+        f"with --cell real, else {DEFAULT_PORT})",
+    )
+
+
+def add_real_time_factor(parser: argparse.ArgumentParser, where: str) -> None:
     parser.add_argument(
         "--real-time-factor",
         type=float,
-        default=1.0,
-        help="with --arm-interface actions: simulated seconds per wall second (default 1)",
+        default=None,
+        help=f"{where}simulated seconds per wall second (default 1)",
     )
+
+
+def check_port(port: int | None) -> None:
+    if port is not None and not (1 <= port <= 65535):
+        raise ConfigError(f"--port must be in 1–65535, got {port}")
+
+
+def check_real_time_factor(factor: float | None) -> None:
+    if factor is not None and not (math.isfinite(factor) and factor > 0):
+        raise ConfigError(f"--real-time-factor must be > 0, got {factor!r}")
+
+
+def master_running(env: dict[str, str], wait_s: float = MASTER_WAIT_S) -> bool:
+    """Whether a ROS master answers at env's ROS_MASTER_URI within `wait_s` (a cell started
+    a moment before may still be bringing its roscore up)."""
+    import rosgraph
+
+    master = rosgraph.Master("/foldbot_ros_fold", master_uri=env["ROS_MASTER_URI"])
+    deadline = time.monotonic() + wait_s
+    while not master.is_online():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.2)
+    return True
 
 
 def fold_args_text(args: argparse.Namespace) -> str:
@@ -143,6 +197,24 @@ def suite_args_words(args: argparse.Namespace) -> list[str]:
     return words
 
 
+def check_real_cell(args: argparse.Namespace, cfg, interface: str) -> None:
+    """What a fold on a real cell cannot have, refused by name before anything starts."""
+    refused = [
+        (interface != "actions", f"--arm-interface {interface}: a real cell is driven "
+         "through its drivers' actions (--arm-interface actions)"),
+        (cfg.arms != 1, f"--arms {cfg.arms}: one arm (a two-arm cell's pairs need one clock)"),
+        (cfg.start != "flat", f"--start {cfg.start}: a flat start (flattening is scored by "
+         "the simulator's ground truth)"),
+        (args.real_time_factor is not None, "--real-time-factor: a real cell runs at its own "
+         "pace (`foldbot ros-cell --real-time-factor` sets the simulated cell's)"),
+        (args.camera_rate is not None, "--camera-rate: a real cell's camera streams at its "
+         "own rate (`foldbot ros-cell --camera-rate` sets the simulated cell's)"),
+    ]  # fmt: skip
+    for bad, text in refused:
+        if bad:
+            raise ConfigError(f"--cell real: {text}")
+
+
 def run(args: argparse.Namespace) -> int:
     """Validate, roslaunch the fold, then report from the episode folder the task node wrote."""
     if args.gui:
@@ -154,23 +226,27 @@ def run(args: argparse.Namespace) -> int:
             f"--perception {cfg.perception!r} is not available over ROS: the perception node "
             "is vision (RGB-D) only; use `foldbot fold --perception oracle` for the oracle"
         )
-    if args.arm_interface == "actions" and cfg.arms != 1:
+    real = args.cell == "real"
+    interface = args.arm_interface or ("actions" if real else "topics")
+    if real:
+        check_real_cell(args, cfg, interface)
+    if interface == "actions" and cfg.arms != 1:
         raise ConfigError(
             f"--arm-interface actions drives one arm, got --arms {cfg.arms}: a two-arm cell's "
             "pairs move on one clock over arm/joint_trajectory (--arm-interface topics)"
         )
-    if not (math.isfinite(args.real_time_factor) and args.real_time_factor > 0):
-        raise ConfigError(f"--real-time-factor must be > 0, got {args.real_time_factor!r}")
-    if not (1 <= args.port <= 65535):
-        raise ConfigError(f"--port must be in 1–65535, got {args.port}")
+    check_real_time_factor(args.real_time_factor)
+    check_port(args.port)
     rate = args.video_fps if args.camera_rate is None else args.camera_rate
-    if not rate > 0 and args.camera_rate is None:
+    if real:
+        rate = 0.0  # the cell's camera streams at its own rate
+    elif not rate > 0 and args.camera_rate is None:
         raise ConfigError(
             f"--video-fps {args.video_fps!r} leaves the camera without a frame rate over ROS "
             "(--camera-rate defaults to --video-fps); pass --camera-rate N, N > 0 frames per "
             "simulated s (e.g. --video-fps 0 --camera-rate 2: no video)"
         )
-    if not rate > 0:
+    elif not rate > 0:
         raise ConfigError(f"--camera-rate must be > 0 frames per s, got {rate!r}")
     out = Path(args.out)
     if out.exists() and any(out.iterdir()) and not args.overwrite:
@@ -184,25 +260,33 @@ def run(args: argparse.Namespace) -> int:
     missing = ros_missing()
     if missing:
         raise FoldbotError(missing)
+    env = ros_env(args.port if args.port is not None or real else DEFAULT_PORT)
+    if real and not master_running(env):
+        raise FoldbotError(
+            f"no ROS master answers at {env['ROS_MASTER_URI']} within {MASTER_WAIT_S:g} s: "
+            "--cell real folds on a cell "
+            "that is already running (its drivers, camera and roscore; or `foldbot ros-cell`); "
+            "set ROS_MASTER_URI or --port to its master"
+        )
+    # A real cell's master is running: roslaunch waits for it rather than starting one.
+    where = ["--wait"] if real else ["-p", env["ROS_MASTER_URI"].rsplit(":", 1)[1]]
     cmd = [
         "roslaunch",
-        "-p",
-        str(args.port),
+        *where,
         "foldbot_ros",
         "fold.launch",
         f"fold_args:={fold_args_text(args)}",
         f"camera_rate:={rate}",
         f"record:={args.record.resolve() if args.record else ''}",
-        f"arm_interface:={args.arm_interface}",
-        f"real_time_factor:={args.real_time_factor!r}",
+        f"cell:={args.cell}",
+        f"arm_interface:={interface}",
+        f"real_time_factor:={args.real_time_factor or 1.0!r}",
     ]
     result_file = out / "result.json"
     before = result_file.stat().st_mtime_ns if result_file.is_file() else None
     with tempfile.TemporaryDirectory(prefix="foldbot-ros-") as tmp:
         error_file = Path(tmp) / "error.json"
-        proc = subprocess.run(
-            [*cmd, f"error_file:={error_file}"], env=ros_env(args.port), check=False
-        )
+        proc = subprocess.run([*cmd, f"error_file:={error_file}"], env=env, check=False)
         failure = json.loads(error_file.read_text()) if error_file.is_file() else None
     if not result_file.is_file() or result_file.stat().st_mtime_ns == before:
         if failure is not None:  # the task node's own error, as `foldbot fold` would name it
@@ -212,12 +296,22 @@ def run(args: argparse.Namespace) -> int:
             "see the nodes' output above"
         )
     result = json.loads(result_file.read_text())
-    print(
-        f"fold {'succeeded' if result['success'] else 'FAILED'} over ROS: "
-        f"fold error {result['fold_error_mm']:.1f} mm, "
-        f"normalized performance {result['normalized_performance']:.3f}, "
-        f"{result['sim_seconds']:.1f} s simulated in {result['wall_seconds']:.1f} s"
-    )
+    if result.get("scored", True):
+        print(
+            f"fold {'succeeded' if result['success'] else 'FAILED'} over ROS: "
+            f"fold error {result['fold_error_mm']:.1f} mm, "
+            f"normalized performance {result['normalized_performance']:.3f}, "
+            f"{result['sim_seconds']:.1f} s simulated in {result['wall_seconds']:.1f} s"
+        )
+    else:
+        seen = result["perceived"]
+        print(
+            "fold done on the real cell, not scored (no ground truth); perceived: "
+            f"{'every stage verified' if seen['verified'] else 'NOT every stage verified'} "
+            f"(mask IoU with the predicted outline "
+            f"{', '.join(f'{v:.2f}' for v in seen['stage_mask_iou'])}), "
+            f"{result['sim_seconds']:.1f} s"
+        )
     print(f"episode written to {out}")
     if args.record:
         print(f"bag recorded to {args.record}")

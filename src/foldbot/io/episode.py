@@ -290,12 +290,14 @@ class EpisodeWriter:
             raise OutputError(f"cannot write {str(path)!r}: {exc}") from exc
         return path
 
-    def commit(self) -> Path:
-        """Close the video, check result.json and cloth.npz exist, and rename into DIR."""
+    def commit(self, require_cloth: bool = True) -> Path:
+        """Close the video, check result.json and cloth.npz exist, and rename into DIR.
+        `require_cloth` False: an unscored episode (a real cell's: no ground-truth cloth)."""
         self._require_open()
         for video in self._videos:
             video.close()
-        missing = [f for f in (RESULT_FILE, CLOTH_FILE) if not (self.staging_dir / f).is_file()]
+        needed = (RESULT_FILE, CLOTH_FILE) if require_cloth else (RESULT_FILE,)
+        missing = [f for f in needed if not (self.staging_dir / f).is_file()]
         if missing:
             raise OutputError(
                 f"episode {str(self.out_dir)!r} cannot be committed: {missing} not written "

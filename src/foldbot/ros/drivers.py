@@ -27,6 +27,8 @@ from foldbot.errors import FoldbotError
 from foldbot.ros import TOPICS, convert
 from foldbot.ros.control_msgs import msg as control_msgs
 
+GONE_GRACE_S = 0.5
+"""How long a driver found gone is given for the cell's report of why to arrive."""
 SERVER_WAIT_S = 60.0
 """Longest wall time the task node waits for the drivers' action servers."""
 CLOSE_BELOW = 0.5
@@ -247,6 +249,8 @@ class ActionArm:
         self.gripper = actionlib.SimpleActionClient(
             TOPICS["gripper_action"], control_msgs.GripperCommandAction
         )
+        self._served = False
+        """Whether both servers have been found (from then on, one that goes away is an error)."""
         rospy.Subscriber(TOPICS["joint_states"], JointState, self._on_joints, queue_size=10)
 
     def _on_joints(self, msg: JointState) -> None:
@@ -263,11 +267,26 @@ class ActionArm:
                 raise FoldbotError(f"no {TOPICS['joint_states']} naming {self.arm_joints}")
             return self.joints.copy()
 
+    def check_servers(self) -> None:
+        """Raise when a driver found before has gone away (its node died: no goal would ever
+        be answered, nor /joint_states stamped again)."""
+        if not self._served:
+            return
+        for client, name in (
+            (self.trajectory, TOPICS["trajectory_action"]),
+            (self.gripper, TOPICS["gripper_action"]),
+        ):
+            if client.action_client.pub_goal.get_num_connections() == 0:
+                time.sleep(GONE_GRACE_S)  # the cell's own report of why, should one be on its way
+                self.failure()
+                raise FoldbotError(f"the driver went away: nothing serves {name} any more")
+
     def joints_after(self, t: float, timeout_s: float) -> np.ndarray:
         """The arm's joints from the first /joint_states stamped at or after `t` (s)."""
         deadline = time.monotonic() + timeout_s
         while self.joints_stamp < t:
             self.failure()
+            self.check_servers()
             if time.monotonic() > deadline or rospy.is_shutdown():
                 raise FoldbotError(
                     f"no {TOPICS['joint_states']} stamped after t = {t:.3f} s within "
@@ -292,6 +311,7 @@ class ActionArm:
             if time.monotonic() > deadline or rospy.is_shutdown():
                 raise FoldbotError(f"no {TOPICS['joint_states']} within {timeout_s:g} s")
             time.sleep(0.02)
+        self._served = True
 
     def _wait(self, client: actionlib.SimpleActionClient, what: str, timeout_s: float) -> None:
         deadline = time.monotonic() + timeout_s
@@ -299,6 +319,7 @@ class ActionArm:
         # on the wall clock: a cell that stops also stops its clock.
         while client.simple_state != actionlib.SimpleGoalState.DONE:
             self.failure()
+            self.check_servers()
             if time.monotonic() > deadline or rospy.is_shutdown():
                 client.cancel_goal()
                 raise FoldbotError(f"{what}: no result within {timeout_s:.0f} s")

@@ -16,6 +16,12 @@ ARM_INTERFACE_PARAM = "/foldbot/arm_interface"
 """How the task node drives the arm: "topics" (the sim node's own lockstep commands) or "actions"
 (control_msgs' FollowJointTrajectory and GripperCommand, as a real arm's drivers serve them)."""
 ARM_INTERFACES = ("topics", "actions")
+CELL_PARAM = "/foldbot/cell"
+"""What the task node folds on: "sim" (the sim node: its ready report, lockstep or actions, and
+its ground truth to score the fold) or "real" (any cell that serves the arm's and gripper's
+driver actions, /joint_states and an RGB-D camera's topics: no handshake, no ground truth, the
+fold left unscored)."""
+CELLS = ("sim", "real")
 REAL_TIME_FACTOR_PARAM = "/foldbot/real_time_factor"
 """With the actions interface: simulated seconds per wall second the sim node runs at."""
 ERROR_FILE_PARAM = "/foldbot/error_file"

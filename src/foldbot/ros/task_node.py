@@ -36,14 +36,16 @@ from foldbot.flatten import flatten_and_score
 from foldbot.flatten_options import flatten_configs
 from foldbot.garment_loop import run_garment_fold
 from foldbot.io.episode import EpisodeWriter, to_jsonable
-from foldbot.loop import corners_of, fold_and_picture, run_fold
+from foldbot.loop import FoldRecord, corners_of, fold_and_picture, run_fold
 from foldbot.metrics import score_episode
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState
 from foldbot.pipeline import (
+    EpisodeConfig,
     episode_result,
     first_frame_keypoint_errors,
     loop_config,
+    planned_recipe,
     seeded_garment,
     seeded_pose,
 )
@@ -54,6 +56,7 @@ from foldbot.ros import CAMERA_FRAME, TOPICS, WORLD_FRAME, arm_joint_names, conv
 from foldbot.ros.frames import StaticFrames
 from foldbot.ros.node_args import (
     ARM_INTERFACE_PARAM,
+    CELL_PARAM,
     ERROR_FILE_PARAM,
     FOLD_ARGS_PARAM,
     parse_fold_args,
@@ -115,11 +118,20 @@ class RosCell(FoldCell):
         arms: int = 1,
         arm_interface: str = "topics",
         joint_names: tuple[str, ...] = (),
+        cell: str = "sim",
     ) -> None:
         """`arm_interface` "actions" drives the arm through its drivers' actions
         (foldbot.ros.drivers.ActionArm: one arm, whose `joint_names` they are) and reads where
         it left the cell from /joint_states and the camera stream; "topics" through the sim
-        node's commands and reports."""
+        node's commands and reports. `cell` "real" (actions only) neither publishes nor
+        subscribes to anything of the sim node's own (its reports, commands, clock, ground
+        truth): the cell is whatever serves the drivers' actions and the camera."""
+        if cell == "real" and arm_interface != "actions":
+            raise errors.ConfigError(
+                f"a real cell is driven through its drivers' actions, got arm interface "
+                f"{arm_interface!r}"
+            )
+        self.cell = cell
         self.table_height = layout.table_height
         self.video = video
         self.bases_y = tuple(lay.robot_base_xyz[1] for lay in layout.arm_layouts(arms))
@@ -158,23 +170,26 @@ class RosCell(FoldCell):
         self._frame_after = 0.0
         self.truth = _Inbox()
         self.mesh = _Inbox()
-        self.pub_traj = rospy.Publisher(TOPICS["trajectory"], JointTrajectoryMsg, queue_size=5)
-        self.pub_gripper = rospy.Publisher(TOPICS["gripper"], String, queue_size=5)
-        self.pub_wait = rospy.Publisher(TOPICS["wait"], Float64, queue_size=5)
-        self.pub_truth = rospy.Publisher(TOPICS["ground_truth_request"], Empty, queue_size=5)
         self.pub_plan = rospy.Publisher(TOPICS["plan_request"], String, queue_size=5)
-        rospy.Subscriber(TOPICS["clock"], Clock, self._on_clock)
         rospy.Subscriber(TOPICS["tf_static"], TFMessage, self._on_tf)
-        rospy.Subscriber(
-            TOPICS["cell_result"], String, lambda m: self.results.put(json.loads(m.data))
-        )
         rospy.Subscriber(
             TOPICS["plan_response"], String, lambda m: self.plans.put(json.loads(m.data))
         )
-        rospy.Subscriber(TOPICS["ground_truth"], PointCloud2, self.truth.put)
-        rospy.Subscriber(
-            TOPICS["ground_truth_mesh"], String, lambda m: self.mesh.put(json.loads(m.data))
-        )
+        if cell == "sim":  # the sim node's own commands, reports, clock and ground truth
+            self.pub_traj = rospy.Publisher(TOPICS["trajectory"], JointTrajectoryMsg, queue_size=5)
+            self.pub_gripper = rospy.Publisher(TOPICS["gripper"], String, queue_size=5)
+            self.pub_wait = rospy.Publisher(TOPICS["wait"], Float64, queue_size=5)
+            self.pub_truth = rospy.Publisher(TOPICS["ground_truth_request"], Empty, queue_size=5)
+            rospy.Subscriber(TOPICS["clock"], Clock, self._on_clock)
+            rospy.Subscriber(
+                TOPICS["cell_result"], String, lambda m: self.results.put(json.loads(m.data))
+            )
+            rospy.Subscriber(TOPICS["ground_truth"], PointCloud2, self.truth.put)
+            rospy.Subscriber(
+                TOPICS["ground_truth_mesh"], String, lambda m: self.mesh.put(json.loads(m.data))
+            )
+        self._start = 0.0
+        """The cell's time (s) when a real cell's fold began (sim_time counts from it)."""
         rospy.Subscriber(TOPICS["state"], String, self._on_state, queue_size=200)
         rospy.Subscriber(TOPICS["mask"], Image, self._on_mask, queue_size=200, buff_size=2**24)
         rospy.Subscriber(TOPICS["color"], Image, self._on_color, queue_size=200, buff_size=2**26)
@@ -196,6 +211,11 @@ class RosCell(FoldCell):
     # ------------------------------------------------------------------ subscriptions
     def _on_clock(self, msg: Clock) -> None:
         self._clock = max(self._clock, msg.clock.to_sec())
+
+    def _now(self) -> float:
+        """The cell's time now (s): the sim node's /clock, or on a real cell ROS time (the wall
+        clock, or /clock where /use_sim_time is set), as its drivers stamp /joint_states."""
+        return self._clock if self.cell == "sim" else rospy.get_time()
 
     def _on_depth_info(self, msg: CameraInfo) -> None:
         self.depth_info = msg
@@ -274,7 +294,7 @@ class RosCell(FoldCell):
         after the command ended (`ended`, s, or the clock now); the camera frame to observe is
         the first after it, taken when `observe` asks (a real cell's camera streams; nothing
         waits for a frame between motions)."""
-        since = max(self._clock, ended)
+        since = max(self._now(), ended)
         self.rest_qs = [self.driver.joints_after(since, REPLY_TIMEOUT_S)]
         self._frame_after = since
         self.rest_stamp = None
@@ -338,7 +358,9 @@ class RosCell(FoldCell):
     # ------------------------------------------------------------------ FoldCell
     @property
     def sim_time(self) -> float:
-        return self._clock
+        """The cell's clock (s): the simulated one, or on a real cell the time since the fold
+        began."""
+        return self._clock if self.cell == "sim" else rospy.get_time() - self._start
 
     @property
     def arms(self) -> int:
@@ -378,6 +400,18 @@ class RosCell(FoldCell):
         if self.driver is not None:
             self.driver.wait_for_servers()
         return reply
+
+    def wait_for_real_cell(self) -> None:
+        """A real cell (no ready report): wait for the drivers' action servers and the first
+        /joint_states, open the gripper and take the arm's joints from there; the first frame
+        to observe is the first the camera streams after."""
+        self.driver.wait_for_servers()
+        while rospy.get_time() <= 0.0:  # /use_sim_time set: no /clock received yet
+            if rospy.is_shutdown():
+                raise errors.FoldbotError("shut down before the cell's clock started")
+            time.sleep(0.02)
+        self._start = rospy.get_time()
+        self._gripper("open", 0)
 
     def _have_frame(self, key: float) -> bool:
         return (
@@ -566,7 +600,7 @@ class RosCell(FoldCell):
         tracking error on the planner node's kinematic model) per sample."""
         # It ends no sooner than its duration after it was sent (the clock reaching this node
         # may lag the driver's result by a step or two: the arm is all but still then).
-        ended = self._clock + float(traj["times"][-1])
+        ended = self._now() + float(traj["times"][-1])
         times, desired, actual = self.driver.follow(
             traj["joint_names"],
             np.array(traj["times"]),
@@ -667,9 +701,9 @@ class RosCell(FoldCell):
 
     def wait(self, seconds: float) -> None:
         if self.driver is not None:  # a real cell rests by itself: wait on its clock
-            until = self._clock + seconds
+            until = self._now() + seconds
             deadline = time.monotonic() + REPLY_TIMEOUT_S
-            while self._clock < until:
+            while self._now() < until:
                 self.raise_reported_error()
                 if time.monotonic() > deadline or rospy.is_shutdown():
                     raise errors.FoldbotError(f"the cell's clock did not reach {until:.3f} s")
@@ -688,6 +722,113 @@ class RosCell(FoldCell):
         return convert.cloud_array(
             self.truth.take(lambda m: True, "ground truth from the sim node")
         )
+
+
+def real_cell_thickness(cfg: EpisodeConfig) -> float:
+    """The layer height the loop assumes where depth tells nothing, on a real cell: the
+    simulated cloth's of the same size and options (two collision margins, as the sim node
+    publishes it). Where it can, the loop measures a laid layer's rise in depth instead."""
+    if cfg.cloth.thickness is not None:
+        return float(cfg.cloth.thickness)
+    edge = seeded_garment(cfg)[1].edge_length
+    return 2.0 * (cfg.cloth.collision_margin or edge / cfg.cloth.margin_divisor)
+
+
+def perceived_outcome(record: FoldRecord) -> dict:
+    """What the camera says of a fold no ground truth scores: each stage's mask IoU with the
+    outline its plan predicted (verified at the loop's verify_iou), and the cloth's top-view
+    area before and after."""
+    first, last = record.initial_state, record.final_state
+    start = first.coverage_m2 if first is not None and first.detected else None
+    end = last.coverage_m2 if last is not None and last.detected else None
+    return {
+        "verified": bool(record.stages) and all(s["verified"] for s in record.stages),
+        "stage_mask_iou": [float(s["mask_iou_vs_predicted"]) for s in record.stages],
+        "coverage_m2_start": start,
+        "coverage_m2_final": end,
+        "coverage_ratio": None if not start or end is None else end / start,
+    }
+
+
+def real_cell_result(
+    cfg: EpisodeConfig, record: FoldRecord, sim_seconds: float, wall_seconds: float
+) -> dict:
+    """result.json of a fold on a real cell: the contract's keys, the metrics None (nothing
+    measures the cloth's vertices), the perceived outcome beside them."""
+    cam = record.final_obs
+    return {
+        "scored": False,
+        "success": None,
+        "fold_error_mm": None,
+        "normalized_performance": None,
+        "coverage": None,
+        "perceived": perceived_outcome(record),
+        "fold_lines": [list(line) for line in record.fold_lines],
+        "stages": record.stages,
+        "garment": cfg.garment,
+        "recipe": cfg.recipe,
+        "planned_recipe": planned_recipe(cfg),
+        "robot": cfg.robot,
+        "arms": cfg.arms,
+        "loop_options": dict(cfg.loop_options),
+        "seed": None,
+        "perception": cfg.perception,
+        "closed_loop": cfg.closed_loop,
+        "grasp_points_source": "vision",
+        "camera": None
+        if cam is None
+        else {
+            "width": cam.intrinsics.width,
+            "height": cam.intrinsics.height,
+            "K": np.asarray(cam.intrinsics.K).tolist(),
+            "T_world_camera": np.asarray(cam.T_world_camera).tolist(),
+        },
+        "actions": record.actions,
+        "sim_seconds": sim_seconds,
+        "wall_seconds": wall_seconds,
+    }
+
+
+def run_real_task(fold_args: str, log=rospy.loginfo) -> dict:
+    """Fold on a real cell (whatever serves the drivers' actions and the camera) and write the
+    episode folder, unscored: result.json, video.mp4 and the overlays; no cloth.npz."""
+    args, cfg = parse_fold_args(fold_args)
+    if cfg.arms != 1 or cfg.start != "flat" or cfg.perception != "vision":
+        raise errors.ConfigError(
+            "a real cell folds with one arm, from a flat start, with vision perception; got "
+            f"arms {cfg.arms}, start {cfg.start!r}, perception {cfg.perception!r}"
+        )
+    writer = EpisodeWriter(args.out, overwrite=args.overwrite, fps=max(cfg.video_fps, 1.0))
+    wall0 = time.perf_counter()
+    with writer, contextlib.ExitStack() as stack:
+        cell = RosCell(
+            cfg.sim.layout,
+            writer if cfg.video_fps > 0 else None,
+            1,
+            "actions",
+            robot_class(cfg.robot).ARM_JOINT_NAMES,
+            cell="real",
+        )
+        stack.callback(cell.stop_video)
+        cell.wait_for_real_cell()
+
+        def write_image(name: str, image: np.ndarray) -> None:
+            with cell._lock:
+                writer.write_image(name, image)
+
+        fold = run_fold if cfg.garment == "towel" else run_garment_fold
+        loop = loop_config(cfg, real_cell_thickness(cfg))
+        record = fold_and_picture(fold, loop, cell, write_image, log)
+        cell.stop_video()
+        with cell._lock:
+            result = real_cell_result(cfg, record, cell.sim_time, time.perf_counter() - wall0)
+            result["transport"] = "ros"
+            result["arm_interface"] = "actions"
+            result["cell"] = "real"
+            writer.write_result(result)
+            path = writer.commit(require_cloth=False)
+    result["out_dir"] = str(Path(path))
+    return result
 
 
 def run_task(fold_args: str, log=rospy.loginfo, arm_interface: str = "topics") -> dict:
@@ -758,28 +899,54 @@ def run_task(fold_args: str, log=rospy.loginfo, arm_interface: str = "topics") -
             )
             result["transport"] = "ros"
             result["arm_interface"] = arm_interface
+            result["cell"] = "sim"
             writer.write_result(result)
             path = writer.commit()
     result["out_dir"] = str(Path(path))
     return result
 
 
+def outcome_line(result: dict) -> str:
+    """One line on a fold's outcome: its scores, or on a real cell (unscored) what the camera
+    saw."""
+    if result.get("scored", True):
+        return (
+            f"fold {'succeeded' if result['success'] else 'FAILED'}: fold error "
+            f"{result['fold_error_mm']:.1f} mm, normalized performance "
+            f"{result['normalized_performance']:.3f}"
+        )
+    seen = result["perceived"]
+    ious = ", ".join(f"{v:.2f}" for v in seen["stage_mask_iou"])
+    ratio = seen["coverage_ratio"]
+    area = "" if ratio is None else f", the cloth's top view {ratio:.2f} of its start"
+    return (
+        f"fold done on a real cell, not scored (no ground truth); perceived: "
+        f"{'every stage verified' if seen['verified'] else 'NOT every stage verified'} "
+        f"(mask IoU with the predicted outline {ious}){area}"
+    )
+
+
 def main(argv: list[str] | None = None) -> int:
     rospy.init_node("foldbot_task", argv=argv if argv is not None else sys.argv)
     pub = rospy.Publisher(TOPICS["episode"], String, queue_size=1, latch=True)
+    # Every parameter read now: a cell that fails may take the master down with it.
+    error_file = rospy.get_param(ERROR_FILE_PARAM, "")
+    fold_args = rospy.get_param(FOLD_ARGS_PARAM)
     try:
-        result = run_task(
-            rospy.get_param(FOLD_ARGS_PARAM),
-            arm_interface=rospy.get_param(ARM_INTERFACE_PARAM, "topics"),
-        )
+        if rospy.get_param(CELL_PARAM, "sim") == "real":
+            result = run_real_task(fold_args)
+        else:
+            result = run_task(
+                fold_args, arm_interface=rospy.get_param(ARM_INTERFACE_PARAM, "topics")
+            )
     except errors.FoldbotError as exc:
         failure = {"ok": False, "error": str(exc), "error_type": type(exc).__name__}
         if getattr(exc, "__notes__", None):  # where the video up to the error was left
             failure["notes"] = list(exc.__notes__)
         if exc.facts:  # what the episode measured before it (e.g. how far flattening got)
             failure["facts"] = to_jsonable(exc.facts)
-        pub.publish(String(data=json.dumps(failure)))
-        error_file = rospy.get_param(ERROR_FILE_PARAM, "")
+        with contextlib.suppress(rospy.ROSException):  # no master left to publish through
+            pub.publish(String(data=json.dumps(failure)))
         if error_file:
             Path(error_file).write_text(json.dumps(failure))
         rospy.logerr("fold failed: %s", exc)
@@ -805,10 +972,6 @@ def main(argv: list[str] | None = None) -> int:
             )
         )
     )
-    print(
-        f"fold {'succeeded' if result['success'] else 'FAILED'}: fold error {result['fold_error_mm']:.1f} mm, "
-        f"normalized performance {result['normalized_performance']:.3f}; episode written to {result['out_dir']}",
-        flush=True,
-    )
+    print(f"{outcome_line(result)}; episode written to {result['out_dir']}", flush=True)
     rospy.signal_shutdown("fold done")
     return 0

@@ -1,0 +1,103 @@
+"""`foldbot ros-cell`: the simulated cell alone on a ROS 1 master, presenting itself as a real
+one does — a UR5's and a gripper's driver actions (control_msgs FollowJointTrajectory on
+scaled_pos_joint_traj_controller/follow_joint_trajectory, GripperCommand on
+gripper_controller/gripper_cmd), /joint_states, an RGB-D camera's images and camera_info, the
+world → camera transform on /tf_static — running on at real-time pace until interrupted (Ctrl-C).
+
+`foldbot ros-fold --cell real` then folds on it exactly as on a real cell: through those topics
+and actions only. The cloth is the one `foldbot fold` would lay for the same options (size,
+seed, pose, cloth options). Needs ROS 1 from Debian (scripts/install_ros.sh)."""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import subprocess
+import tempfile
+
+from foldbot.commands import fold
+from foldbot.commands.ros_fold import (
+    DEFAULT_PORT,
+    add_master_port,
+    add_real_time_factor,
+    check_port,
+    check_real_time_factor,
+    fold_args_text,
+    ros_env,
+    ros_missing,
+)
+from foldbot.errors import ConfigError, FoldbotError
+
+STOP_WAIT_S = 30.0
+"""How long an interrupted cell's roslaunch is given to stop its nodes and roscore."""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """`foldbot fold`'s options that lay the cloth (no --out), the camera's rate, the master's
+    port and the pace."""
+    fold.add_arguments(parser, output=False)
+    parser.add_argument(
+        "--camera-rate",
+        type=float,
+        default=10.0,
+        help="camera frames per simulated second (default 10)",
+    )
+    add_master_port(parser, "roscore is started if none runs there")
+    add_real_time_factor(parser, "")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Validate, then roslaunch the cell and keep it up until interrupted."""
+    cfg = fold.config_from_args(args)
+    if cfg.arms != 1:
+        raise ConfigError(
+            f"--arms {cfg.arms}: the cell serves one arm's driver actions (a two-arm cell's "
+            "pairs move on one clock; use `foldbot ros-fold --arms 2`)"
+        )
+    if cfg.start != "flat":
+        raise ConfigError(
+            f"--start {cfg.start}: the cell lays a flat cloth (`foldbot ros-fold --cell real` "
+            "folds from a flat start)"
+        )
+    check_real_time_factor(args.real_time_factor)
+    check_port(args.port)
+    if not args.camera_rate > 0:
+        raise ConfigError(f"--camera-rate must be > 0 frames per s, got {args.camera_rate!r}")
+    missing = ros_missing()
+    if missing:
+        raise FoldbotError(missing)
+    port = DEFAULT_PORT if args.port is None else args.port
+    with tempfile.TemporaryDirectory(prefix="foldbot-cell-") as unused:
+        args.out = unused  # the sim node parses `foldbot fold`'s options; it writes nothing
+        cmd = [
+            "roslaunch",
+            "-p",
+            str(port),
+            "foldbot_ros",
+            "cell.launch",
+            f"fold_args:={fold_args_text(args)}",
+            f"camera_rate:={args.camera_rate!r}",
+            f"real_time_factor:={args.real_time_factor or 1.0!r}",
+        ]
+        print(
+            f"the simulated cell comes up on the ROS master at http://localhost:{port}; fold "
+            f"on it with `foldbot ros-fold --cell real --port {port} --out DIR` and the same "
+            "cloth options; Ctrl-C stops it",
+            flush=True,
+        )
+        # Its own session: an interrupt is passed on once and waited out, so roslaunch takes
+        # its nodes and roscore down with it rather than being killed and leaving them.
+        proc = subprocess.Popen(cmd, env=ros_env(port), start_new_session=True)
+        try:
+            code = proc.wait()
+        except KeyboardInterrupt:
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(timeout=STOP_WAIT_S)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+            print("the simulated cell stopped", flush=True)
+            return 0
+    if code != 0:
+        raise FoldbotError(f"the cell stopped (roslaunch exit code {code})")
+    return 0
