@@ -8,7 +8,13 @@ import numpy as np
 import pytest
 
 from foldbot.control.executor import ArmExecutor, PlannedSegment
-from foldbot.control.trajectory import OVERSHOOT, JointTrajectory, time_parametrize
+from foldbot.control.trajectory import (
+    OVERSHOOT,
+    JointTrajectory,
+    hermite_resample,
+    thin_samples,
+    time_parametrize,
+)
 from foldbot.errors import ConfigError
 from foldbot.planning.motion import MotionConfig, Segment, carry_arc, line_path
 from foldbot.sim.robots import make_robot
@@ -302,3 +308,54 @@ def test_executor_rejects_a_non_positive_speed(executor: ArmExecutor) -> None:
     start = executor.robot.tcp_pose()[0]
     with pytest.raises(ConfigError, match=r"segment speed must be > 0 m/s, got 0\.0"):
         executor.run(Segment("move", line_path(start, start + [0.02, 0, 0]), 0.0))
+
+
+def _two_motions_with_a_rest() -> JointTrajectory:
+    """Two rest-to-rest motions with 0.3 s at rest between them, one sample clock (as the task
+    node chains a gripper event's steps into one driver goal)."""
+    rng = np.random.default_rng(5)
+    first = time_parametrize(np.cumsum(rng.normal(0, 0.2, (8, 6)), axis=0), UR5_VEL, UR5_ACC,
+                             UR5_JERK, DT).held(0.3, DT)  # fmt: skip
+    path = np.vstack([first.positions[-1], first.positions[-1] + rng.normal(0, 0.3, (5, 6))])
+    second = time_parametrize(path, UR5_VEL, UR5_ACC, UR5_JERK, DT)
+    t0 = first.times[-1]
+    return JointTrajectory(
+        np.concatenate([first.times, t0 + second.times[1:]]),
+        np.vstack([first.positions, second.positions[1:]]),
+        np.vstack([first.velocities, second.velocities[1:]]),
+        np.vstack([first.accelerations, second.accelerations[1:]]),
+        np.concatenate([first.arc, first.arc[-1] + second.arc[1:]]),
+    )
+
+
+def test_a_driver_goal_thinned_to_50_hz_is_splined_back_to_the_plan() -> None:
+    """A trajectory goes to a real arm's driver at 50 Hz, not at the 360 Hz physics step: its
+    points carry positions and velocities, which the driver splines (cubic Hermite, as
+    ros_control's controller does). Splined back onto the physics steps it is the plan."""
+    traj = _two_motions_with_a_rest()
+    keep = thin_samples(traj.times, 0.02, traj.velocities)
+    assert keep[0] == 0 and keep[-1] == len(traj.times) - 1
+    gaps = np.diff(traj.times[keep])
+    assert len(keep) < len(traj.times) / 5  # 1 in 8 at the 1/360 s step: about 45 Hz
+    assert (gaps < 0.02 - 1e-9).sum() <= 4  # only beside the rest's two ends, always kept
+    assert gaps.max() <= 1.5 * 0.02 + DT
+    q, v = hermite_resample(
+        traj.times[keep], traj.positions[keep], traj.velocities[keep], traj.times
+    )
+    assert np.abs(q - traj.positions).max() < 1e-5  # rad
+    assert np.abs(v - traj.velocities).max() < 1e-3  # rad/s
+    # The rest between the motions is kept exact: both its ends are points of the goal.
+    rest = np.all(traj.velocities == 0.0, axis=1)
+    held = np.flatnonzero(rest[1:-1]) + 1
+    assert np.array_equal(q[held], traj.positions[held]) and not v[held].any()
+
+
+def test_thinning_keeps_the_ends_and_names_bad_input() -> None:
+    times = np.arange(11) * 0.01
+    assert thin_samples(times, 0.03).tolist() == [0, 3, 6, 10]  # 9 would leave 0.01 s to 10
+    assert thin_samples(times, 0.0).tolist() == list(range(11))
+    assert thin_samples(times[:1], 0.02).tolist() == [0]
+    with pytest.raises(ConfigError, match="strictly increasing"):
+        thin_samples(np.array([0.0, 0.1, 0.1]), 0.02)
+    with pytest.raises(ConfigError, match="period must be ≥ 0 s, got -1"):
+        thin_samples(times, -1)

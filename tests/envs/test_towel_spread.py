@@ -70,6 +70,12 @@ def test_the_suite_must_have_two_arms_and_the_policies_their_env():
     with pytest.raises(ConfigError, match=r"has 1 arm; TowelSpread's spread is two arms'"):
         TowelSpreadEnv(suite="towel_crumpled")
     assert TowelSpreadConfig().suite == "towel_crumpled_two_arms"
+    spread = TowelSpreadEnv(resolution=5)
+    try:  # its errors name it, not the one-arm environment it extends
+        with pytest.raises(ConfigError, match=r"^TowelSpreadEnv\.reset takes no options"):
+            spread.reset(seed=0, options={"x": 1})
+    finally:
+        spread.close()
     with pytest.raises(ConfigError, match="allowed: suite, resolution"):
         TowelSpreadEnv(colour="red")
     from foldbot.envs import TowelFlattenEnv

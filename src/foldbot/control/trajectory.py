@@ -444,3 +444,42 @@ def time_parametrize(
     q[0], q[-1] = path[0], path[-1]
     qd[0] = qd[-1] = qdd[0] = qdd[-1] = 0.0
     return JointTrajectory(times, q, qd, qdd, s)
+
+
+def thin_samples(
+    times: np.ndarray, period: float, velocities: np.ndarray | None = None
+) -> np.ndarray:
+    """Indices of the samples at `times` (s, increasing) to keep so that they lie at least
+    `period` s apart, the first and the last always among them: a trajectory for a driver that
+    splines between its points (ros_control's controllers), which need not take every control
+    step's sample. With `velocities` (N × dof), where the arm comes to rest or sets off (a
+    sample at rest beside one moving) is kept too, so a rest between motions stays exact."""
+    t = np.asarray(times, dtype=float)
+    require(
+        t.ndim == 1 and len(t) >= 1 and bool(np.all(np.diff(t) > 0)),
+        "sample times must be a non-empty, strictly increasing 1-D array",
+    )
+    require(math.isfinite(period) and period >= 0.0, f"period must be ≥ 0 s, got {period!r}")
+    must = {0, len(t) - 1}
+    if velocities is not None:
+        rest = np.all(np.asarray(velocities, dtype=float) == 0.0, axis=1)
+        edge = rest & (np.r_[False, ~rest[:-1]] | np.r_[~rest[1:], False])
+        must |= {int(i) for i in np.flatnonzero(edge)}
+    keep = [0]
+    for i in range(1, len(t)):
+        if i in must or (t[i] - t[keep[-1]] >= period - 1e-9 and t[-1] - t[i] >= period / 2):
+            keep.append(i)
+    return np.array(keep, dtype=int)
+
+
+def hermite_resample(
+    times: np.ndarray, positions: np.ndarray, velocities: np.ndarray, grid: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Positions and velocities at `grid` (s) on the cubic Hermite spline through the samples
+    (each span's cubic matches both ends' positions and velocities), as ros_control's joint
+    trajectory controller interpolates points that carry positions and velocities."""
+    from scipy.interpolate import CubicHermiteSpline
+
+    spline = CubicHermiteSpline(np.asarray(times, float), positions, velocities, axis=0)
+    g = np.clip(np.asarray(grid, float), times[0], times[-1])
+    return spline(g), spline.derivative()(g)

@@ -254,7 +254,7 @@ class TowelFlattenEnv(gym.Env):
         """A new crumpled towel: the suite's episode for `seed`, or for a seed drawn from the
         environment's generator when none is given."""
         if options:
-            raise ConfigError(f"TowelFlatten.reset takes no options, got {options!r}")
+            raise ConfigError(f"{type(self).__name__}.reset takes no options, got {options!r}")
         require(
             seed is None or (isinstance(seed, int | np.integer) and 0 <= int(seed) <= MAX_SEED),
             f"seed must be an integer in [0, {MAX_SEED}], got {seed!r}",

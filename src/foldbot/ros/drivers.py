@@ -23,10 +23,14 @@ from actionlib_msgs.msg import GoalStatus
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectoryPoint
 
+from foldbot.control.trajectory import thin_samples
 from foldbot.errors import FoldbotError
 from foldbot.ros import TOPICS, convert
 from foldbot.ros.control_msgs import msg as control_msgs
 
+DRIVER_PERIOD_S = 0.02
+"""Spacing of a trajectory goal's points (50 Hz): the planner's samples at the physics step,
+thinned; the driver splines between them (points carry positions and velocities)."""
 GONE_GRACE_S = 0.5
 """How long a driver found gone is given for the cell's report of why to arrive."""
 SERVER_WAIT_S = 60.0
@@ -175,9 +179,12 @@ class SimDrivers:
                     f"t = {t:.3f} s (path tolerance {path_tol[j]:g} rad)"
                 )
 
+        # ros_control's controller splines points that carry velocities (cubic), else lerps.
+        splined = all(len(pt.velocities) == len(names) for pt in goal.trajectory.points)
+        splined = splined and bool(np.all(np.diff(times) > 0))
         try:
             node.execute_trajectory(
-                SimpleNamespace(joint_names=arm_names), on_check, (times, pos, vel)
+                SimpleNamespace(joint_names=arm_names), on_check, (times, pos, vel), splined
             )
         except _PathToleranceViolated as exc:
             robot.command_joint_positions(robot.joint_positions())  # stop where it is
@@ -333,8 +340,11 @@ class ActionArm:
         """Follow a trajectory (starting now); returns the feedback's times from the start and
         its commanded and measured joints. A goal the driver aborts or rejects raises, with its
         error code and text."""
+        keep = thin_samples(times, DRIVER_PERIOD_S, velocities)  # the driver splines them
         goal = control_msgs.FollowJointTrajectoryGoal(
-            trajectory=convert.trajectory_msg(joint_names, times, positions, velocities, 0.0, "")
+            trajectory=convert.trajectory_msg(
+                joint_names, times[keep], positions[keep], velocities[keep], 0.0, ""
+            )
         )
         stamps: list[float] = []
         desired: list[list[float]] = []

@@ -29,6 +29,7 @@ from std_msgs.msg import Empty, Float64, String
 from tf2_msgs.msg import TFMessage
 from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
 
+from foldbot.control.trajectory import hermite_resample
 from foldbot.errors import FoldbotError
 from foldbot.pipeline import build_sim_cell, crumple_start
 from foldbot.ros import (
@@ -255,11 +256,12 @@ class SimNode:
 
     # ------------------------------------------------------------------ commands
     def execute_trajectory(
-        self, msg: JointTrajectoryMsg, on_check=None, times_pos_vel=None
+        self, msg: JointTrajectoryMsg, on_check=None, times_pos_vel=None, splined: bool = False
     ) -> dict:
         """Play a trajectory at the physics step; `on_check(k, t, q_cmd, q)` (the actions
         interface's feedback and path tolerances) is called at the tracking checks and may raise
-        to stop the arm where it is."""
+        to stop the arm where it is. Points not at the physics step are interpolated onto it:
+        `splined` (the driver, points with velocities) on cubic Hermite spans, else linearly."""
         arms = trajectory_arms(list(msg.joint_names), self.arm_joints)
         times, pos, vel = times_pos_vel or convert.trajectory_arrays(msg)
         dt = self.world.time_step
@@ -267,7 +269,9 @@ class SimNode:
         if len(times) == n + 1 and np.allclose(times, np.arange(n + 1) * dt, atol=1e-6):
             # Sampled at the physics step (as the planner sends them): play the samples as they are.
             q_cmd, v_cmd = pos[1:], vel[1:]
-        else:  # any other sampling: interpolate onto the physics steps
+        elif splined:  # points with velocities: splined as ros_control's controller does
+            q_cmd, v_cmd = hermite_resample(times, pos, vel, np.arange(1, n + 1) * dt)
+        else:  # any other sampling: interpolated onto the physics steps
             grid = np.arange(1, n + 1) * dt
             cols = range(pos.shape[1])
             q_cmd = np.column_stack([np.interp(grid, times, pos[:, j]) for j in cols])
