@@ -281,3 +281,13 @@ def test_ros_cell_lays_the_cloth_ros_fold_would(tmp_path):
         parse_fold_args(fold_args_text(cell_args))[1]
         == parse_fold_args(fold_args_text(fold_args))[1]
     )
+
+
+def test_the_gripper_lead_is_seconds_or_off(capsys):
+    from foldbot.commands.ros_fold import gripper_lead
+
+    assert gripper_lead("0.05") == 0.05 and gripper_lead("0") == 0.0
+    assert gripper_lead("off") is None and gripper_lead(" OFF ") is None
+    with pytest.raises(SystemExit):
+        main(["ros-fold", "--out", "unused", "--gripper-lead", "2"])
+    assert "--gripper-lead: must be seconds in [0, 1] or off, got '2'" in capsys.readouterr().err

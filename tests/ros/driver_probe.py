@@ -21,9 +21,15 @@ rospy.init_node("driver_probe")
 for topic, cls in (("color", Image), ("depth", Image), ("color_info", CameraInfo)):
     rospy.Subscriber(TOPICS[topic], cls, lambda m: None)  # the sim node waits for a camera reader
 joints: dict[str, float] = {}
-rospy.Subscriber(
-    "/joint_states", JointState, lambda m: joints.update(zip(m.name, m.position, strict=True))
-)
+history: list[tuple[float, dict[str, float]]] = []
+
+
+def on_joints(m: JointState) -> None:
+    joints.update(zip(m.name, m.position, strict=True))
+    history.append((m.header.stamp.to_sec(), dict(joints)))
+
+
+rospy.Subscriber("/joint_states", JointState, on_joints)
 clock = [0.0]
 rospy.Subscriber("/clock", Clock, lambda m: clock.__setitem__(0, m.clock.to_sec()))
 arm = SimpleActionClient(TOPICS["trajectory_action"], msg.FollowJointTrajectoryAction)
@@ -74,5 +80,26 @@ for name, position in (("close", 0.0), ("open", 0.085), ("bad", -1.0)):
     gripper.wait_for_result()
     r = gripper.get_result()
     out[name] = [gripper.get_state(), r.stalled, r.reached_goal, gripper.get_goal_status_text()]
+# A gripper goal sent while the arm moves waits for the motion's end (one goal at a time).
+fingers = list(robot_class("ur5").FINGER_JOINT_NAMES)
+q1 = np.array([joints[n] for n in names])
+away = q1 + np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.2])
+arm.send_goal(msg.FollowJointTrajectoryGoal(trajectory=JointTrajectory(
+    joint_names=names, points=[point(q1, 0.0), point(away, 1.0)])))  # fmt: skip
+time.sleep(0.2)
+sent = clock[0]
+close = msg.GripperCommandGoal()
+close.command.position = 0.0
+gripper.send_goal(close)
+arm.wait_for_result()
+gripper.wait_for_result()
+time.sleep(0.3)
+after = [(t, h) for t, h in history if t >= sent]
+f0 = np.array([after[0][1][n] for n in fingers])
+arrived = next(
+    t for t, h in after if np.abs([h[n] - a for n, a in zip(names, away, strict=True)]).max() < 1e-3
+)
+jaws = next(t for t, h in after if np.abs(np.array([h[n] for n in fingers]) - f0).max() > 1e-3)
+out["ahead"] = [sent, arrived, jaws, gripper.get_state()]
 out["succeeded"] = GoalStatus.SUCCEEDED
 print("PROBE " + json.dumps(out), flush=True)

@@ -90,3 +90,8 @@ def test_the_sim_node_answers_as_a_real_arms_drivers(tmp_path):
     assert out["close"][:3] == [ok, False, True]
     assert out["open"][:3] == [ok, False, True]
     assert out["bad"][0] != ok and "must be a gap" in out["bad"][3]
+    # A close sent while the arm moves (as the task node sends it, --gripper-lead) starts as
+    # the motion ends, not before and not a round trip later (/joint_states every 0.02 s).
+    sent, arrived, jaws, state = out["ahead"]
+    assert state == ok and sent < arrived - 0.1
+    assert arrived - 0.03 <= jaws <= arrived + 0.05, (arrived, jaws)

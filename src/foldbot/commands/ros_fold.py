@@ -23,7 +23,7 @@ from pathlib import Path
 from foldbot import errors
 from foldbot.commands import fold
 from foldbot.errors import ConfigError, FoldbotError, OutputError
-from foldbot.ros.node_args import ARM_INTERFACES, CELLS
+from foldbot.ros.node_args import ARM_INTERFACES, CELLS, GRIPPER_LEAD_S
 
 DEFAULT_PORT = 11311
 MASTER_WAIT_S = 15.0
@@ -94,6 +94,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "pace (one arm)",
     )
     add_real_time_factor(parser, "with --cell sim --arm-interface actions: ")
+    parser.add_argument(
+        "--gripper-lead",
+        type=gripper_lead,
+        default=GRIPPER_LEAD_S,
+        metavar="S|off",
+        help="with --arm-interface actions: seconds before a motion's end the gripper goal that "
+        f"follows it is sent, so the jaws act as the arm arrives (default {GRIPPER_LEAD_S}); "
+        "off: after the motion's result, a round trip later",
+    )
+
+
+def gripper_lead(text: str) -> float | None:
+    """`--gripper-lead`'s value: seconds ≥ 0, or off (None)."""
+    if text.strip().lower() == "off":
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (math.isfinite(value) and 0.0 <= value <= 1.0):
+        raise argparse.ArgumentTypeError(f"must be seconds in [0, 1] or off, got {text!r}")
+    return value
 
 
 def add_master_port(parser: argparse.ArgumentParser, started: str) -> None:
@@ -281,6 +303,7 @@ def run(args: argparse.Namespace) -> int:
         f"cell:={args.cell}",
         f"arm_interface:={interface}",
         f"real_time_factor:={args.real_time_factor or 1.0!r}",
+        f"gripper_lead:={-1.0 if args.gripper_lead is None else args.gripper_lead!r}",
     ]
     result_file = out / "result.json"
     before = result_file.stat().st_mtime_ns if result_file.is_file() else None

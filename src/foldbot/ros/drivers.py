@@ -239,6 +239,13 @@ class SimDrivers:
         handover.succeeded = True
 
 
+def _gripper_goal(close: bool):
+    """A GripperCommand goal: a zero gap closes, OPEN_GAP_M opens."""
+    goal = control_msgs.GripperCommandGoal()
+    goal.command.position = 0.0 if close else OPEN_GAP_M
+    return goal
+
+
 class ActionArm:
     """The task node's arm and gripper through their drivers' actions (one arm)."""
 
@@ -320,13 +327,18 @@ class ActionArm:
             time.sleep(0.02)
         self._served = True
 
-    def _wait(self, client: actionlib.SimpleActionClient, what: str, timeout_s: float) -> None:
+    def _wait(
+        self, client: actionlib.SimpleActionClient, what: str, timeout_s: float,
+        meanwhile: Callable[[], None] | None = None,
+    ) -> None:  # fmt: skip
         deadline = time.monotonic() + timeout_s
         # Done once the result has come (the goal's status may say SUCCEEDED before it), timed
         # on the wall clock: a cell that stops also stops its clock.
         while client.simple_state != actionlib.SimpleGoalState.DONE:
             self.failure()
             self.check_servers()
+            if meanwhile is not None:
+                meanwhile()
             if time.monotonic() > deadline or rospy.is_shutdown():
                 client.cancel_goal()
                 raise FoldbotError(f"{what}: no result within {timeout_s:.0f} s")
@@ -336,10 +348,14 @@ class ActionArm:
     def follow(
         self, joint_names: list[str], times: np.ndarray, positions: np.ndarray,
         velocities: np.ndarray, what: str, timeout_s: float,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
-        """Follow a trajectory (starting now); returns the feedback's times from the start and
-        its commanded and measured joints. A goal the driver aborts or rejects raises, with its
-        error code and text."""
+        then_grip: bool | None = None, lead_s: float = 0.0,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[bool, str] | None]:  # fmt: skip
+        """Follow a trajectory (starting now); returns the feedback's times from the start, its
+        commanded and measured joints, and with `then_grip` (True: close, False: open) the
+        gripper's outcome as `grip` gives it. That gripper goal is sent `lead_s` before the
+        trajectory's end by its feedback (or at its result), so the jaws act as the arm arrives
+        rather than a round trip later. A goal the driver aborts or rejects raises, with its
+        error code and text (a gripper goal already sent is cancelled)."""
         keep = thin_samples(times, DRIVER_PERIOD_S, velocities)  # the driver splines them
         goal = control_msgs.FollowJointTrajectoryGoal(
             trajectory=convert.trajectory_msg(
@@ -355,11 +371,29 @@ class ActionArm:
             desired.append(list(fb.desired.positions))
             actual.append(list(fb.actual.positions))
 
+        gripping = [then_grip is None]  # whether the gripper goal has gone
+
+        def grip_when_due() -> None:
+            due = float(times[-1]) - lead_s
+            if not gripping[0] and (
+                (stamps and stamps[-1] >= due)
+                or self.trajectory.simple_state == actionlib.SimpleGoalState.DONE
+            ):
+                self.gripper.send_goal(_gripper_goal(bool(then_grip)))
+                gripping[0] = True
+
         self.trajectory.send_goal(goal, feedback_cb=on_feedback)
-        self._wait(self.trajectory, what, timeout_s)
+        try:
+            self._wait(self.trajectory, what, timeout_s, grip_when_due)
+        except FoldbotError:
+            if then_grip is not None and gripping[0]:
+                self.gripper.cancel_goal()
+            raise
         result = self.trajectory.get_result()
         state = self.trajectory.get_state()
         if state != GoalStatus.SUCCEEDED or result is None or result.error_code != 0:
+            if then_grip is not None and gripping[0]:
+                self.gripper.cancel_goal()
             code = None if result is None else result.error_code
             text = (result.error_string if result is not None else "") or (
                 self.trajectory.get_goal_status_text()
@@ -368,14 +402,19 @@ class ActionArm:
                 f"{what}: the trajectory driver ended the goal "
                 f"({_STATUS_NAMES.get(state, state)}, error_code {code}): {text}"
             )
-        return np.array(stamps), np.array(desired), np.array(actual)
+        gripped = None
+        if then_grip is not None:
+            grip_when_due()  # sent already, unless no feedback came near the end
+            gripped = self._grip_result(f"{what}: gripper", timeout_s)
+        return np.array(stamps), np.array(desired), np.array(actual), gripped
 
     def grip(self, close: bool, what: str, timeout_s: float) -> tuple[bool, str]:
         """Close (to a zero gap) or open (OPEN_GAP_M) the gripper; returns (whether the jaws
         stalled on something, the driver's text)."""
-        goal = control_msgs.GripperCommandGoal()
-        goal.command.position = 0.0 if close else OPEN_GAP_M
-        self.gripper.send_goal(goal)
+        self.gripper.send_goal(_gripper_goal(close))
+        return self._grip_result(what, timeout_s)
+
+    def _grip_result(self, what: str, timeout_s: float) -> tuple[bool, str]:
         self._wait(self.gripper, what, timeout_s)
         result = self.gripper.get_result()
         if self.gripper.get_state() != GoalStatus.SUCCEEDED or result is None:

@@ -22,6 +22,12 @@ its ground truth to score the fold) or "real" (any cell that serves the arm's an
 driver actions, /joint_states and an RGB-D camera's topics: no handshake, no ground truth, the
 fold left unscored)."""
 CELLS = ("sim", "real")
+GRIPPER_LEAD_PARAM = "/foldbot/gripper_lead"
+"""With the actions interface: how long (s) before a motion's end the task node sends the
+gripper goal that follows it; negative: only after the motion's result (a round trip later)."""
+GRIPPER_LEAD_S = 0.05
+"""The default lead: about the round trip a driver pair adds between a motion and its gripper
+event (README, "A real arm's drivers")."""
 REAL_TIME_FACTOR_PARAM = "/foldbot/real_time_factor"
 """With the actions interface: simulated seconds per wall second the sim node runs at."""
 ERROR_FILE_PARAM = "/foldbot/error_file"

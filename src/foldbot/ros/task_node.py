@@ -59,6 +59,8 @@ from foldbot.ros.node_args import (
     CELL_PARAM,
     ERROR_FILE_PARAM,
     FOLD_ARGS_PARAM,
+    GRIPPER_LEAD_PARAM,
+    GRIPPER_LEAD_S,
     parse_fold_args,
 )
 from foldbot.ros.publish import publish_when_heard
@@ -119,6 +121,7 @@ class RosCell(FoldCell):
         arm_interface: str = "topics",
         joint_names: tuple[str, ...] = (),
         cell: str = "sim",
+        gripper_lead: float | None = None,
     ) -> None:
         """`arm_interface` "actions" drives the arm through its drivers' actions
         (foldbot.ros.drivers.ActionArm: one arm, whose `joint_names` they are) and reads where
@@ -165,6 +168,11 @@ class RosCell(FoldCell):
         event as one goal)."""
         self._ran: dict[int, float] = {}
         """Steps (by id) already moved through in a chain: their tracking error (m)."""
+        self._gripped: dict[int, tuple[bool, str]] = {}
+        """Steps (by id) whose gripper event went with their chain: (held, the driver's text)."""
+        self.gripper_lead = gripper_lead
+        """With the actions interface: how long (s) before a chain's end its gripper goal is
+        sent (None: after the motion's result, a round trip later)."""
         self.rest_stamp: float | None = 0.0
         """The stamp of the frame the cell rests in (None: the next frame after _frame_after)."""
         self._frame_after = 0.0
@@ -538,7 +546,7 @@ class RosCell(FoldCell):
                 "steps"
             ]
         )
-        self._planned, self._ran = steps, {}  # the actions interface runs them in chains
+        self._planned, self._ran, self._gripped = steps, {}, {}  # run in chains (actions)
         return steps
 
     def plan_together(
@@ -582,7 +590,7 @@ class RosCell(FoldCell):
 
     def _follow(self, traj: dict) -> dict:
         if self.driver is not None:
-            _times, errs = self._follow_through_driver(traj)
+            _times, errs, _ = self._follow_through_driver(traj)
             err = float(errs.max(initial=0.0))
             return {"max_tracking_error": err, "arms": [0], "tracking_errors": [err]}
         msg = convert.trajectory_msg(
@@ -595,19 +603,26 @@ class RosCell(FoldCell):
         )
         return self._command(self.pub_traj, msg, f"trajectory '{traj['name']}'")
 
-    def _follow_through_driver(self, traj: dict) -> tuple[np.ndarray, np.ndarray]:
+    def _follow_through_driver(
+        self, traj: dict, then_grip: bool | None = None
+    ) -> tuple[np.ndarray, np.ndarray, tuple[bool, str] | None]:
         """One FollowJointTrajectory goal; the driver's feedback as (time from the start, TCP
-        tracking error on the planner node's kinematic model) per sample."""
+        tracking error on the planner node's kinematic model) per sample, and with `then_grip`
+        (True: close, False: open) the gripper's outcome, its goal sent `gripper_lead` s before
+        the motion's end (None: after the motion's result)."""
         # It ends no sooner than its duration after it was sent (the clock reaching this node
         # may lag the driver's result by a step or two: the arm is all but still then).
         ended = self._now() + float(traj["times"][-1])
-        times, desired, actual = self.driver.follow(
+        ahead = then_grip is not None and self.gripper_lead is not None
+        times, desired, actual, gripped = self.driver.follow(
             traj["joint_names"],
             np.array(traj["times"]),
             np.array(traj["positions"]),
             np.array(traj["velocities"]),
             f"trajectory '{traj['name']}'",
             REPLY_TIMEOUT_S,
+            then_grip if ahead else None,
+            self.gripper_lead or 0.0,
         )
         errs = np.zeros(0)
         if len(desired):
@@ -617,7 +632,7 @@ class RosCell(FoldCell):
                 ]
             )
         self._settle(ended)
-        return times, errs
+        return times, errs, gripped
 
     def _time_step(self, step: dict, start: np.ndarray) -> dict:
         """A planned step's trajectory from joints `start` (the planner node's ruckig)."""
@@ -655,15 +670,19 @@ class RosCell(FoldCell):
             pos += traj["positions"][1:]
             vel += traj["velocities"][1:]
             ends.append(times[-1])
-        fb_times, errs = self._follow_through_driver(
+        event = chain[-1]["gripper"]
+        fb_times, errs, gripped = self._follow_through_driver(
             {
                 "name": " + ".join(t["name"] for t in trajs),
                 "joint_names": trajs[0]["joint_names"],
                 "times": times,
                 "positions": pos,
                 "velocities": vel,
-            }
+            },
+            None if event is None else event == "close",
         )
+        if gripped is not None:  # the chain's gripper event, done as the arm arrived
+            self._gripped[id(chain[-1])] = gripped
         start = 0.0
         for s, end in zip(chain, ends, strict=True):
             mine = errs[(fb_times > start - 1e-9) & (fb_times <= end + 1e-9)]
@@ -681,7 +700,11 @@ class RosCell(FoldCell):
             reply = self._follow(self._time_step(step, self.joint_positions()))
             err = float(reply["max_tracking_error"])
         grasp = None
-        if step["gripper"] == "close":
+        if id(step) in self._gripped:  # sent ahead of the motion's end (the actions interface)
+            held, text = self._gripped.pop(id(step))
+            if step["gripper"] == "close":
+                grasp = GraspResult(held, (), text)
+        elif step["gripper"] == "close":
             g = self._gripper("close", self.active)["grasp"]
             grasp = GraspResult(bool(g["success"]), tuple(g["vertex_ids"]), g["reason"])
         elif step["gripper"] == "open":
@@ -789,7 +812,9 @@ def real_cell_result(
     }
 
 
-def run_real_task(fold_args: str, log=rospy.loginfo) -> dict:
+def run_real_task(
+    fold_args: str, log=rospy.loginfo, gripper_lead: float | None = GRIPPER_LEAD_S
+) -> dict:
     """Fold on a real cell (whatever serves the drivers' actions and the camera) and write the
     episode folder, unscored: result.json, video.mp4 and the overlays; no cloth.npz."""
     args, cfg = parse_fold_args(fold_args)
@@ -808,6 +833,7 @@ def run_real_task(fold_args: str, log=rospy.loginfo) -> dict:
             "actions",
             robot_class(cfg.robot).ARM_JOINT_NAMES,
             cell="real",
+            gripper_lead=gripper_lead,
         )
         stack.callback(cell.stop_video)
         cell.wait_for_real_cell()
@@ -824,6 +850,7 @@ def run_real_task(fold_args: str, log=rospy.loginfo) -> dict:
             result = real_cell_result(cfg, record, cell.sim_time, time.perf_counter() - wall0)
             result["transport"] = "ros"
             result["arm_interface"] = "actions"
+            result["gripper_lead_s"] = gripper_lead
             result["cell"] = "real"
             writer.write_result(result)
             path = writer.commit(require_cloth=False)
@@ -831,7 +858,12 @@ def run_real_task(fold_args: str, log=rospy.loginfo) -> dict:
     return result
 
 
-def run_task(fold_args: str, log=rospy.loginfo, arm_interface: str = "topics") -> dict:
+def run_task(
+    fold_args: str,
+    log=rospy.loginfo,
+    arm_interface: str = "topics",
+    gripper_lead: float | None = GRIPPER_LEAD_S,
+) -> dict:
     """Fold over topics and write the episode folder; returns result.json's content."""
     args, cfg = parse_fold_args(fold_args)
     layout = cfg.sim.layout
@@ -844,6 +876,7 @@ def run_task(fold_args: str, log=rospy.loginfo, arm_interface: str = "topics") -
             cfg.arms,
             arm_interface,
             robot_class(cfg.robot).ARM_JOINT_NAMES,
+            gripper_lead=gripper_lead,
         )
         stack.callback(cell.stop_video)  # before the writer closes the video, error or not
         cell.wait_ready()
@@ -899,6 +932,8 @@ def run_task(fold_args: str, log=rospy.loginfo, arm_interface: str = "topics") -
             )
             result["transport"] = "ros"
             result["arm_interface"] = arm_interface
+            if arm_interface == "actions":
+                result["gripper_lead_s"] = gripper_lead
             result["cell"] = "sim"
             writer.write_result(result)
             path = writer.commit()
@@ -932,12 +967,16 @@ def main(argv: list[str] | None = None) -> int:
     # Every parameter read now: a cell that fails may take the master down with it.
     error_file = rospy.get_param(ERROR_FILE_PARAM, "")
     fold_args = rospy.get_param(FOLD_ARGS_PARAM)
+    lead = float(rospy.get_param(GRIPPER_LEAD_PARAM, GRIPPER_LEAD_S))
+    lead = None if lead < 0 else lead
     try:
         if rospy.get_param(CELL_PARAM, "sim") == "real":
-            result = run_real_task(fold_args)
+            result = run_real_task(fold_args, gripper_lead=lead)
         else:
             result = run_task(
-                fold_args, arm_interface=rospy.get_param(ARM_INTERFACE_PARAM, "topics")
+                fold_args,
+                arm_interface=rospy.get_param(ARM_INTERFACE_PARAM, "topics"),
+                gripper_lead=lead,
             )
     except errors.FoldbotError as exc:
         failure = {"ok": False, "error": str(exc), "error_type": type(exc).__name__}
