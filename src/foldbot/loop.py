@@ -120,6 +120,10 @@ class LoopConfig:
     """A laid corner is laid again only when it lies within this (m) of the line through its place
     across the fold line (the side it should end on): a corner that sprang back along its side.
     Off that line the layer's corner is a ridge of bunched cloth, not the corner laid there."""
+    relay_stadium: bool = False
+    """A relay's carry goes straight up, over a half circle and straight down
+    (planning.motion.stadium_arc) instead of the half-sine arc, whose tip over a relay's few mm
+    is so tight that the arm crawls (docs/experiments.md, A relay that crawls)."""
     pair_descent: float | None = 0.04
     """Where two arms carry a stage's two corners at once (two_arm_actions), their arcs end this
     high (m) over the places and the corners come straight down, slowly: a towel's layer held by
@@ -475,6 +479,7 @@ def relay_action(
         place=planned.place,
         fold_line=planned.fold_line,
         label=f"relay_{planned.label}",
+        carry="stadium" if cfg.relay_stadium else "arc",
     )
     return action, f"laid {off * 1000:.0f} mm off its place, seen in depth"
 

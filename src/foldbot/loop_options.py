@@ -28,6 +28,7 @@ LOOP_OPTION_KINDS: dict[str, str] = {
     "relay_reach": "length",
     "relay_min_rise": "length",
     "relay_side": "length",
+    "relay_stadium": "switch",
     "top_layer_first": "switch",
     "pair_descent": "length or none",
     "stack_edge_carry": "switch",

@@ -134,3 +134,29 @@ def test_a_divergence_names_the_segment_the_arms_were_running(two_arms):
     ) as e:
         run_together(steps)
     assert e.value.segment == "lift" and failed_segment(e.value) == "lift"
+
+
+def test_a_relays_few_mm_carry_is_timed_in_seconds_over_a_stadium_not_a_minute(executor):
+    # Up 5 cm and 8 mm over: the half-sine's tip turns on 0.13 mm, which caps the whole
+    # motion's speed; the stadium's half circle turns on 4 mm (docs/experiments.md).
+    import dataclasses
+
+    from foldbot.planning.actions import FoldAction
+    from foldbot.planning.motion import MotionConfig, action_segments
+
+    z = executor.world.layout.table_height
+    x, y = executor.world.layout.workspace_center_xy
+    relay = FoldAction(
+        grasp=np.array([x + 0.004, y, z + 0.006]),
+        place=np.array([x - 0.004, y, z]),
+        fold_line=(x, y - 0.2, 0.0, 0.4),
+        carry="stadium",
+    )
+    start = executor.robot.tcp_pose()[0]
+    durations = {}
+    for carry in ("arc", "stadium"):
+        segs = action_segments(dataclasses.replace(relay, carry=carry), start, MotionConfig())
+        planned = executor.plan(segs)[2]  # timed from its planned start, as run after descend
+        traj = executor.trajectory_for(planned.joint_path, planned.points, planned.segment.speed)
+        durations[carry] = traj.duration
+    assert durations["stadium"] < 10.0 < 30.0 < durations["arc"], durations

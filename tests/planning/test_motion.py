@@ -83,3 +83,37 @@ def test_a_segments_orientations_are_one_per_waypoint():
     turned[3, 0] = np.nan
     with pytest.raises(ConfigError, match="finite quaternions"):
         Segment("move", points, 0.1, orientations=turned)
+
+
+RELAY = FoldAction(
+    grasp=np.array([0.458, 0.10, 0.765]),  # a laid corner 8 mm short of its place
+    place=np.array([0.45, 0.10, 0.759]),
+    fold_line=(0.45, -0.2, 0.0, 0.4),
+    label="relay_far_left",
+    carry="stadium",
+)
+
+
+def test_a_stadium_carry_goes_up_over_a_half_circle_and_down():
+    cfg = MotionConfig()
+    carry = action_segments(RELAY, START, cfg)[2].points
+    start, end = RELAY.grasp + [0, 0, cfg.grasp_depth], RELAY.place + [0, 0, cfg.place_height]
+    assert carry[0] == pytest.approx(start) and carry[-1] == pytest.approx(end)
+    assert carry[:, 2].max() == pytest.approx(start[2] + cfg.min_arc_height, abs=1e-4)
+    # Straight up over the grasp, straight down over the place, nowhere outside the two.
+    x = carry[:, 0]
+    assert x.min() >= end[0] - 1e-9 and x.max() <= start[0] + 1e-9
+    tip_radius = 0.008 / 2  # half the carry, against the half-sine's d²/(π²h) = 0.13 mm
+    top = carry[carry[:, 2] >= carry[:, 2].max() - tip_radius]
+    assert np.ptp(top[:, 0]) == pytest.approx(0.008, abs=1e-4)
+    # The half-sine arc of the same carry, as every other carry still goes.
+    arc = action_segments(dataclasses.replace(RELAY, carry="arc"), START, cfg)[2].points
+    assert len(arc) == cfg.arc_points
+    assert arc[:, 2].max() == pytest.approx(carry[:, 2].max(), abs=1e-4)
+
+
+def test_an_actions_carry_travels_with_it_and_is_checked():
+    assert FoldAction.from_dict(RELAY.as_dict()).carry == "stadium"
+    assert "carry" not in ACTION.as_dict() and FoldAction.from_dict(ACTION.as_dict()).carry == "arc"
+    with pytest.raises(ConfigError, match="carry must be 'arc' or 'stadium', got 'loop'"):
+        dataclasses.replace(ACTION, carry="loop")

@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from foldbot.errors import ConfigError
+
 
 @dataclass(frozen=True)
 class FoldAction:
@@ -24,6 +26,16 @@ class FoldAction:
     """Height (m) over the place at which the carry arc ends, the carried point then coming
     straight down, slowly; None: the motion's `MotionConfig.place_height`. The towel loop sets it
     on a stage's two corners carried at once (LoopConfig.pair_descent)."""
+    carry: str = "arc"
+    """The carry's path (planning.motion.CARRY_PATHS): "arc", the half-sine arc; "stadium",
+    straight up, a half circle over, straight down (a carry of a few mm: the loop's relays with
+    LoopConfig.relay_stadium)."""
+
+    def __post_init__(self) -> None:
+        if self.carry not in ("arc", "stadium"):
+            raise ConfigError(
+                f"action '{self.label}': carry must be 'arc' or 'stadium', got {self.carry!r}"
+            )
 
     def as_dict(self) -> dict:
         d = {
@@ -35,6 +47,8 @@ class FoldAction:
         }
         if self.descent is not None:
             d["descent"] = float(self.descent)
+        if self.carry != "arc":
+            d["carry"] = self.carry
         return d
 
     @classmethod
@@ -47,6 +61,7 @@ class FoldAction:
             label=d.get("label", ""),
             layers=int(d.get("layers", 1)),
             descent=None if d.get("descent") is None else float(d["descent"]),
+            carry=str(d.get("carry", "arc")),
         )
 
 

@@ -87,6 +87,36 @@ def carry_arc(start: np.ndarray, end: np.ndarray, cfg: MotionConfig) -> np.ndarr
     return pts
 
 
+def stadium_arc(start: np.ndarray, end: np.ndarray, cfg: MotionConfig) -> np.ndarray:
+    """As high as `carry_arc`, but straight up, a half circle as wide as the carry, straight
+    down: over a carry of a few mm the half-sine's tip turns on a radius of a fraction of a mm
+    (d²/(π²h)), which caps the whole motion's speed (a relay's 8 mm carry took 77 s); the half
+    circle's radius is half the carry."""
+    dist = float(np.linalg.norm(end[:2] - start[:2]))
+    if dist < 1e-6:
+        return line_path(start, end)
+    height = max(cfg.min_arc_height, cfg.arc_height_ratio * dist)
+    radius = dist / 2
+    top = max(float(start[2]), float(end[2])) + height
+    along = (end[:2] - start[:2]) / dist
+    middle = (start[:2] + end[:2]) / 2
+    rise = np.array([*start[:2], max(top - radius, float(start[2]))])
+    fall = np.array([*end[:2], max(top - radius, float(end[2]))])
+    theta = np.linspace(np.pi, 0.0, max(cfg.arc_points // 2, 8))
+    over = np.column_stack(
+        [
+            middle[0] + radius * np.cos(theta) * along[0],
+            middle[1] + radius * np.cos(theta) * along[1],
+            rise[2] + (fall[2] - rise[2]) * (1 - np.cos(theta)) / 2 + radius * np.sin(theta),
+        ]
+    )
+    return np.vstack([line_path(start, rise, 0.005), over[1:], line_path(fall, end, 0.005)[1:]])
+
+
+CARRY_PATHS = {"arc": carry_arc, "stadium": stadium_arc}
+"""A FoldAction's `carry` → the function that draws its carry path."""
+
+
 def action_segments(action: FoldAction, current: np.ndarray, cfg: MotionConfig) -> list[Segment]:
     """The segments that execute one fold action, starting from TCP position `current`."""
     up = np.array([0.0, 0.0, 1.0])
@@ -107,7 +137,7 @@ def action_segments(action: FoldAction, current: np.ndarray, cfg: MotionConfig) 
     segments = [
         Segment("approach", line_path(current, pre_grasp), cfg.free_speed),
         Segment("descend", line_path(pre_grasp, grasp_tcp, 0.005), cfg.free_speed / 3, "close"),
-        Segment("carry", carry_arc(grasp_tcp, pre_place, cfg), cfg.cartesian_speed),
+        Segment("carry", CARRY_PATHS[action.carry](grasp_tcp, pre_place, cfg), cfg.cartesian_speed),
     ]
     if slide > 0:
         segments += [

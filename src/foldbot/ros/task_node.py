@@ -57,6 +57,7 @@ from foldbot.ros.frames import StaticFrames
 from foldbot.ros.node_args import (
     ARM_INTERFACE_PARAM,
     CELL_PARAM,
+    CELLS,
     ERROR_FILE_PARAM,
     FOLD_ARGS_PARAM,
     GRIPPER_LEAD_PARAM,
@@ -129,6 +130,8 @@ class RosCell(FoldCell):
         node's commands and reports. `cell` "real" (actions only) neither publishes nor
         subscribes to anything of the sim node's own (its reports, commands, clock, ground
         truth): the cell is whatever serves the drivers' actions and the camera."""
+        if cell not in CELLS:
+            raise errors.ConfigError(f"cell must be one of {', '.join(CELLS)}, got {cell!r}")
         if cell == "real" and arm_interface != "actions":
             raise errors.ConfigError(
                 f"a real cell is driven through its drivers' actions, got arm interface "
