@@ -91,8 +91,7 @@ sent = clock[0]
 close = msg.GripperCommandGoal()
 close.command.position = 0.0
 gripper.send_goal(close)
-arm.wait_for_result()
-gripper.wait_for_result()
+assert arm.wait_for_result(rospy.Duration(60)) and gripper.wait_for_result(rospy.Duration(60))
 time.sleep(0.3)
 after = [(t, h) for t, h in history if t >= sent]
 f0 = np.array([after[0][1][n] for n in fingers])
