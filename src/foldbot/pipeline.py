@@ -483,6 +483,20 @@ def loop_config(cfg: EpisodeConfig, layer_thickness: float = 0.0) -> LoopConfig:
     return apply_loop_options(loop, cfg.loop_options)
 
 
+def fold_fields(cfg: EpisodeConfig, record: FoldRecord) -> dict:
+    """result.json's account of the fold itself, scored or not: its lines and stages, what was
+    folded with which recipe, by which robot and arms."""
+    return {
+        "fold_lines": [list(line) for line in record.fold_lines],
+        "stages": record.stages,
+        "garment": cfg.garment,
+        "recipe": cfg.recipe,
+        "planned_recipe": planned_recipe(cfg),
+        "robot": cfg.robot,
+        "arms": cfg.arms,
+    }
+
+
 def episode_result(
     cfg: EpisodeConfig,
     spec: object,
@@ -497,13 +511,7 @@ def episode_result(
     (x, y), yaw = pose
     return {
         **score.as_dict(),
-        "fold_lines": [list(line) for line in record.fold_lines],
-        "stages": record.stages,
-        "garment": cfg.garment,
-        "recipe": cfg.recipe,
-        "planned_recipe": planned_recipe(cfg),
-        "robot": cfg.robot,
-        "arms": cfg.arms,
+        **fold_fields(cfg, record),
         "time_step": cfg.sim.time_step,
         "jaw_catch": cfg.jaw_catch,
         "loop_options": dict(cfg.loop_options),
