@@ -29,8 +29,8 @@ from foldbot.ros import TOPICS, convert
 from foldbot.ros.control_msgs import msg as control_msgs
 
 DRIVER_PERIOD_S = 0.02
-"""Spacing of a trajectory goal's points (50 Hz): the planner's samples at the physics step,
-thinned; the driver splines between them (points carry positions and velocities)."""
+"""Least spacing of a trajectory goal's points (about 45 Hz at the 1/360 s step): the planner's
+samples, thinned; the driver splines between them (points carry positions and velocities)."""
 GONE_GRACE_S = 0.5
 """How long a driver found gone is given for the cell's report of why to arrive."""
 SERVER_WAIT_S = 60.0
@@ -385,15 +385,22 @@ class ActionArm:
         self.trajectory.send_goal(goal, feedback_cb=on_feedback)
         try:
             self._wait(self.trajectory, what, timeout_s, grip_when_due)
+            self._trajectory_succeeded(what)
         except FoldbotError:
-            if then_grip is not None and gripping[0]:
+            if then_grip is not None and gripping[0]:  # no jaws acting on a failed motion
                 self.gripper.cancel_goal()
             raise
+        gripped = None
+        if then_grip is not None:
+            grip_when_due()  # sent already, unless no feedback came near the end
+            gripped = self._grip_result(f"{what}: gripper", timeout_s)
+        return np.array(stamps), np.array(desired), np.array(actual), gripped
+
+    def _trajectory_succeeded(self, what: str) -> None:
+        """Raise, with the driver's error code and text, unless the last goal succeeded."""
         result = self.trajectory.get_result()
         state = self.trajectory.get_state()
         if state != GoalStatus.SUCCEEDED or result is None or result.error_code != 0:
-            if then_grip is not None and gripping[0]:
-                self.gripper.cancel_goal()
             code = None if result is None else result.error_code
             text = (result.error_string if result is not None else "") or (
                 self.trajectory.get_goal_status_text()
@@ -402,11 +409,6 @@ class ActionArm:
                 f"{what}: the trajectory driver ended the goal "
                 f"({_STATUS_NAMES.get(state, state)}, error_code {code}): {text}"
             )
-        gripped = None
-        if then_grip is not None:
-            grip_when_due()  # sent already, unless no feedback came near the end
-            gripped = self._grip_result(f"{what}: gripper", timeout_s)
-        return np.array(stamps), np.array(desired), np.array(actual), gripped
 
     def grip(self, close: bool, what: str, timeout_s: float) -> tuple[bool, str]:
         """Close (to a zero gap) or open (OPEN_GAP_M) the gripper; returns (whether the jaws
