@@ -3,7 +3,9 @@
 ground_truth/cloth before anything moved, and the cloth now, asked for on
 ground_truth/request. For comparison only: the fold never saw either (its task node neither
 subscribes nor publishes there). Prints one JSON line: the episode's metrics as
-metrics.score_episode gives them, and how far into the episode the comparison is valid.
+metrics.score_episode gives them, and how far into the episode the comparison is valid; for a
+crumpled start (`--start crumpled` on both), the crumpled cloth's coverage and the cloth's now
+only, since the flattened cloth the fold began from was never latched.
 
     .venv/bin/python scripts/score_on_sim_cell.py EPISODE_DIR --port 11311
 """
@@ -25,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from foldbot.commands.ros_fold import ros_env
-from foldbot.metrics import score_episode
+from foldbot.metrics import coverage, score_episode
 
 WAIT_S = 60.0
 
@@ -69,23 +71,26 @@ def main(argv: list[str] | None = None) -> int:
         time.sleep(0.05)
     request.publish(Empty())
     now = wait_for(2, "cloth after the request")
-    score = score_episode(
-        convert.cloud_array(start),
-        convert.cloud_array(now),
-        np.array(mesh["faces"], dtype=np.int64),
-        result["fold_lines"],
-        float(mesh["thickness"]),
-    )
-    print(
-        json.dumps(
-            {
-                "episode": str(args.episode),
-                "start_stamp": start.header.stamp.to_sec(),
-                "scored_at": now.header.stamp.to_sec(),
-                **score.as_dict(),
-            }
-        )
-    )
+    faces = np.array(mesh["faces"], dtype=np.int64)
+    stamps = {"start_stamp": start.header.stamp.to_sec(), "scored_at": now.header.stamp.to_sec()}
+    if "flatten" in result["perceived"]:
+        # A crumpled start: the fold's goals are the flattened cloth's, which the cell never
+        # latched; the crumpled start's coverage and the cloth's now are what it can give.
+        found = {
+            "coverage_start": coverage(convert.cloud_array(start), faces, mesh["flat_area"]),
+            "coverage": coverage(convert.cloud_array(now), faces, mesh["flat_area"]),
+            "fold_error_mm": None,
+            "why": "a crumpled start: the flattened cloth the fold began from was not latched",
+        }
+    else:
+        found = score_episode(
+            convert.cloud_array(start),
+            convert.cloud_array(now),
+            faces,
+            result["fold_lines"],
+            float(mesh["thickness"]),
+        ).as_dict()
+    print(json.dumps({"episode": str(args.episode), **stamps, **found}))
     rospy.signal_shutdown("scored")
     return 0
 

@@ -101,25 +101,37 @@ class FlattenRecord:
         self.final_state, self.final_obs = state, obs
         return self
 
-    def result_entry(
-        self, coverage_start: float, coverage_end: float, max_actions: int, policy: str = "vision"
-    ) -> dict[str, Any]:
-        """result.json's "flatten" entry; the two coverages are GROUND TRUTH (metrics only),
-        measured by the caller before and after flattening; `policy` names what planned the
-        pulls ("vision", or "oracle")."""
-        n = sum(not a.get("skipped_unreachable", False) for a in self.actions)
+    @property
+    def actions_made(self) -> int:
+        """Pulls or spreads that moved the arm (those skipped as unreachable left out)."""
+        return sum(not a.get("skipped_unreachable", False) for a in self.actions)
+
+    def perceived_entry(self, max_actions: int, policy: str = "vision") -> dict[str, Any]:
+        """What the camera says of the flattening: the actions, the perceived coverages and
+        whether the target was reached; all a cell without ground truth can record. `policy`
+        names what planned the pulls ("vision", or "oracle")."""
         return {
-            "success": bool(metrics.flatten_success(coverage_end) and n <= max_actions),
             "policy": policy,
-            "actions": n,
+            "actions": self.actions_made,
             "max_actions": max_actions,
-            "coverage_start": coverage_start,
-            "coverage_end": coverage_end,
             "perceived_coverage_start": self.initial_coverage,
             "perceived_coverage_end": self.final_coverage,
             "reached_target": self.reached,
             "pulls": self.actions,
         }
+
+    def result_entry(
+        self, coverage_start: float, coverage_end: float, max_actions: int, policy: str = "vision"
+    ) -> dict[str, Any]:
+        """result.json's "flatten" entry: perceived_entry's, with the success and the two
+        coverages, GROUND TRUTH (metrics only), measured by the caller before and after
+        flattening."""
+        n = self.actions_made
+        return {
+            "success": bool(metrics.flatten_success(coverage_end) and n <= max_actions),
+            "coverage_start": coverage_start,
+            "coverage_end": coverage_end,
+        } | self.perceived_entry(max_actions, policy)
 
 
 PullOracle = Callable[[ClothState, FlattenConfig], tuple[np.ndarray, list[Pull]]]
@@ -203,6 +215,37 @@ class _Stop:
             self.log("  the finishing pull lost the target: no more finishing pulls")
 
 
+def flatten_pictured(
+    cfg: FlattenConfig,
+    cell: FoldCell,
+    expected_size: tuple[float, float],
+    write_image: Callable[[str, np.ndarray], object],
+    log: Callable[[str], None] = print,
+    oracle: PullOracle | None = None,
+    spread: SpreadConfig | None = None,
+    record: FlattenRecord | None = None,
+) -> FlattenRecord:
+    """run_flatten, then its pictures: overlay_flattened.png, the view it ended on, and
+    flatten.png, each pull over the view it was planned from, then the view it ended on; after
+    an error, flatten.png with the pulls up to it (the episode's `DIR.failed/` keeps it), then
+    the error. Fills and returns `record` (a new one if None)."""
+    record = FlattenRecord() if record is None else record
+    try:
+        run_flatten(cfg, cell, expected_size, log, oracle, record, spread)
+    except Exception:
+        sheet = record.sheet()
+        if sheet is not None:
+            with contextlib.suppress(Exception):  # the error itself is what must surface
+                write_image("flatten.png", sheet)
+        raise
+    if record.final_obs is not None and record.final_state is not None:
+        write_image("overlay_flattened.png", draw_overlay(record.final_obs, record.final_state))
+    sheet = record.sheet()
+    if sheet is not None:
+        write_image("flatten.png", sheet)
+    return record
+
+
 def flatten_and_score(
     cell: FoldCell,
     expected_size: tuple[float, float],
@@ -216,14 +259,12 @@ def flatten_and_score(
     cfg: FlattenConfig | None = None,
     spread: SpreadConfig | None = None,
 ) -> tuple[dict[str, Any], np.ndarray]:
-    """Flatten a crumpled cloth on `cell` (run_flatten, by `cfg` and `spread` or their defaults:
-    the episode's flatten options, foldbot.flatten_options) and score it,
+    """Flatten a crumpled cloth on `cell` (flatten_pictured, by `cfg` and `spread` or their
+    defaults: the episode's flatten options, foldbot.flatten_options) and score it,
     in process or over ROS alike. `crumpled` (the cloth's vertices now) and `ground_truth` (read
     after flattening) are GROUND TRUTH, for the coverages only; `oracle` plans the pulls from
-    ground truth instead of perception (the entry's "policy"). Writes overlay_flattened.png;
-    returns result.json's "flatten" entry and the flattened cloth's vertices. Also writes
-    flatten.png: each pull over the view it was planned from, then the view it ended on; after
-    an error, the pulls up to it (the episode's `DIR.failed/` keeps it)."""
+    ground truth instead of perception (the entry's "policy"). Returns result.json's "flatten"
+    entry and the flattened cloth's vertices."""
     start = metrics.coverage(crumpled, faces, flat_area)
     # Ground truth, for the record only: a simulated cloth that has passed through itself is
     # tangled, which a real one never is and no flattening undoes (docs/experiments.md).
@@ -236,30 +277,21 @@ def flatten_and_score(
     cfg = FlattenConfig() if cfg is None else cfg
     record = FlattenRecord()
     try:
-        run_flatten(cfg, cell, expected_size, log, oracle, record, spread)
-    except Exception as exc:  # flatten.png still shows the pulls up to the error
+        flatten_pictured(cfg, cell, expected_size, write_image, log, oracle, spread, record)
+    except Exception as exc:
         add_facts(
             exc,
             flatten={
                 "success": False,
-                "actions": sum(not a.get("skipped_unreachable", False) for a in record.actions),
+                "actions": record.actions_made,
                 "coverage_start": start,
                 "self_crossings_start": crossings,
                 "ended_in_error": True,
             },
         )
-        sheet = record.sheet()
-        if sheet is not None:
-            with contextlib.suppress(Exception):  # the error itself is what must surface
-                write_image("flatten.png", sheet)
         raise
     flattened = ground_truth()
     end = metrics.coverage(flattened, faces, flat_area)
-    if record.final_obs is not None and record.final_state is not None:
-        write_image("overlay_flattened.png", draw_overlay(record.final_obs, record.final_state))
-    sheet = record.sheet()
-    if sheet is not None:
-        write_image("flatten.png", sheet)
     entry = record.result_entry(
         start, end, cfg.max_actions, "vision" if oracle is None else "oracle"
     )

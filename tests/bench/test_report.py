@@ -181,3 +181,17 @@ def test_markdown_shows_the_first_frames_perception(tiny_suite_data):
     # Pooled: 0.5, 1.5, 2.0, 12.0 → median 1.75; one episode off by > 10 mm; far_left worst.
     assert "| 2 | 1.8 / " in md and "| 1 | far_left: 7.0 / 12.0 |" in md
     assert "## Perception in the first frame" not in markdown(summarise(suite, []))
+
+
+def test_markdown_sets_the_loops_verdict_beside_success(tiny_suite_data):
+    suite = suite_from_dict(tiny_suite_data(seeds="0-1"))
+    outcomes = iter(((True, 0.9), (False, 0.85)))  # verified both times; the second failed
+    records = []
+    for e in suite.episodes:
+        success, iou = next(outcomes)
+        stages = [{"mask_iou_vs_predicted": iou, "verified": True}]
+        records.append({"id": e.id, "result": {"success": success, "stages": stages}})
+    md = markdown(summarise(suite, records))
+    assert "## The loop's own verdict against ground truth" in md
+    assert "| 2 | 1 / 1 | 0 / 0 | 50 % | 0.90 (0.90–0.90) / 0.85 (0.85–0.85) |" in md
+    assert "own verdict" not in markdown(summarise(suite, []))

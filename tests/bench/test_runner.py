@@ -64,6 +64,16 @@ def test_changed_settings_for_a_finished_episode_are_refused(tmp_path, tiny_suit
         run_suite(suite_from_dict(changed), tmp_path, progress=False, run=False)
 
 
+def test_a_setting_the_new_run_leaves_out_is_named(tmp_path, tiny_suite_data):
+    # The finished episode set a loop option; the new run leaves it at its default, so its spec
+    # has no such key: the error still names what changed.
+    data = tiny_suite_data()
+    data["loop_options"] = {"relay_corners": False}
+    run_suite(suite_from_dict(data), tmp_path, progress=False, run=False)
+    with pytest.raises(ConfigError, match=r"different settings \(loop_options\)"):
+        run_suite(suite_from_dict(tiny_suite_data()), tmp_path, progress=False, run=False)
+
+
 def test_bad_worker_count(tmp_path, tiny_suite_data):
     with pytest.raises(ConfigError, match="--workers"):
         run_suite(suite_from_dict(tiny_suite_data()), tmp_path, workers=0)

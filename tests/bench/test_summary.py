@@ -15,6 +15,7 @@ from foldbot.bench.summary import (
     success_interval,
     summarise,
     towel_of,
+    verdict_stats,
 )
 
 
@@ -376,3 +377,27 @@ def test_groups_and_paired_comparisons(tiny_suite_data):
     co_vision = rows[("loop", None, "vision")]
     assert co_vision["success_rate"] == [1.0, 0.0]
     assert s["overall"]["episodes"] == 7
+
+
+def test_the_loops_verdict_is_set_against_success():
+    def judged(success, *ious):
+        stages = [{"mask_iou_vs_predicted": v, "verified": v >= 0.8} for v in ious]
+        return {"success": success, "stages": stages}
+
+    results = [
+        judged(True, 0.95, 0.9),  # verified, succeeded
+        judged(True, 0.9, 0.7),  # not verified (its second stage), succeeded
+        judged(False, 0.85),  # verified, failed: a real cell would call it done
+        judged(False, 0.5),  # not verified, failed
+        judged(False, 0.4),
+        {"success": False, "stages": [{"verified": None}]},  # open loop: not judged
+        {"success": True, "stages": []},  # no stage: not judged
+    ]
+    v = verdict_stats(results)
+    assert v["judged"] == 5
+    assert (v["verified_succeeded"], v["verified_failed"]) == (1, 1)
+    assert (v["unverified_succeeded"], v["unverified_failed"]) == (1, 2)
+    assert v["agreement"] == pytest.approx(3 / 5)
+    assert v["lowest_iou_successes"]["min"] == pytest.approx(0.7)
+    assert v["lowest_iou_failures"]["median"] == pytest.approx(0.5)
+    assert verdict_stats(results[-2:]) is None

@@ -61,10 +61,6 @@ from foldbot.commands.ros_fold import add_arguments, fold_args_text
             "--cell real: --arms 2",
         ),
         (
-            ["ros-fold", "--out", "{tmp}/e", "--cell", "real", "--start", "crumpled"],
-            "--cell real: --start crumpled: a flat start",
-        ),
-        (
             ["ros-fold", "--out", "{tmp}/e", "--cell", "real", "--arm-interface", "topics"],
             "--cell real: --arm-interface topics: a real cell is driven through its drivers' "
             "actions",
@@ -78,7 +74,6 @@ from foldbot.commands.ros_fold import add_arguments, fold_args_text
             "--cell real: --camera-rate: a real cell's camera streams at its own rate",
         ),
         (["ros-cell", "--arms", "2"], "--arms 2: the cell serves one arm's driver actions"),
-        (["ros-cell", "--start", "crumpled"], "--start crumpled: the cell lays a flat cloth"),
         (["ros-cell", "--camera-rate", "0"], "--camera-rate must be > 0 frames per s, got 0.0"),
         (["ros-cell", "--real-time-factor", "-1"], "--real-time-factor must be > 0, got -1.0"),
         (["ros-cell", "--port", "0"], "--port must be in 1–65535, got 0"),

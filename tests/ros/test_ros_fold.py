@@ -272,6 +272,34 @@ def test_a_fold_through_a_real_arms_driver_interface(tmp_path):
 
 SCORE_SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "score_on_sim_cell.py"
 SIM_NODES_OWN = ("sim/", "arm/", "gripper/command", "gripper/grasp", "ground_truth/")
+
+
+def start_cell(*options: str) -> tuple[subprocess.Popen, int]:
+    """`foldbot ros-cell` with `options` on a free port, in its own session; and the port."""
+    port = free_port()
+    cell = subprocess.Popen(
+        [sys.executable, "-m", "foldbot.cli", "ros-cell", *options, "--port", str(port)],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
+    )  # fmt: skip
+    return cell, port
+
+
+def stop_cell(cell: subprocess.Popen) -> str:
+    """Interrupt a cell start_cell started, as Ctrl-C does; its output."""
+    os.killpg(cell.pid, signal.SIGINT)
+    return cell.communicate(timeout=60)[0]
+
+
+def score_on_cell(out: Path, port: int) -> subprocess.CompletedProcess:
+    """scripts/score_on_sim_cell.py on the episode folder `out`, against the cell at `port`."""
+    from foldbot.commands.ros_fold import ros_env
+
+    return subprocess.run(
+        [sys.executable, str(SCORE_SCRIPT), str(out), "--port", str(port)],
+        capture_output=True, text=True, timeout=120, check=False, env=ros_env(port),
+    )  # fmt: skip
+
+
 """Topics only the simulated cell has: its lockstep commands and reports and its ground truth
 (a real cell's drivers have none of them). /clock is rospy's own where /use_sim_time is set."""
 
@@ -285,14 +313,7 @@ def test_a_fold_on_a_running_cell_as_on_a_real_one(tmp_path):
 
     import rosgraph
 
-    from foldbot.commands.ros_fold import ros_env
-
-    port = free_port()
-    cell = subprocess.Popen(
-        [sys.executable, "-m", "foldbot.cli", "ros-cell", "--resolution", "8",
-         "--camera-rate", "2", "--port", str(port), "--seed", "1"],
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
-    )  # fmt: skip
+    cell, port = start_cell("--resolution", "8", "--camera-rate", "2", "--seed", "1")
     touched: set[tuple[str, str]] = set()
     done = threading.Event()
 
@@ -317,16 +338,11 @@ def test_a_fold_on_a_running_cell_as_on_a_real_one(tmp_path):
         )  # fmt: skip
         done.set()
         assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
-        assert "fold done on the real cell, not scored" in proc.stdout
-        score = subprocess.run(
-            [sys.executable, str(SCORE_SCRIPT), str(out), "--port", str(port)],
-            capture_output=True, text=True, timeout=120, check=False,
-            env=ros_env(port),
-        )  # fmt: skip
+        assert "fold done on a real cell, not scored" in proc.stdout
+        score = score_on_cell(out, port)
     finally:
         done.set()
-        os.killpg(cell.pid, signal.SIGINT)
-        log = cell.communicate(timeout=60)[0]
+        log = stop_cell(cell)
     assert score.returncode == 0, score.stderr[-3000:] + log[-3000:]
     assert cell.returncode == 0 and "the simulated cell stopped" in log
     # The episode: unscored, with what the camera saw, and no cloth.npz (no ground truth).
@@ -371,12 +387,7 @@ def test_a_real_cell_that_goes_away_mid_fold_ends_it_named(tmp_path):
     # The cell's node dies mid-fold (a driver crash): no goal would ever be answered. The fold
     # ends within seconds, naming the driver that went, not after its 300 s reply timeout,
     # and leaves no episode folder.
-    port = free_port()
-    cell = subprocess.Popen(
-        [sys.executable, "-m", "foldbot.cli", "ros-cell", "--resolution", "5",
-         "--camera-rate", "2", "--port", str(port)],
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
-    )  # fmt: skip
+    cell, port = start_cell("--resolution", "5", "--camera-rate", "2")
     out = tmp_path / "episode"
     try:
         wait_for_master(port)
@@ -399,8 +410,7 @@ def test_a_real_cell_that_goes_away_mid_fold_ends_it_named(tmp_path):
         stdout, stderr = fold.communicate(timeout=200)
         took = time.monotonic() - gone
     finally:
-        os.killpg(cell.pid, signal.SIGINT)
-        cell.communicate(timeout=60)
+        stop_cell(cell)
     assert fold.returncode == 2, stdout[-2000:] + stderr[-2000:]
     assert "over ROS: the driver went away: nothing serves" in stderr, stderr[-3000:]
     assert took < 120, took
@@ -493,6 +503,48 @@ def test_crumpled_towel_is_flattened_over_topics(tmp_path):
     assert (out / "flatten.png").is_file()
     assert len(result["fold_lines"]) == 1
     assert rescore(out).fold_error_mm == pytest.approx(result["fold_error_mm"])
+
+
+def test_a_crumpled_towel_on_a_running_cell_is_flattened_then_folded(tmp_path):
+    # `ros-cell --start crumpled` serves the towel crumpled as `foldbot fold` crumples it;
+    # `ros-fold --cell real --start crumpled` flattens it by pulls planned from the camera, then
+    # folds, and records what the camera said of both. No ground truth reaches the fold.
+    cell, port = start_cell(*CRUMPLED, "--camera-rate", "2", "--real-time-factor", "3")
+    out = tmp_path / "episode"
+    try:
+        wait_for_master(port)
+        proc = foldbot(
+            "ros-fold", "--cell", "real", *CRUMPLED, "--out", str(out), "--port", str(port)
+        )
+        assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+        assert (
+            "fold done on a real cell, not scored (no ground truth); perceived: flattened in"
+            in (proc.stdout)
+        )
+        score = score_on_cell(out, port)
+    finally:
+        log = stop_cell(cell)
+    assert score.returncode == 0, score.stderr[-3000:] + log[-3000:]
+    result = json.loads((out / "result.json").read_text())
+    assert result["scored"] is False and "flatten" not in result
+    f = result["perceived"]["flatten"]
+    assert 1 <= f["actions"] <= f["max_actions"] == 6 and len(f["pulls"]) >= f["actions"]
+    assert all(p["kind"] == "flatten_pull" for p in f["pulls"])
+    assert f["perceived_coverage_end"] > f["perceived_coverage_start"]
+    assert f["reached_target"] == (f["perceived_coverage_end"] >= 0.9)
+    assert "success" not in f and "coverage_end" not in f  # ground truth: none on a real cell
+    names = {p.name for p in out.iterdir()}
+    assert {"overlay_flattened.png", "flatten.png", "overlay_final.png"} <= names
+    assert "cloth.npz" not in names
+    assert len(result["fold_lines"]) == 1
+    # The cell crumpled the towel exactly as an in-process fold of that seed does.
+    ref = subprocess.run(
+        [sys.executable, "-c", CRUMPLE_SCRIPT, " ".join([*CRUMPLED, "--out", str(tmp_path / "x")])],
+        capture_output=True, text=True, timeout=600, check=True,
+    )  # fmt: skip
+    truth = json.loads(score.stdout.strip().splitlines()[-1])
+    assert truth["coverage_start"] == json.loads(ref.stdout.strip().splitlines()[-1])
+    assert truth["fold_error_mm"] is None and "not latched" in truth["why"]
 
 
 SPREAD = ["--start", "crumpled", "--arms", "2", "--seed", "9", "--width", "0.3", "--height", "0.3"]

@@ -101,6 +101,12 @@ def _speed(g: dict) -> str:
     )
 
 
+def _iou_range(s: dict | None) -> str:
+    if not s:
+        return "–"
+    return f"{s['median']:.2f} ({s['min']:.2f}–{s['max']:.2f})"
+
+
 def _failures(f: dict[str, int]) -> str:
     return ", ".join(f"{c} {n}" for c, n in f.items()) or "none"
 
@@ -271,6 +277,33 @@ def markdown(summary: dict) -> str:
             "Measured against the simulator's keypoints of the flat start (ground truth, for "
             "the benchmark only), in the cell's own frame with the arm where it waits: what "
             "`eval-perception`'s scenes do not show.",
+        ]
+    verdict_rows = [(n, g["verdict"]) for n, g in rows if g.get("verdict")]
+    if verdict_rows:
+        lines += [
+            "",
+            "## The loop's own verdict against ground truth",
+            "",
+            "| group | folds judged | verified: succeeded / failed "
+            "| not verified: succeeded / failed | agrees with success "
+            "| lowest stage IoU, median (min–max): successes / failures |",
+            "|---|---|---|---|---|---|",
+        ]
+        for name, v in verdict_rows:
+            lines.append(
+                f"| {name} | {v['judged']} | {v['verified_succeeded']} / {v['verified_failed']} "
+                f"| {v['unverified_succeeded']} / {v['unverified_failed']} "
+                f"| {_pct(v['agreement'])} "
+                f"| {_iou_range(v['lowest_iou_successes'])} / "
+                f"{_iou_range(v['lowest_iou_failures'])} |"
+            )
+        lines += [
+            "",
+            "A closed-loop fold is *verified* when every stage's perceived mask matched the "
+            "outline its plan predicted (IoU ≥ the loop's `verify_iou`, 0.8): the only verdict a "
+            "cell without ground truth has (`foldbot ros-fold --cell real` records it as "
+            "`perceived`). Success is metrics.md's, from the simulator's vertices. A verified "
+            "failure is one a real cell would report as done.",
         ]
     rep_rows = [(n, g["replicates"]) for n, g in rows if g.get("replicates")]
     if rep_rows:

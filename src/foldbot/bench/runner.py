@@ -190,7 +190,7 @@ def prepare_output(out: Path, suite: Suite) -> None:
         before = json.loads(previous.read_text()).get("episodes", {})
         for eid, spec in described["episodes"].items():
             if eid in before and before[eid] != spec:
-                changed = sorted(k for k in spec if before[eid].get(k) != spec[k])
+                changed = sorted(k for k in spec | before[eid] if before[eid].get(k) != spec.get(k))
                 raise ConfigError(
                     f"{out} holds a run of episode {eid} with different settings "
                     f"({', '.join(changed)}); use another --out or remove that folder"

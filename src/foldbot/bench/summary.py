@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from foldbot.bench.suite import Suite
+from foldbot.verdict import lowest_stage_iou, perceived_verdict
 
 CAUSES = (
     "fold inaccurate",
@@ -318,6 +319,7 @@ def group_stats(records: list[dict]) -> dict[str, Any]:
         "flatten": flatten_stats(records),
         "replicates": replicate_stats(records),
         "first_frame_keypoints": first_frame_stats(scored),
+        "verdict": verdict_stats(scored),
     }
 
 
@@ -333,6 +335,34 @@ def through_itself(results: list[dict]) -> dict[str, int] | None:
         "recorded": len(known),
         "folds": len(tangled),
         "successes": sum(bool(r.get("success")) for r in tangled),
+    }
+
+
+def verdict_stats(results: list[dict]) -> dict[str, Any] | None:
+    """The loop's own verdict (every stage's perceived mask matched its predicted outline,
+    verdict.perceived_verdict: all a real cell has) against metrics.md's success (ground truth),
+    over the scored folds whose stages were checked; with the lowest stage IoU of the successes
+    and of the failures, to show how far apart the two lie. None where no fold was checked."""
+    judged = [
+        (verdict, bool(r.get("success")), lowest_stage_iou(r["stages"]))
+        for r in results
+        if (verdict := perceived_verdict(r.get("stages") or [])) is not None
+    ]
+    if not judged:
+        return None
+
+    def count(verdict: bool, success: bool) -> int:
+        return sum(v == verdict and s == success for v, s, _ in judged)
+
+    return {
+        "judged": len(judged),
+        "verified_succeeded": count(True, True),
+        "verified_failed": count(True, False),
+        "unverified_succeeded": count(False, True),
+        "unverified_failed": count(False, False),
+        "agreement": sum(v == s for v, s, _ in judged) / len(judged),
+        "lowest_iou_successes": stats([iou for _, s, iou in judged if s]),
+        "lowest_iou_failures": stats([iou for _, s, iou in judged if not s]),
     }
 
 

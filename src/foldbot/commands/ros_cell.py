@@ -6,7 +6,8 @@ world → camera transform on /tf_static — running on at real-time pace until 
 
 `foldbot ros-fold --cell real` then folds on it exactly as on a real cell: through those topics
 and actions only. The cloth is the one `foldbot fold` would lay for the same options (size,
-seed, pose, cloth options). Needs ROS 1 from Debian (scripts/install_ros.sh)."""
+seed, pose, cloth options), crumpled as `foldbot fold` crumples it with `--start crumpled`.
+Needs ROS 1 from Debian (scripts/install_ros.sh)."""
 
 from __future__ import annotations
 
@@ -54,11 +55,6 @@ def run(args: argparse.Namespace) -> int:
             f"--arms {cfg.arms}: the cell serves one arm's driver actions (a two-arm cell's "
             "pairs move on one clock; use `foldbot ros-fold --arms 2`)"
         )
-    if cfg.start != "flat":
-        raise ConfigError(
-            f"--start {cfg.start}: the cell lays a flat cloth (`foldbot ros-fold --cell real` "
-            "folds from a flat start)"
-        )
     check_real_time_factor(args.real_time_factor)
     check_port(args.port)
     if not args.camera_rate > 0:
@@ -82,7 +78,9 @@ def run(args: argparse.Namespace) -> int:
         print(
             f"the simulated cell comes up on the ROS master at http://localhost:{port}; fold "
             f"on it with `foldbot ros-fold --cell real --port {port} --out DIR` and the same "
-            "cloth options; Ctrl-C stops it",
+            "cloth options"
+            + (" (with --start crumpled: flatten it first)" if cfg.start == "crumpled" else "")
+            + "; Ctrl-C stops it",
             flush=True,
         )
         # Its own session: an interrupt is passed on once and waited out, so roslaunch takes

@@ -24,6 +24,7 @@ from foldbot import errors
 from foldbot.commands import fold
 from foldbot.errors import ConfigError, FoldbotError, OutputError
 from foldbot.ros.node_args import ARM_INTERFACES, CELLS, GRIPPER_LEAD_S
+from foldbot.verdict import unscored_outcome
 
 DEFAULT_PORT = 11311
 MASTER_WAIT_S = 15.0
@@ -81,8 +82,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="sim",
         help="sim (default): start the sim node, which scores the fold; real: fold on a cell "
         "already running on the ROS master (a UR5's and gripper's drivers and an RGB-D camera, "
-        "or `foldbot ros-cell`) through its drivers' actions, one arm, from a flat start; the "
-        "fold is not scored (no ground truth): result.json gives what the camera saw",
+        "or `foldbot ros-cell`) through its drivers' actions, one arm (with --start crumpled, "
+        "flattened by pulls first); the fold is not scored (no ground truth): result.json "
+        "gives what the camera saw",
     )
     parser.add_argument(
         "--arm-interface",
@@ -225,8 +227,6 @@ def check_real_cell(args: argparse.Namespace, cfg, interface: str) -> None:
         (interface != "actions", f"--arm-interface {interface}: a real cell is driven "
          "through its drivers' actions (--arm-interface actions)"),
         (cfg.arms != 1, f"--arms {cfg.arms}: one arm (a two-arm cell's pairs need one clock)"),
-        (cfg.start != "flat", f"--start {cfg.start}: a flat start (flattening is scored by "
-         "the simulator's ground truth)"),
         (args.real_time_factor is not None, "--real-time-factor: a real cell runs at its own "
          "pace (`foldbot ros-cell --real-time-factor` sets the simulated cell's)"),
         (args.camera_rate is not None, "--camera-rate: a real cell's camera streams at its "
@@ -327,14 +327,7 @@ def run(args: argparse.Namespace) -> int:
             f"{result['sim_seconds']:.1f} s simulated in {result['wall_seconds']:.1f} s"
         )
     else:
-        seen = result["perceived"]
-        print(
-            "fold done on the real cell, not scored (no ground truth); perceived: "
-            f"{'every stage verified' if seen['verified'] else 'NOT every stage verified'} "
-            f"(mask IoU with the predicted outline "
-            f"{', '.join(f'{v:.2f}' for v in seen['stage_mask_iou'])}), "
-            f"{result['sim_seconds']:.1f} s"
-        )
+        print(f"{unscored_outcome(result['perceived'])}; {result['sim_seconds']:.1f} s")
     print(f"episode written to {out}")
     if args.record:
         print(f"bag recorded to {args.record}")

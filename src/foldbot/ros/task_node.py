@@ -32,7 +32,7 @@ from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
 from foldbot import errors
 from foldbot.carry import nearest_arm
 from foldbot.cell import FoldCell, StepLog
-from foldbot.flatten import flatten_and_score
+from foldbot.flatten import flatten_and_score, flatten_pictured
 from foldbot.flatten_options import flatten_configs
 from foldbot.garment_loop import run_garment_fold
 from foldbot.io.episode import EpisodeWriter, to_jsonable
@@ -68,6 +68,7 @@ from foldbot.ros.publish import publish_when_heard
 from foldbot.sim.layout import CellLayout
 from foldbot.sim.robots import robot_class
 from foldbot.types import GraspResult, Observation
+from foldbot.verdict import perceived_verdict, unscored_outcome
 
 REPLY_TIMEOUT_S = 300.0
 """Longest wall time to wait for a node's reply before the fold is abandoned."""
@@ -768,7 +769,7 @@ def perceived_outcome(record: FoldRecord) -> dict:
     start = first.coverage_m2 if first is not None and first.detected else None
     end = last.coverage_m2 if last is not None and last.detected else None
     return {
-        "verified": bool(record.stages) and all(s["verified"] for s in record.stages),
+        "verified": bool(perceived_verdict(record.stages)),
         "stage_mask_iou": [float(s["mask_iou_vs_predicted"]) for s in record.stages],
         "coverage_m2_start": start,
         "coverage_m2_final": end,
@@ -815,10 +816,10 @@ def run_real_task(
     """Fold on a real cell (whatever serves the drivers' actions and the camera) and write the
     episode folder, unscored: result.json, video.mp4 and the overlays; no cloth.npz."""
     args, cfg = parse_fold_args(fold_args)
-    if cfg.arms != 1 or cfg.start != "flat" or cfg.perception != "vision":
+    if cfg.arms != 1 or cfg.perception != "vision":
         raise errors.ConfigError(
-            "a real cell folds with one arm, from a flat start, with vision perception; got "
-            f"arms {cfg.arms}, start {cfg.start!r}, perception {cfg.perception!r}"
+            "a real cell folds with one arm, with vision perception; got "
+            f"arms {cfg.arms}, perception {cfg.perception!r}"
         )
     writer = EpisodeWriter(args.out, overwrite=args.overwrite, fps=max(cfg.video_fps, 1.0))
     wall0 = time.perf_counter()
@@ -839,12 +840,21 @@ def run_real_task(
             with cell._lock:
                 writer.write_image(name, image)
 
+        flattened = None
+        if cfg.start == "crumpled":  # flattened by what the camera sees, judged by it alone
+            spec = seeded_garment(cfg)[0]
+            pulls, spreads = flatten_configs(cfg.flatten_options)
+            flattened = flatten_pictured(
+                pulls, cell, (spec.width, spec.height), write_image, log, spread=spreads
+            ).perceived_entry(pulls.max_actions)
         fold = run_fold if cfg.garment == "towel" else run_garment_fold
         loop = loop_config(cfg, real_cell_thickness(cfg))
         record = fold_and_picture(fold, loop, cell, write_image, log)
         cell.stop_video()
         with cell._lock:
             result = real_cell_result(cfg, record, cell.sim_time, time.perf_counter() - wall0)
+            if flattened is not None:
+                result["perceived"]["flatten"] = flattened
             result["transport"] = "ros"
             result["arm_interface"] = "actions"
             result["gripper_lead_s"] = gripper_lead
@@ -947,15 +957,7 @@ def outcome_line(result: dict) -> str:
             f"{result['fold_error_mm']:.1f} mm, normalized performance "
             f"{result['normalized_performance']:.3f}"
         )
-    seen = result["perceived"]
-    ious = ", ".join(f"{v:.2f}" for v in seen["stage_mask_iou"])
-    ratio = seen["coverage_ratio"]
-    area = "" if ratio is None else f", the cloth's top view {ratio:.2f} of its start"
-    return (
-        f"fold done on a real cell, not scored (no ground truth); perceived: "
-        f"{'every stage verified' if seen['verified'] else 'NOT every stage verified'} "
-        f"(mask IoU with the predicted outline {ious}){area}"
-    )
+    return unscored_outcome(result["perceived"])
 
 
 def main(argv: list[str] | None = None) -> int:
