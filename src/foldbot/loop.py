@@ -120,10 +120,11 @@ class LoopConfig:
     """A laid corner is laid again only when it lies within this (m) of the line through its place
     across the fold line (the side it should end on): a corner that sprang back along its side.
     Off that line the layer's corner is a ridge of bunched cloth, not the corner laid there."""
-    relay_stadium: bool = False
+    relay_stadium: bool = True
     """A relay's carry goes straight up, over a half circle and straight down
-    (planning.motion.stadium_arc) instead of the half-sine arc, whose tip over a relay's few mm
-    is so tight that the arm crawls (docs/experiments.md, A relay that crawls)."""
+    (planning.motion.stadium_arc), in seconds. False: the fold carries' half-sine arc, whose tip
+    over a relay's few mm is so tight that the arm crawls along it for up to two minutes
+    (docs/experiments.md, A relay that crawls)."""
     pair_descent: float | None = 0.04
     """Where two arms carry a stage's two corners at once (two_arm_actions), their arcs end this
     high (m) over the places and the corners come straight down, slowly: a towel's layer held by
