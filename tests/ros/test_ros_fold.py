@@ -290,6 +290,32 @@ def stop_cell(cell: subprocess.Popen) -> str:
     return cell.communicate(timeout=60)[0]
 
 
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT], ids=["kill", "interrupt"])
+def test_a_cell_stops_cleanly_on_kill_and_on_an_interrupt_a_script_ignored(signum):
+    # Started as a script's `foldbot ros-cell … &` starts it: SIGINT ignored, which Python would
+    # otherwise keep ignoring. `kill` or an interrupt sent to the cell alone stops it, and
+    # roslaunch takes roscore down with it.
+    import rosgraph
+
+    port = free_port()
+    cell = subprocess.Popen(
+        [sys.executable, "-m", "foldbot.cli", "ros-cell", "--resolution", "5",
+         "--camera-rate", "2", "--port", str(port)],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN),
+    )  # fmt: skip
+    try:
+        wait_for_master(port)
+        os.kill(cell.pid, signum)
+        log = cell.communicate(timeout=90)[0]
+    finally:
+        if cell.poll() is None:
+            os.killpg(cell.pid, signal.SIGKILL)
+    assert cell.returncode == 0 and "the simulated cell stopped" in log, log[-3000:]
+    master = rosgraph.Master("/test_gone", master_uri=f"http://localhost:{port}")
+    assert not master.is_online()
+
+
 def score_on_cell(out: Path, port: int) -> subprocess.CompletedProcess:
     """scripts/score_on_sim_cell.py on the episode folder `out`, against the cell at `port`."""
     from foldbot.commands.ros_fold import ros_env

@@ -2,7 +2,8 @@
 one does — a UR5's and a gripper's driver actions (control_msgs FollowJointTrajectory on
 scaled_pos_joint_traj_controller/follow_joint_trajectory, GripperCommand on
 gripper_controller/gripper_cmd), /joint_states, an RGB-D camera's images and camera_info, the
-world → camera transform on /tf_static — running on at real-time pace until interrupted (Ctrl-C).
+world → camera transform on /tf_static — running on at real-time pace until interrupted (Ctrl-C
+or `kill`: roslaunch takes its nodes and roscore down first).
 
 `foldbot ros-fold --cell real` then folds on it exactly as on a real cell: through those topics
 and actions only. The cloth is the one `foldbot fold` would lay for the same options (size,
@@ -31,6 +32,14 @@ from foldbot.errors import ConfigError, FoldbotError
 
 STOP_WAIT_S = 30.0
 """How long an interrupted cell's roslaunch is given to stop its nodes and roscore."""
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+"""What stops the cell cleanly: Ctrl-C, or `kill`. SIGINT is taken even where the cell
+inherited it ignored (a script's `foldbot ros-cell … &`, where Python would not raise
+KeyboardInterrupt for it)."""
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt(signal.Signals(signum).name)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -86,6 +95,7 @@ def run(args: argparse.Namespace) -> int:
         # Its own session: an interrupt is passed on once and waited out, so roslaunch takes
         # its nodes and roscore down with it rather than being killed and leaving them.
         proc = subprocess.Popen(cmd, env=ros_env(port), start_new_session=True)
+        before = {s: signal.signal(s, _interrupt) for s in STOP_SIGNALS}
         try:
             code = proc.wait()
         except KeyboardInterrupt:
@@ -96,6 +106,9 @@ def run(args: argparse.Namespace) -> int:
                 proc.kill()
             print("the simulated cell stopped", flush=True)
             return 0
+        finally:
+            for s, handler in before.items():
+                signal.signal(s, handler)
     if code != 0:
         raise FoldbotError(f"the cell stopped (roslaunch exit code {code})")
     return 0
