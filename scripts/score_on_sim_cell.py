@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from foldbot.commands.ros_fold import ros_env
+from foldbot.commands.ros_fold import master_running, ros_env
 from foldbot.metrics import coverage, score_episode
 
 WAIT_S = 60.0
@@ -40,7 +40,13 @@ def main(argv: list[str] | None = None) -> int:
     result = json.loads((args.episode / "result.json").read_text())
     if result.get("cell") != "real":
         parser.error(f"{args.episode} is not a `--cell real` episode (cell {result.get('cell')!r})")
-    os.environ.update(ros_env(args.port))
+    env = ros_env(args.port)
+    if not master_running(env, wait_s=5.0):  # rospy would retry registering for ever
+        sys.exit(
+            f"score_on_sim_cell: no ROS master answers at {env['ROS_MASTER_URI']}: the cell "
+            "has stopped (its log says why) or runs on another --port"
+        )
+    os.environ.update(env)
     import rospy
     from sensor_msgs.msg import PointCloud2
     from std_msgs.msg import Empty, String

@@ -326,6 +326,59 @@ def score_on_cell(out: Path, port: int) -> subprocess.CompletedProcess:
     )  # fmt: skip
 
 
+# The running cell's cloth twice, asked for on ground_truth/request a few seconds apart, once the
+# camera has its subscribers (the cell runs on only then): a JSON line of both stamps and whether
+# the two clouds are equal to the last bit.
+STILL_SCRIPT = """
+import json, time
+import numpy as np
+import rospy
+from sensor_msgs.msg import CameraInfo, Image, PointCloud2
+from std_msgs.msg import Empty
+from foldbot.ros import TOPICS, convert
+
+rospy.init_node("still_cell", anonymous=True, disable_signals=True)
+for topic, kind in (("color", Image), ("depth", Image), ("color_info", CameraInfo)):
+    rospy.Subscriber(TOPICS[topic], kind, lambda m: None)
+clouds = []
+rospy.Subscriber(TOPICS["ground_truth"], PointCloud2, clouds.append)
+request = rospy.Publisher(TOPICS["ground_truth_request"], Empty, queue_size=1)
+while request.get_num_connections() == 0 or not clouds:
+    time.sleep(0.05)
+for wait in (6.0, 3.0):
+    time.sleep(wait)
+    n = len(clouds)
+    request.publish(Empty())
+    while len(clouds) == n:
+        time.sleep(0.05)
+a, b = clouds[-2], clouds[-1]
+same = bool(np.array_equal(convert.cloud_array(a), convert.cloud_array(b)))
+print(json.dumps({"stamps": [a.header.stamp.to_sec(), b.header.stamp.to_sec()], "same": same}))
+"""
+
+
+def test_a_running_cell_left_to_itself_comes_to_rest_and_stays_there():
+    # Between goals the running cell steps its physics until the towel and the arm are still
+    # (sim.rest); then its clock runs on and its cloth stays exactly where it lay, as a real
+    # towel does, instead of creeping on (a folded towel stepped on at rest blew up).
+    from foldbot.commands.ros_fold import ros_env
+
+    cell, port = start_cell("--resolution", "5", "--camera-rate", "2")
+    try:
+        wait_for_master(port)
+        proc = subprocess.run(
+            [sys.executable, "-c", STILL_SCRIPT],
+            capture_output=True, text=True, timeout=120, check=False, env=ros_env(port),
+        )  # fmt: skip
+    finally:
+        log = stop_cell(cell)
+    assert proc.returncode == 0, proc.stderr[-3000:] + log[-3000:]
+    found = json.loads(proc.stdout.strip().splitlines()[-1])
+    first, second = found["stamps"]
+    assert second - first > 2.0  # the cell's clock ran on between the two (about 3 s)
+    assert found["same"], found
+
+
 """Topics only the simulated cell has: its lockstep commands and reports and its ground truth
 (a real cell's drivers have none of them). /clock is rospy's own where /use_sim_time is set."""
 
@@ -443,6 +496,65 @@ def test_a_real_cell_that_goes_away_mid_fold_ends_it_named(tmp_path):
     assert not out.exists()
 
 
+def test_a_real_cell_that_goes_away_while_the_fold_waits_for_a_frame_ends_it_named(tmp_path):
+    # A camera slower than the fold (a frame every 20 s of the cell's clock): the task waits for
+    # the first frame after its start when the cell dies. The wait ends within seconds, naming
+    # the driver or the camera that went (whichever it finds gone first), not after its 300 s
+    # reply timeout.
+    cell, port = start_cell("--resolution", "5", "--camera-rate", "0.05")
+    out = tmp_path / "episode"
+    try:
+        wait_for_master(port)
+        fold = subprocess.Popen(
+            [sys.executable, "-m", "foldbot.cli", "ros-fold", "--cell", "real",
+             "--resolution", "5", "--video-fps", "0", "--out", str(out), "--port", str(port)],
+            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        )  # fmt: skip
+        seen = []
+        for line in fold.stdout:  # until the task node is up
+            seen.append(line)
+            if "foldbot_task" in line and "started with pid" in line:
+                break
+        assert "started with pid" in seen[-1], "".join(seen[-50:])
+        time.sleep(8.0)  # the task has found the drivers and waits for the first frame
+        sim = [pid for pid, args in descendants(cell.pid) if "foldbot_ros/nodes/sim_node" in args]
+        assert len(sim) == 1, descendants(cell.pid)
+        os.kill(sim[0], signal.SIGKILL)
+        gone = time.monotonic()
+        rest = fold.communicate(timeout=200)[0]
+        took = time.monotonic() - gone
+    finally:
+        if fold.poll() is None:  # still waiting: it would have waited out its 300 s
+            fold.kill()
+        stop_cell(cell)
+    output = "".join(seen) + rest
+    assert "stage 1" not in output  # it was still waiting for its first frame
+    assert fold.returncode == 2, output[-3000:]
+    gone_names = ("the driver went away: nothing serves", "the camera went away: nothing publishes")
+    assert any(f"over ROS: {g}" in output for g in gone_names), output[-3000:]
+    assert took < 60, took
+    assert not out.exists()
+
+
+def test_scoring_on_a_cell_that_has_stopped_says_so(tmp_path):
+    # The cell gone (stopped, or diverged and taken down): the script says so in seconds,
+    # where rospy would have tried to register with the master for ever.
+    from foldbot.commands.ros_fold import ros_env
+
+    episode = tmp_path / "episode"
+    episode.mkdir()
+    (episode / "result.json").write_text(json.dumps({"cell": "real", "perceived": {}}))
+    port = free_port()
+    began = time.monotonic()
+    proc = subprocess.run(
+        [sys.executable, str(SCORE_SCRIPT), str(episode), "--port", str(port)],
+        capture_output=True, text=True, timeout=60, check=False, env=ros_env(port),
+    )  # fmt: skip
+    assert proc.returncode == 1
+    assert f"no ROS master answers at http://localhost:{port}: the cell has stopped" in proc.stderr
+    assert time.monotonic() - began < 30
+
+
 def test_a_real_cell_needs_its_master_running(tmp_path):
     port = free_port()
     proc = foldbot("ros-fold", "--cell", "real", "--out", str(tmp_path / "e"), "--port", str(port))
@@ -531,33 +643,79 @@ def test_crumpled_towel_is_flattened_over_topics(tmp_path):
     assert rescore(out).fold_error_mm == pytest.approx(result["fold_error_mm"])
 
 
+REAL_TARGET = 0.6
+REAL_CRUMPLED = [*CRUMPLED, "--jaw-catch", "surface", "--cloth", "crossing_guard=1"]
+REAL_CRUMPLED += ["--cloth", "layer_friction=0.25"]
+REAL_CRUMPLED += ["--flatten-option", f"target_coverage={REAL_TARGET}"]
+REAL_CRUMPLED += ["--flatten-option", "finish_coverage=none"]
+"""A running cell's crumpled towel on the crumpled suite's cloth (0.36 perceived), flattened to a
+perceived 0.6 with no finishing pulls (3 to all 6 pulls in 14 runs, each a chance for the heap
+to diverge: below), then folded. The jaws catch the surface between them: on a mesh this coarse
+(37 mm between vertices) jaws closing between vertices catch nothing, and a towel dragged by jaws
+that hold nothing can be flung."""
+CELL_DIVERGED = "cloth simulation diverged"
+RUNNING_CELL_TRIES = 4
+"""A running cell's fold is not reproducible: when a goal arrives on the cell's clock depends on
+the wall clock, and the crumpled towel's pulls amplify that. Its physics diverged in 4 of 16 runs
+of CRUMPLED (a towel flung by jaws closing on nothing, or sinking through the table after the
+fold), and in 2 of 14 first tries of REAL_CRUMPLED (docs/experiments.md, "A running cell left to
+itself"); a run the cell itself logs as diverged is run again."""
+
+
+def crumpled_fold_on_a_running_cell(
+    tmp_path: Path,
+) -> tuple[Path, subprocess.CompletedProcess, subprocess.CompletedProcess]:
+    """`ros-fold --cell real` of REAL_CRUMPLED on `ros-cell` (its episode folder and process),
+    then the cell's ground truth (score_on_sim_cell.py); run again, at most RUNNING_CELL_TRIES
+    times, only where the cell logged that its cloth diverged (that run's fold must then have
+    ended with a named error, or have finished before it)."""
+    faults = []
+    for attempt in range(RUNNING_CELL_TRIES):
+        cell, port = start_cell(*REAL_CRUMPLED, "--camera-rate", "2", "--real-time-factor", "3")
+        out = tmp_path / f"episode{attempt}"
+        proc = score = None
+        try:
+            wait_for_master(port)
+            proc = foldbot(
+                "ros-fold", "--cell", "real", *REAL_CRUMPLED, "--out", str(out),
+                "--port", str(port),
+            )  # fmt: skip
+            if proc.returncode == 0:
+                score = score_on_cell(out, port)
+        finally:
+            log = stop_cell(cell)
+        if CELL_DIVERGED not in log:
+            assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+            assert score.returncode == 0, score.stderr[-3000:] + log[-3000:]
+            return out, proc, score
+        # The cell diverged: the fold ended with an error naming it, or was done before it.
+        assert proc.returncode in (0, 2), proc.stderr[-3000:]
+        if proc.returncode == 2:
+            assert "error: over ROS:" in proc.stderr and not out.exists()
+        faults.append(log[log.index(CELL_DIVERGED) :][:300])
+    pytest.fail(f"the cell diverged in all {RUNNING_CELL_TRIES} runs: {faults}")
+
+
 def test_a_crumpled_towel_on_a_running_cell_is_flattened_then_folded(tmp_path):
     # `ros-cell --start crumpled` serves the towel crumpled as `foldbot fold` crumples it;
     # `ros-fold --cell real --start crumpled` flattens it by pulls planned from the camera, then
-    # folds, and records what the camera said of both. No ground truth reaches the fold.
-    cell, port = start_cell(*CRUMPLED, "--camera-rate", "2", "--real-time-factor", "3")
-    out = tmp_path / "episode"
-    try:
-        wait_for_master(port)
-        proc = foldbot(
-            "ros-fold", "--cell", "real", *CRUMPLED, "--out", str(out), "--port", str(port)
-        )
-        assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
-        assert (
-            "fold done on a real cell, not scored (no ground truth); perceived: flattened in"
-            in (proc.stdout)
-        )
-        score = score_on_cell(out, port)
-    finally:
-        log = stop_cell(cell)
-    assert score.returncode == 0, score.stderr[-3000:] + log[-3000:]
+    # folds, and records what the camera said of both. No ground truth reaches the fold. How
+    # far the pulls got differs run to run (RUNNING_CELL_TRIES); what the record says does not.
+    out, proc, score = crumpled_fold_on_a_running_cell(tmp_path)
     result = json.loads((out / "result.json").read_text())
     assert result["scored"] is False and "flatten" not in result
     f = result["perceived"]["flatten"]
     assert 1 <= f["actions"] <= f["max_actions"] == 6 and len(f["pulls"]) >= f["actions"]
     assert all(p["kind"] == "flatten_pull" for p in f["pulls"])
-    assert f["perceived_coverage_end"] > f["perceived_coverage_start"]
-    assert f["reached_target"] == (f["perceived_coverage_end"] >= 0.9)
+    # Each pull starts where the last left the perceived coverage, from the first view's.
+    pulls = f["pulls"]
+    before = [p["coverage_before"] for p in pulls]
+    assert before == [f["perceived_coverage_start"], *[p["coverage_after"] for p in pulls[:-1]]]
+    assert pulls[-1]["coverage_after"] == f["perceived_coverage_end"]
+    assert f["reached_target"] == (f["perceived_coverage_end"] >= REAL_TARGET)
+    assert result["flatten_options"] == {"target_coverage": 0.6, "finish_coverage": None}
+    said = f"perceived: flattened in {f['actions']} actions, perceived coverage"
+    assert f"fold done on a real cell, not scored (no ground truth); {said}" in proc.stdout
     assert "success" not in f and "coverage_end" not in f  # ground truth: none on a real cell
     names = {p.name for p in out.iterdir()}
     assert {"overlay_flattened.png", "flatten.png", "overlay_final.png"} <= names
@@ -565,7 +723,8 @@ def test_a_crumpled_towel_on_a_running_cell_is_flattened_then_folded(tmp_path):
     assert len(result["fold_lines"]) == 1
     # The cell crumpled the towel exactly as an in-process fold of that seed does.
     ref = subprocess.run(
-        [sys.executable, "-c", CRUMPLE_SCRIPT, " ".join([*CRUMPLED, "--out", str(tmp_path / "x")])],
+        [sys.executable, "-c", CRUMPLE_SCRIPT,
+         " ".join([*REAL_CRUMPLED, "--out", str(tmp_path / "x")])],
         capture_output=True, text=True, timeout=600, check=True,
     )  # fmt: skip
     truth = json.loads(score.stdout.strip().splitlines()[-1])

@@ -73,8 +73,11 @@ def test_a_real_cells_fold_is_reported_as_seen_and_left_unscored():
 
     parser = argparse.ArgumentParser()
     add_arguments(parser)
-    cfg = config_from_args(parser.parse_args(["--out", "unused", "--recipe", "quarter"]))
+    words = ["--out", "unused", "--recipe", "quarter", "--start", "crumpled"]
+    words += ["--flatten-option", "retries=2"]
+    cfg = config_from_args(parser.parse_args(words))
     result = real_cell_result(cfg, _record([0.92, 0.85]), 12.0, 13.0)
+    assert result["flatten_options"] == {"retries": 2}  # the task's settings, as in process
     assert set(REQUIRED_RESULT_KEYS) <= result.keys()  # the contract's keys, metrics None
     assert result["scored"] is False and result["success"] is None
     assert result["fold_error_mm"] is None and result["seed"] is None

@@ -50,6 +50,7 @@ from foldbot.ros.node_args import (
     parse_fold_args,
 )
 from foldbot.sim.cloth import settle
+from foldbot.sim.rest import RestWatch
 from foldbot.sim.world import SimWorld
 
 SUBSCRIBER_WAIT_S = 60.0
@@ -152,6 +153,13 @@ class SimNode:
         for topic, kind, cls in commands:
             rospy.Subscriber(topic, cls, lambda msg, k=kind: self.commands.put((k, msg)))
         self.world.add_step_hook(self._on_step)
+        self.rest = RestWatch(
+            self.parts.cloth.sim_vertices,
+            [ex.robot.joint_velocities for ex in self.executors],
+            self.world.time_step,
+        )
+        """Whether the cell, left to itself between goals (the actions interface), is still:
+        then its clock runs on without the physics (sim.rest)."""
         self.drivers = None
         if arm_interface == "actions":
             from foldbot.ros.drivers import SimDrivers
@@ -380,6 +388,7 @@ class SimNode:
                     return
                 continue
             if self.drivers is not None and kind != "ground_truth":
+                self.rest.wake()
                 if not self.drivers.execute(kind, msg):
                     return
                 continue
@@ -387,31 +396,30 @@ class SimNode:
                 out = self.execute(kind, msg)
             except FoldbotError as exc:
                 # Divergence or a bad command: report it (the task node raises it) and stop.
-                self.report(
-                    {
-                        "command": kind,
-                        "ok": False,
-                        "error": str(exc),
-                        "error_type": type(exc).__name__,
-                    }
-                )
-                if type(exc).__name__ == "SimulationDivergedError":
-                    rospy.signal_shutdown("the simulation diverged")
+                self.fail(kind, exc)
                 continue
             self.report({"command": kind, "ok": True, **out, "frame_stamp": self.publish_frame()})
 
     def _run_on(self) -> bool:
-        """One physics step of the cell left to itself (the actions interface): the cloth
-        settles, the camera streams. A divergence is reported and ends the node (False)."""
+        """One step of the cell left to itself (the actions interface): the cloth settles, the
+        camera streams; once the cell is still (sim.rest.RestWatch), the clock runs on without
+        the physics until the next goal. A divergence is reported and ends the node (False)."""
         try:
-            self.world.step()
+            if self.rest.resting:
+                self.world.idle()
+            else:
+                self.world.step()
+                if self.rest.stepped():
+                    rospy.logdebug("the cell is at rest at t = %.3f s", self.world.sim_time)
         except FoldbotError as exc:
             self.fail("run", exc)
             return False
         return True
 
     def fail(self, kind: str, exc: FoldbotError) -> None:
-        """Report an error on sim/result (the task node raises it) and, for a divergence, stop."""
+        """Report an error on sim/result (the task node raises it) and, for a divergence, stop;
+        logged here too (a real cell's task node never reads sim/result)."""
+        rospy.logerr("%s at t = %.3f s: %s", kind, self.world.sim_time, exc)
         self.report(
             {"command": kind, "ok": False, "error": str(exc), "error_type": type(exc).__name__}
         )

@@ -204,7 +204,9 @@ class RosCell(FoldCell):
         """The cell's time (s) when a real cell's fold began (sim_time counts from it)."""
         rospy.Subscriber(TOPICS["state"], String, self._on_state, queue_size=200)
         rospy.Subscriber(TOPICS["mask"], Image, self._on_mask, queue_size=200, buff_size=2**24)
-        rospy.Subscriber(TOPICS["color"], Image, self._on_color, queue_size=200, buff_size=2**26)
+        self._color_sub = rospy.Subscriber(
+            TOPICS["color"], Image, self._on_color, queue_size=200, buff_size=2**26
+        )
         rospy.Subscriber(TOPICS["color_info"], CameraInfo, self._on_info, queue_size=200)
         rospy.Subscriber(TOPICS["depth_info"], CameraInfo, self._on_depth_info, queue_size=5)
         rospy.Subscriber(
@@ -301,6 +303,17 @@ class RosCell(FoldCell):
         if failed:
             raise errors.reported_error(failed[0], "the cell")
 
+    def check_cell(self) -> None:
+        """Raise when the cell has reported an error or, on a real cell, its drivers or its
+        camera went away (a cell that died: nothing waited for from it would come)."""
+        self.raise_reported_error()
+        if self.driver is not None:
+            self.driver.check_servers()
+        if self.frames and self._color_sub.get_num_connections() == 0:
+            raise errors.FoldbotError(
+                f"the camera went away: nothing publishes {TOPICS['color']} any more"
+            )
+
     def _settle(self, ended: float = 0.0) -> None:
         """Where the arm's driver left the cell: the arm's joints from a /joint_states stamped
         after the command ended (`ended`, s, or the clock now); the camera frame to observe is
@@ -319,7 +332,7 @@ class RosCell(FoldCell):
                 later = [stamp for stamp in self.frames if stamp >= round(since, 6)]
                 if later:
                     return min(later)
-                self.raise_reported_error()
+                self.check_cell()
                 if time.monotonic() > deadline or rospy.is_shutdown():
                     raise errors.FoldbotError(
                         f"no camera frame after t = {since:.3f} s within {REPLY_TIMEOUT_S:.0f} s"
@@ -731,7 +744,7 @@ class RosCell(FoldCell):
             until = self._now() + seconds
             deadline = time.monotonic() + REPLY_TIMEOUT_S
             while self._now() < until:
-                self.raise_reported_error()
+                self.check_cell()
                 if time.monotonic() > deadline or rospy.is_shutdown():
                     raise errors.FoldbotError(f"the cell's clock did not reach {until:.3f} s")
                 time.sleep(0.005)
@@ -792,6 +805,7 @@ def real_cell_result(
         "perceived": perceived_outcome(record),
         **fold_fields(cfg, record),
         "loop_options": dict(cfg.loop_options),
+        "flatten_options": dict(cfg.flatten_options),  # the task's, as the loop's
         "seed": None,
         "perception": cfg.perception,
         "closed_loop": cfg.closed_loop,

@@ -122,6 +122,16 @@ class SimWorld:
             for hook in self._step_hooks:
                 hook(self)
 
+    def idle(self, n: int = 1) -> None:
+        """Advance the clock by n steps without stepping the physics, running the hooks as
+        `step` does: a cell at rest (sim.rest.RestWatch) stays as it is, as a real one does,
+        instead of a resting soft body creeping until it blows up."""
+        for _ in range(n):
+            self.steps += 1
+            self.sim_time += self.config.time_step
+            for hook in self._step_hooks:
+                hook(self)
+
     def close(self) -> None:
         """Disconnect the client (idempotent)."""
         if self.client >= 0:
