@@ -462,12 +462,15 @@ def descendants(pid: int) -> list[tuple[int, str]]:
     return found
 
 
-def test_a_real_cell_that_goes_away_mid_fold_ends_it_named(tmp_path):
-    # The cell's node dies mid-fold (a driver crash): no goal would ever be answered. The fold
-    # ends within seconds, naming the driver that went, not after its 300 s reply timeout,
-    # and leaves no episode folder.
-    cell, port = start_cell("--resolution", "5", "--camera-rate", "2")
+def fold_and_kill_the_cell(
+    tmp_path: Path, camera_rate: str, until: str, pause_s: float
+) -> tuple[subprocess.Popen, str, str, float, Path]:
+    """`ros-fold --cell real` on a 5 × 5 towel's running cell whose sim node is killed
+    `pause_s` after the fold printed a line holding `until`: the fold's process, its output and
+    errors, the seconds from the kill to its end, and its --out."""
+    cell, port = start_cell("--resolution", "5", "--camera-rate", camera_rate)
     out = tmp_path / "episode"
+    fold = None
     try:
         wait_for_master(port)
         fold = subprocess.Popen(
@@ -476,12 +479,12 @@ def test_a_real_cell_that_goes_away_mid_fold_ends_it_named(tmp_path):
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         )  # fmt: skip
         seen = []
-        for line in fold.stdout:  # until the first carry starts
+        for line in fold.stdout:
             seen.append(line)
-            if "stage 1, action 1" in line:
+            if until in line:
                 break
-        assert "stage 1, action 1" in seen[-1], "".join(seen[-50:])
-        time.sleep(1.0)  # the arm under way
+        assert until in seen[-1], "".join(seen[-50:])
+        time.sleep(pause_s)
         sim = [pid for pid, args in descendants(cell.pid) if "foldbot_ros/nodes/sim_node" in args]
         assert len(sim) == 1, descendants(cell.pid)  # this cell's sim node, no other test's
         os.kill(sim[0], signal.SIGKILL)
@@ -489,7 +492,22 @@ def test_a_real_cell_that_goes_away_mid_fold_ends_it_named(tmp_path):
         stdout, stderr = fold.communicate(timeout=200)
         took = time.monotonic() - gone
     finally:
+        if fold is not None and fold.poll() is None:  # still waiting: it would wait out 300 s
+            fold.kill()
         stop_cell(cell)
+    return fold, "".join(seen) + stdout, stderr, took, out
+
+
+def test_a_real_cell_that_goes_away_mid_fold_ends_it_named(tmp_path):
+    # The cell's node dies mid-fold (a driver crash): no goal would ever be answered. The fold
+    # ends within seconds, naming the driver that went, not after its 300 s reply timeout,
+    # and leaves no episode folder.
+    fold, stdout, stderr, took, out = fold_and_kill_the_cell(
+        tmp_path,
+        "2",
+        "stage 1, action 1",
+        pause_s=1.0,  # the arm under way
+    )
     assert fold.returncode == 2, stdout[-2000:] + stderr[-2000:]
     assert "over ROS: the driver went away: nothing serves" in stderr, stderr[-3000:]
     assert took < 120, took
@@ -501,37 +519,16 @@ def test_a_real_cell_that_goes_away_while_the_fold_waits_for_a_frame_ends_it_nam
     # the first frame after its start when the cell dies. The wait ends within seconds, naming
     # the driver or the camera that went (whichever it finds gone first), not after its 300 s
     # reply timeout.
-    cell, port = start_cell("--resolution", "5", "--camera-rate", "0.05")
-    out = tmp_path / "episode"
-    try:
-        wait_for_master(port)
-        fold = subprocess.Popen(
-            [sys.executable, "-m", "foldbot.cli", "ros-fold", "--cell", "real",
-             "--resolution", "5", "--video-fps", "0", "--out", str(out), "--port", str(port)],
-            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-        )  # fmt: skip
-        seen = []
-        for line in fold.stdout:  # until the task node is up
-            seen.append(line)
-            if "foldbot_task" in line and "started with pid" in line:
-                break
-        assert "started with pid" in seen[-1], "".join(seen[-50:])
-        time.sleep(8.0)  # the task has found the drivers and waits for the first frame
-        sim = [pid for pid, args in descendants(cell.pid) if "foldbot_ros/nodes/sim_node" in args]
-        assert len(sim) == 1, descendants(cell.pid)
-        os.kill(sim[0], signal.SIGKILL)
-        gone = time.monotonic()
-        rest = fold.communicate(timeout=200)[0]
-        took = time.monotonic() - gone
-    finally:
-        if fold.poll() is None:  # still waiting: it would have waited out its 300 s
-            fold.kill()
-        stop_cell(cell)
-    output = "".join(seen) + rest
-    assert "stage 1" not in output  # it was still waiting for its first frame
-    assert fold.returncode == 2, output[-3000:]
+    fold, stdout, stderr, took, out = fold_and_kill_the_cell(
+        tmp_path,
+        "0.05",
+        "started with pid",
+        pause_s=8.0,  # the task waits for a frame
+    )
+    assert "stage 1" not in stdout  # it was still waiting for its first frame
+    assert fold.returncode == 2, stdout[-2000:] + stderr[-2000:]
     gone_names = ("the driver went away: nothing serves", "the camera went away: nothing publishes")
-    assert any(f"over ROS: {g}" in output for g in gone_names), output[-3000:]
+    assert any(f"over ROS: {g}" in stderr for g in gone_names), stderr[-3000:]
     assert took < 60, took
     assert not out.exists()
 
