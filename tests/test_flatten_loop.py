@@ -1,5 +1,6 @@
 """Crumple a small towel and flatten it in the closed loop (vision only); coverage rises."""
 
+import dataclasses
 import json
 import re
 import subprocess
@@ -206,3 +207,32 @@ def test_finishing_pulls_stop_once_one_loses_the_target():
     assert stop.reached(0.9) and not stop.reached(0.89)
     # Without a finishing coverage flattening stops at the target.
     assert _Stop(FlattenConfig(finish_coverage=None), logged.append).reached(0.9)
+
+
+def test_a_pull_at_a_spot_that_missed_is_tried_after_the_others():
+    import numpy as np
+
+    from foldbot.flatten import away_from_misses
+    from foldbot.planning.actions import FoldAction
+    from foldbot.planning.flatten import FlattenConfig, Pull
+
+    def pull(label: str, x: float, y: float) -> Pull:
+        action = FoldAction(np.array([x, y, 0.76]), np.array([x + 0.1, y, 0.76]), (0, 0, 1, 0))
+        return Pull(dataclasses.replace(action, label=label), label, 0.05)
+
+    pulls = [pull("corner_a", 0.40, 0.00), pull("corner_b", 0.50, 0.10), pull("edge", 0.40, 0.1)]
+    logged: list[str] = []
+    missed = [np.array([0.41, 0.005])]  # 11 mm from corner_a's grasp
+    moved = away_from_misses(pulls, missed, FlattenConfig().missed_radius, logged.append)
+    assert [p.target for p in moved] == ["corner_b", "edge", "corner_a"]
+    assert logged == [
+        "  corner_a: its grasp lies within 20 mm of where a pull missed; corner_b first"
+    ]
+    # Nothing missed, no memory, or the miss further away: the plan's order as it is.
+    assert away_from_misses(pulls, [], 0.02, logged.append) == pulls
+    assert away_from_misses(pulls, missed, 0.0, logged.append) == pulls
+    assert away_from_misses(pulls, missed, 0.005, logged.append) == pulls
+    # Every pull near a miss: all of them, in their order (the plan has nothing else).
+    everywhere = missed + [np.array([0.5, 0.1]), np.array([0.4, 0.1])]
+    assert away_from_misses(pulls, everywhere, 0.02, logged.append) == pulls
+    assert len(logged) == 1

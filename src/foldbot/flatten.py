@@ -169,6 +169,8 @@ def run_flatten(
     log(f"flatten: perceived coverage {coverage:.2f} (target {cfg.target_coverage:.2f})")
     yaw, expected = None, None
     stop = _Stop(cfg, log)
+    missed: list[np.ndarray] = []
+    """Where earlier pulls' every try missed (world xy, m)."""
     while len(rec.actions) < cfg.max_actions and not stop.reached(coverage):
         if oracle is not None:
             expected, pulls = oracle(state, cfg)
@@ -181,12 +183,37 @@ def run_flatten(
         if not pulls:
             log("flatten: no point of the expected outline is short enough to pull")
             break
+        pulls = away_from_misses(pulls, missed, cfg.missed_radius, log)
         before = coverage
         state, obs, coverage = _pull_step(
             cfg, cell, state, obs, pulls, expected, coverage, area, rec, log
         )
+        if not rec.actions[-1]["grasp_success"]:
+            missed += [np.asarray(a["grasp"][:2], dtype=float) for a in rec.actions[-1]["attempts"]]
         stop.pulled(before, coverage)
     return rec.finish(coverage, cfg.target_coverage, state, obs, expected)
+
+
+def away_from_misses(
+    pulls: list[Pull], missed: list[np.ndarray], radius: float, log: Callable[[str], None]
+) -> list[Pull]:
+    """`pulls` with those whose grasp lies within `radius` (m) of a `missed` spot (world xy)
+    moved after the others, in their order; all of them where every pull lies near one."""
+    if not missed or radius <= 0.0:
+        return pulls
+    spots = np.asarray(missed, dtype=float)
+
+    def near(pull: Pull) -> bool:
+        gap = np.linalg.norm(spots - np.asarray(pull.action.grasp[:2], dtype=float), axis=1)
+        return bool(gap.min() <= radius)
+
+    away = [p for p in pulls if not near(p)]
+    if away and away[0] is not pulls[0]:
+        log(
+            f"  {pulls[0].action.label}: its grasp lies within {radius * 1000:.0f} mm of where "
+            f"a pull missed; {away[0].action.label} first"
+        )
+    return away + [p for p in pulls if near(p)]
 
 
 @dataclass

@@ -58,6 +58,7 @@ FLATTEN_OPTION_FIELDS: dict[str, FlattenOption] = {
     "max_inset": _pull("max_inset", "number", "m"),
     "retries": _pull("retries", "count"),
     "retry_step": _pull("retry_step", "number", "m"),
+    "missed_radius": _pull("missed_radius", "number", "m"),
     "palm_clearance": _pull("palm_clearance", "number", "m"),
     "release_height": _pull("release_height", "number", "m"),
     "overshoot": _pull("overshoot", "number", "m"),

@@ -78,6 +78,10 @@ class FlattenConfig:
     retry_step: float = 0.015
     """… this much further inside the cloth (m): the simulated jaws hold mesh points only, which
     lie up to 3 cm apart on a large towel, so a grasp can close between them."""
+    missed_radius: float = 0.02
+    """A pull whose grasp lies within this of a spot where an earlier pull's every try missed
+    (m) is tried after the others (0: no memory): a missed grasp moves nothing, so the next plan
+    from the same view would try the same spot again."""
     max_inset: float = 0.10
     """Farthest inside the edge (m) a grasp moves looking for cloth high enough to catch with
     the palm clear of the heap."""
@@ -140,6 +144,7 @@ class FlattenConfig:
             ("palm_radius", 0.0, 0.2),
             ("max_inset", 0.0, 0.3),
             ("retry_step", 0.0, 0.1),
+            ("missed_radius", 0.0, 0.2),
             ("overshoot", 0.0, 0.1),
             ("min_pull", 0.0, 0.2),
             ("yaw_step", math.radians(0.5), math.radians(45.0)),
