@@ -169,8 +169,7 @@ def run_flatten(
     log(f"flatten: perceived coverage {coverage:.2f} (target {cfg.target_coverage:.2f})")
     yaw, expected = None, None
     stop = _Stop(cfg, log)
-    missed: list[np.ndarray] = []
-    """Where earlier pulls' every try missed (world xy, m)."""
+    missed: list[np.ndarray] = []  # where earlier pulls' every try missed (world xy, m)
     while len(rec.actions) < cfg.max_actions and not stop.reached(coverage):
         if oracle is not None:
             expected, pulls = oracle(state, cfg)
