@@ -39,11 +39,12 @@ def test_a_falling_towel_is_not_at_rest(cell):
     assert not any(rested)
 
 
-def test_an_idle_world_keeps_its_clock_and_hooks_but_moves_nothing(cell):
+def test_an_idle_world_keeps_its_clock_and_clock_hooks_but_moves_nothing(cell):
     world, robot, cloth = cell
     world.step(round(0.5 / world.time_step))  # a towel falling would move; a settled one creeps
-    seen = []
-    world.add_step_hook(lambda w: seen.append(w.sim_time))
+    seen, watched = [], []
+    world.add_step_hook(lambda w: seen.append(w.sim_time), on_idle=True)
+    world.add_step_hook(lambda w: watched.append(w.sim_time))  # a physics watcher: not idle
     before, q, t0, steps = (
         cloth.sim_vertices(),
         robot.joint_positions(),
@@ -56,3 +57,6 @@ def test_an_idle_world_keeps_its_clock_and_hooks_but_moves_nothing(cell):
     assert world.steps == steps + 100
     assert world.sim_time == pytest.approx(t0 + 100 * world.time_step)
     assert seen == pytest.approx([t0 + k * world.time_step for k in range(1, 101)])
+    assert watched == []
+    world.step()
+    assert len(seen) == 101 and len(watched) == 1

@@ -152,7 +152,7 @@ class SimNode:
             ]
         for topic, kind, cls in commands:
             rospy.Subscriber(topic, cls, lambda msg, k=kind: self.commands.put((k, msg)))
-        self.world.add_step_hook(self._on_step)
+        self.world.add_step_hook(self._on_step, on_idle=True)  # the clock, joints, camera
         self.rest = RestWatch(
             self.parts.cloth.sim_vertices,
             [ex.robot.joint_velocities for ex in self.executors],

@@ -3,9 +3,10 @@
 A running cell (`foldbot ros-cell`) steps its physics between goals as a real cell's world runs
 on. A folded or heaped soft body left to itself for tens of seconds can creep until it blows up
 (a folded towel slid off at 0.61 m/s after 34 s at rest, a heap sank through the table), which a
-real towel never does; and how long the cell idles between goals depends on the wall clock, so
-each idle's creep made the same fold differ run to run. Once RestWatch finds the cell still, the
-sim node advances its clock without stepping the physics (SimWorld.idle) until the next goal.
+real towel never does. Once RestWatch finds the cell still, the sim node advances its clock
+without stepping the physics (SimWorld.idle) until the next goal. It does not make a running
+cell reproducible: goals still arrive, on the wall clock, in gaps shorter than the stillness
+it waits for.
 """
 
 from __future__ import annotations

@@ -72,6 +72,7 @@ class SimWorld:
         self.sim_time = 0.0
         self.steps = 0
         self._step_hooks: list = []
+        self._idle_hooks: list = []
 
     def _make_table(self) -> int:
         lay = self.layout
@@ -109,28 +110,32 @@ class SimWorld:
         """Recolour the table top (used by scene randomisation)."""
         p.changeVisualShape(self.table_id, -1, rgbaColor=list(rgba), physicsClientId=self.client)
 
-    def add_step_hook(self, hook) -> None:
-        """Call `hook(world)` after every `check_every`-th step (divergence monitors)."""
+    def add_step_hook(self, hook, on_idle: bool = False) -> None:
+        """Call `hook(world)` after every physics step (divergence monitors, the crossing guard);
+        with `on_idle`, after every tick of `idle` too (what follows the clock: publishing)."""
         self._step_hooks.append(hook)
+        if on_idle:
+            self._idle_hooks.append(hook)
 
     def step(self, n: int = 1) -> None:
-        """Advance the physics by n steps and run the monitors."""
+        """Advance the physics by n steps and run the hooks."""
         for _ in range(n):
             p.stepSimulation(physicsClientId=self.client)
-            self.steps += 1
-            self.sim_time += self.config.time_step
-            for hook in self._step_hooks:
-                hook(self)
+            self._tick(self._step_hooks)
 
     def idle(self, n: int = 1) -> None:
-        """Advance the clock by n steps without stepping the physics, running the hooks as
-        `step` does: a cell at rest (sim.rest.RestWatch) stays as it is, as a real one does,
-        instead of a resting soft body creeping until it blows up."""
+        """Advance the clock by n steps without stepping the physics, running only the hooks
+        added `on_idle` (nothing moved for the others to watch): a cell at rest
+        (sim.rest.RestWatch) stays as it is, as a real one does, instead of a resting soft body
+        creeping until it blows up."""
         for _ in range(n):
-            self.steps += 1
-            self.sim_time += self.config.time_step
-            for hook in self._step_hooks:
-                hook(self)
+            self._tick(self._idle_hooks)
+
+    def _tick(self, hooks: list) -> None:
+        self.steps += 1
+        self.sim_time += self.config.time_step
+        for hook in hooks:
+            hook(self)
 
     def close(self) -> None:
         """Disconnect the client (idempotent)."""
