@@ -83,3 +83,29 @@ def test_recorded_episodes_hold_their_transitions_and_are_not_run_again(tmp_path
     assert main(args) == 0
     assert "1 seeds already recorded" in capsys.readouterr().out
     assert path.stat().st_mtime_ns == stamp
+
+
+def test_the_recipe_policy_on_towelfold_records_its_fold_errors(tmp_path, capsys):
+    out = tmp_path / "fold.json"
+    args = ["--env", "fold", "--seeds", "1", "--resolution", "5", "--out", str(out)]
+    assert main([*args, "--record", str(tmp_path / "rec")]) == 0
+    result = json.loads(out.read_text())
+    assert result["policy"] == "recipe" and result["recipe"] == "half"
+    assert result["episodes"] == 1 and "folded" in result and "flattened" not in result
+    (row,) = result["rows"]
+    assert row["steps"] == 2 == len(row["fold_error_mm"])
+    assert row["fold_error_mm"][-1] < 0.4 * row["fold_error_mm_start"]
+    printed = capsys.readouterr().out
+    assert "| seed | start | fold error (mm) after each step |" in printed
+    assert "recipe: folded 0 of 1" in printed or "recipe: folded 1 of 1" in printed
+    ep = read_episode(tmp_path / "rec" / "towel_fold-s0001.npz")
+    assert ep["fold_error_mm"].shape == ep["coverage"].shape == (3,)
+    np.testing.assert_allclose(ep["reward"], -np.diff(ep["fold_error_mm"]) / 1000, atol=1e-6)
+    assert str(ep["env"]) == "fold" and str(ep["suite"]) == "towel_loop"
+
+
+def test_a_recipe_is_towelfolds_alone(capsys):
+    assert main(["--seeds", "0", "--recipe", "quarter"]) == 2
+    assert "--recipe is TowelFold's (--env fold), not --env flatten's" in capsys.readouterr().err
+    assert main(["--env", "fold", "--policy", "pulls", "--seeds", "0"]) == 2
+    assert "policy 'pulls' drives flatten, not --env fold" in capsys.readouterr().err

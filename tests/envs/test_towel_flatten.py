@@ -24,7 +24,11 @@ def env():
 
 
 def test_registered_with_gymnasium():
-    assert ENV_IDS == ("foldbot/TowelFlatten-v0", "foldbot/TowelSpread-v0")
+    assert ENV_IDS == (
+        "foldbot/TowelFlatten-v0",
+        "foldbot/TowelSpread-v0",
+        "foldbot/TowelFold-v0",
+    )
     made = gym.make("foldbot/TowelFlatten-v0", resolution=5)
     try:
         assert isinstance(made.unwrapped, TowelFlattenEnv)

@@ -19,6 +19,7 @@ from foldbot.planning.recipes import (
     plan_stage,
     predicted_cover,
     predicted_outline,
+    recipe_fold_lines,
     recipe_stages,
 )
 
@@ -671,3 +672,43 @@ def test_a_corner_is_released_above_a_thicker_stack_at_its_place():
         assert action.label.startswith("far_")
         assert corners[action.label][2] == pytest.approx(base)
         assert action.place[2] == pytest.approx(base + 0.012 + 0.004)
+
+
+@pytest.mark.parametrize("recipe", RECIPES)
+@pytest.mark.parametrize("pose", POSES[:3])
+@pytest.mark.parametrize("shape", SHAPES)
+def test_a_recipes_fold_lines_from_one_set_of_corners_are_its_stages_lines(recipe, pose, shape):
+    """The goal's lines: each stage planned on the outline the earlier ones predict, in the
+    order the cells fold the recipe, as a cell that perceived each outline exactly would."""
+    cx, cy, yaw = pose
+    flat = towel(cx, cy, *shape, yaw=yaw)
+    plans, _, _ = run_recipe(folded_as(recipe), flat)
+    lines = recipe_fold_lines(recipe, flat)
+    assert len(lines) == recipe_stages(recipe)
+    for line, plan in zip(lines, plans, strict=True):
+        np.testing.assert_allclose(line, plan.fold_lines[0], atol=1e-12)
+
+
+def test_a_recipes_fold_lines_on_an_uneven_quad_take_the_outlines_four_corners():
+    """A towel's true corners are no exact rectangle: the folded outline's mirrored corners then
+    lie just off its sides, and the next stage is planned on its largest quad."""
+    flat = towel(0.45, 0.02, 0.36, 0.3, yaw=0.2)
+    flat["near_left"] = flat["near_left"] + np.array([0.004, -0.003, 0.0])
+    assert len(predicted_outline("thirds", 0, flat)) > 4
+    first, second = recipe_fold_lines("thirds", flat)
+    np.testing.assert_allclose(first, plan_stage("thirds", 0, flat).fold_lines[0])
+    # The far third's line: halfway across what stage 1 left, about 2/3 of the depth from the
+    # near edge, parallel to it within the skew.
+    near_mid = (flat["near_left"] + flat["near_right"]) / 2
+    far_mid = (flat["far_left"] + flat["far_right"]) / 2
+    depth = np.linalg.norm((far_mid - near_mid)[:2])
+    line = FoldLine(*second)
+    offset = line.side(near_mid[None, :])[0] / np.hypot(line.dx, line.dy)
+    assert abs(offset) == pytest.approx(2 * depth / 3, abs=0.005)
+
+
+def test_a_recipes_fold_lines_refuse_bad_corners():
+    with pytest.raises(ConfigError, match="missing"):
+        recipe_fold_lines("half", {"near_left": np.zeros(3)})
+    with pytest.raises(ConfigError, match="unknown recipe 'pleat'"):
+        recipe_fold_lines("pleat", towel())

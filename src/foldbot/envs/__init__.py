@@ -2,11 +2,14 @@
 
 - `towel_flatten`: TowelFlatten, a crumpled towel flattened by pick-and-place from RGB-D, and
   TowelSpread, the same with two arms whose step is a spread from two grasp points.
+- `towel_fold`: TowelFold, a flat towel folded to a recipe's goal by one-arm carries.
+- `towel_task`: what they share (episodes per seed, observations, actions, the ends).
 - `episode_process`: one episode's simulation in a fresh child process (Bullet's soft-body
   state is process-global, so a seed reproduces only as the first simulation in its process).
 
 `import foldbot.envs` registers the environments with Gymnasium:
-`gymnasium.make("foldbot/TowelFlatten-v0")`, `gymnasium.make("foldbot/TowelSpread-v0")`.
+`gymnasium.make("foldbot/TowelFlatten-v0")`, `gymnasium.make("foldbot/TowelSpread-v0")`,
+`gymnasium.make("foldbot/TowelFold-v0", recipe="quarter")`.
 """
 
 from __future__ import annotations
@@ -25,18 +28,26 @@ from foldbot.envs.towel_flatten import (
     TowelSpreadConfig,
     TowelSpreadEnv,
 )
+from foldbot.envs.towel_fold import TowelFoldConfig, TowelFoldEnv
 
-ENV_IDS = ("foldbot/TowelFlatten-v0", "foldbot/TowelSpread-v0")
+_ENTRY_POINTS = {
+    "foldbot/TowelFlatten-v0": "foldbot.envs.towel_flatten:TowelFlattenEnv",
+    "foldbot/TowelSpread-v0": "foldbot.envs.towel_flatten:TowelSpreadEnv",
+    "foldbot/TowelFold-v0": "foldbot.envs.towel_fold:TowelFoldEnv",
+}
+ENV_IDS = tuple(_ENTRY_POINTS)
 """The environments this package registers."""
 
-for _id, _cls in zip(ENV_IDS, ("TowelFlattenEnv", "TowelSpreadEnv"), strict=True):
+for _id, _entry in _ENTRY_POINTS.items():
     if _id not in registry:
-        register(id=_id, entry_point=f"foldbot.envs.towel_flatten:{_cls}")
+        register(id=_id, entry_point=_entry)
 
 __all__ = [
     "ENV_IDS",
     "TowelFlattenConfig",
     "TowelFlattenEnv",
+    "TowelFoldConfig",
+    "TowelFoldEnv",
     "TowelSpreadConfig",
     "TowelSpreadEnv",
 ]

@@ -1,4 +1,5 @@
-"""One crumpled-towel episode simulated in a process of its own, driven by pick-and-place steps.
+"""One towel episode simulated in a process of its own, driven by pick-and-place steps: a
+crumpled towel to flatten (TowelFlatten, TowelSpread) or a flat one to fold (TowelFold).
 
 Bullet's soft-body solver keeps process-global state, so an episode reproduces from its seed only
 as the first simulation in its process (README, Determinism): a second crumple in one process
@@ -32,9 +33,20 @@ from foldbot.errors import (
     failed_segment,
 )
 from foldbot.flatten_options import flatten_configs
+from foldbot.grasp_points import surface_height
+from foldbot.metrics import FoldScore, score_episode
 from foldbot.perception.state import ClothState
-from foldbot.pipeline import EpisodeConfig, SimCell, build_sim_cell, crumple_start, make_estimator
+from foldbot.pipeline import (
+    EpisodeConfig,
+    SimCell,
+    build_sim_cell,
+    crumple_start,
+    make_estimator,
+    true_start_keypoints,
+)
+from foldbot.planning.actions import FoldAction
 from foldbot.planning.flatten import FlattenConfig, cloth_surface, grasp_level, pull_action, table_z
+from foldbot.planning.recipes import recipe_fold_lines
 from foldbot.planning.spread import MARGIN_FREE_SEGMENTS, SpreadConfig, plan_spread_at
 from foldbot.sim.cloth import settle
 from foldbot.sim.world import SimWorld
@@ -66,6 +78,9 @@ class StepOutcome:
     """Where the jaws opened (world, m), as `grasp`."""
     sim_seconds: float = 0.0
     """Simulated time the step took (s)."""
+    fold: FoldScore | None = None
+    """A fold episode's score of the cloth as it lies now against the recipe's goal (GROUND
+    TRUTH: metrics.score_episode on the goal's fold lines); None for a flattening episode."""
 
 
 class EpisodeFailed(FoldbotError):
@@ -158,8 +173,57 @@ def spread_at(
     return record | {"infeasible": f"the arms cannot make this spread ({why})"}
 
 
-PRIMITIVES = ("pick_and_place", "spread")
-"""What one step does: one arm's pick-and-place, or two arms' spread."""
+def fold_carry(
+    cell: SimCell,
+    state: ClothState,
+    obs: Observation,
+    pick_xy: np.ndarray,
+    place_xy: np.ndarray,
+    stack_height: float,
+    place_lift: float,
+    settle_time: float,
+) -> dict[str, Any]:
+    """Carry the cloth at `pick_xy` over to `place_xy` (world, m) with the cell's arm as a fold
+    carries a folded stack's corner: grasped `stack_height` over the perceived table, so the
+    jaws close under every layer there, carried over the half-sine arc, let go `place_lift`
+    above the higher of the grasp and the surface seen at the place point (the layer it is
+    laid on); then park and settle `settle_time`. Planned on the frame the policy was shown;
+    perception only. An unreachable carry moves nothing and says why."""
+    if not state.detected:
+        raise FoldbotError(f"the cell's camera sees no cloth: {state.reason}")
+    grasp = np.array([pick_xy[0], pick_xy[1], table_z(state.table_plane, pick_xy) + stack_height])
+    under = surface_height(
+        obs, np.array([place_xy[0], place_xy[1], grasp[2]]), 2, state.table_plane
+    )
+    place_z = max(float(grasp[2]), -np.inf if under is None else under)
+    place = np.array([place_xy[0], place_xy[1], place_z + place_lift])
+    direction = place[:2] - grasp[:2]
+    middle = (place[:2] + grasp[:2]) / 2  # the carry's mirror line: the fold it makes
+    action = FoldAction(
+        grasp=grasp,
+        place=place,
+        fold_line=(float(middle[0]), float(middle[1]), float(-direction[1]), float(direction[0])),
+        label="fold carry",
+    )
+    record: dict[str, Any] = {
+        "grasp": tuple(float(v) for v in grasp),
+        "place": tuple(float(v) for v in place),
+    }
+    try:
+        outcome = execute_action(cell, action)
+    except UnreachableTargetError as exc:
+        return record | {"infeasible": str(exc)}
+    cell.park()
+    cell.wait(settle_time)
+    return record | {
+        "grasp_success": bool(outcome["grasp_success"]),
+        "grasp_reason": str(outcome["grasp_reason"]),
+    }
+
+
+PRIMITIVES = ("pick_and_place", "spread", "fold")
+"""What one step does: one arm's pick-and-place (a flattening pull), two arms' spread, or one
+arm's fold carry."""
 
 
 def _diverge_at(sim_time: float):
@@ -174,14 +238,16 @@ def _diverge_at(sim_time: float):
 
 
 def _serve(conn: Connection) -> None:
-    """The child: take ("episode", EpisodeConfig, fault), build the cell, settle and crumple the
-    towel (the episode's seed), reply with the first frame, then run each ("step", primitive,
-    p, q) (PRIMITIVES: pick at p and place at q, or spread from p and q) until ("close",) or the
-    parent goes away. The pulls' and spreads' settings are the episode's flatten options.
-    `fault`: None, or the simulated seconds into the first step at which a divergence is
-    injected."""
+    """The child: take ("episode", EpisodeConfig, fault, goal), build the cell, settle the towel
+    and crumple it where the episode starts crumpled (the episode's seed), reply with the first
+    frame, then run each ("step", primitive, p, q) (PRIMITIVES: pick at p and place at q, spread
+    from p and q, or carry a fold from p to q) until ("close",) or the parent goes away. The
+    pulls' and spreads' settings are the episode's flatten options. `fault`: None, or the
+    simulated seconds into the first step at which a divergence is injected. `goal`: None, or
+    the towel recipe each outcome's `fold` scores the cloth against (its fold lines planned on
+    the settled towel's true corners, recipe_fold_lines)."""
     try:
-        _kind, episode, fault = conn.recv()
+        _kind, episode, fault, goal = conn.recv()
         pulls, spreads = flatten_configs(episode.flatten_options)
         with SimWorld(episode.sim) as world:
             parts = build_sim_cell(episode, world)
@@ -198,15 +264,29 @@ def _serve(conn: Connection) -> None:
                     more_executors=parts.more_executors,
                 )
                 size = (parts.spec.width, parts.spec.height)  # the item, as the suites tell it
-                crumple_start(episode, world, parts.cloth)
+                if episode.start == "crumpled":
+                    crumple_start(episode, world, parts.cloth)
                 faces, area = parts.mesh.faces, parts.mesh.area
+                initial = parts.oracle.cloth_vertices()
+                lines = None
+                if goal is not None:
+                    corners = true_start_keypoints(episode, parts.mesh, initial)
+                    if corners is None:
+                        raise ConfigError(f"a fold goal ({goal}) needs a flat towel to start")
+                    lines = recipe_fold_lines(goal, corners)
 
                 seen: list = []  # the frame last sent, (state, obs): the next step plans on it
 
                 def outcome(t0: float, **step: Any) -> StepOutcome:
                     seen[:] = cell.observe()
-                    cover = metrics.coverage(parts.oracle.cloth_vertices(), faces, area)
-                    return StepOutcome(seen[1], cover, sim_seconds=world.sim_time - t0, **step)
+                    now = parts.oracle.cloth_vertices()
+                    cover = metrics.coverage(now, faces, area)
+                    fold = None
+                    if lines is not None:
+                        fold = score_episode(initial, now, faces, lines, parts.cloth.thickness)
+                    return StepOutcome(
+                        seen[1], cover, sim_seconds=world.sim_time - t0, fold=fold, **step
+                    )
 
                 conn.send(("ok", outcome(world.sim_time)))
                 if fault is not None:
@@ -219,6 +299,17 @@ def _serve(conn: Connection) -> None:
                     t0 = world.sim_time
                     if primitive == "spread":
                         step = spread_at(cell, *seen, p, q, pulls, spreads, size)
+                    elif primitive == "fold":
+                        motion = episode.motion
+                        step = fold_carry(
+                            cell,
+                            *seen,
+                            p,
+                            q,
+                            motion.stack_grasp_height,
+                            motion.place_lift,
+                            pulls.settle_time,
+                        )
                     else:
                         step = pick_and_place(cell, *seen, p, q, pulls)
                     conn.send(("ok", outcome(t0, **step)))
@@ -242,12 +333,18 @@ def serve_socket(fd: int) -> None:
 
 
 class EpisodeProcess:
-    """A crumpled-towel episode running in a fresh child process: `first` is the frame it starts
-    on; `step` runs one pick-and-place; `close` ends it. Raises EpisodeDiverged when the cloth
-    blows up, EpisodeFailed for another foldbot error in the child, RuntimeError (with the
-    child's traceback) for anything else."""
+    """A towel episode running in a fresh child process: `first` is the frame it starts on;
+    `step` runs one step (PRIMITIVES); `close` ends it. With a `goal` recipe each outcome also
+    scores the fold (StepOutcome.fold). Raises EpisodeDiverged when the cloth blows up,
+    EpisodeFailed for another foldbot error in the child, RuntimeError (with the child's
+    traceback) for anything else."""
 
-    def __init__(self, episode: EpisodeConfig, fault_diverge_s: float | None = None) -> None:
+    def __init__(
+        self,
+        episode: EpisodeConfig,
+        fault_diverge_s: float | None = None,
+        goal: str | None = None,
+    ) -> None:
         ours, theirs = socket.socketpair()
         with theirs:
             self._process = subprocess.Popen(
@@ -257,7 +354,7 @@ class EpisodeProcess:
                 stdout=subprocess.DEVNULL,  # Bullet's banner; errors come back over the socket
             )
         self._conn = Connection(ours.detach())
-        self._conn.send(("episode", episode, fault_diverge_s))
+        self._conn.send(("episode", episode, fault_diverge_s, goal))
         self.first: StepOutcome = self._reply("reset")
 
     def step(self, primitive: str, p: np.ndarray, q: np.ndarray) -> StepOutcome:

@@ -1,17 +1,20 @@
-"""Run a baseline policy on TowelFlatten over seeds and report how many towels it flattened.
+"""Run a baseline policy on a towel environment over seeds and report how many towels it
+flattened or folded.
 
     python -m foldbot.envs.evaluate --policy pulls --seeds 0-19 --workers 2 --out runs/env/pulls.json
     python -m foldbot.envs.evaluate --env spread --policy spreads --seeds 0-19 --workers 2
+    python -m foldbot.envs.evaluate --env fold --recipe quarter --seeds 0-19 --workers 2
 
 Each seed is the suite's towel (`--suite`, default the environment's: towel_crumpled for
-TowelFlatten, towel_crumpled_two_arms for TowelSpread); a towel counts as flattened
-when the coverage reaches the environment's goal (0.9) within its steps (6), issue 6's target.
+TowelFlatten, towel_crumpled_two_arms for TowelSpread, towel_loop for TowelFold); a towel counts
+as flattened when the coverage reaches the environment's goal (0.9) within its steps (6), issue
+6's target, and as folded when the fold meets the benchmark's success rule within its steps (6).
 Prints a per-seed table and the success rate with its 95 % interval, and writes them as JSON.
 
 `--record DIR` also keeps every episode's transitions for learning, one file per seed
-(DIR/towel_flatten-sNNNN.npz, or towel_spread-…; written whole or not at all; `read_episode`
-loads one). A seed
-already recorded there is not run again, so an interrupted recording resumes.
+(DIR/towel_flatten-sNNNN.npz, or towel_spread-…, towel_fold-…; written whole or not at all;
+`read_episode` loads one). A seed already recorded there is not run again, so an interrupted
+recording resumes.
 """
 
 from __future__ import annotations
@@ -30,37 +33,57 @@ from tqdm import tqdm
 
 from foldbot.bench.suite import parse_seeds
 from foldbot.bench.summary import success_interval
-from foldbot.envs.policies import PullPolicy, RandomPolicy, SpreadPolicy
-from foldbot.envs.towel_flatten import TowelFlattenConfig, TowelFlattenEnv, TowelSpreadEnv
+from foldbot.envs.policies import PullPolicy, RandomPolicy, RecipePolicy, SpreadPolicy
+from foldbot.envs.towel_flatten import TowelFlattenEnv, TowelSpreadEnv
+from foldbot.envs.towel_fold import TowelFoldEnv
+from foldbot.envs.towel_task import TowelTaskConfig, TowelTaskEnv
 from foldbot.errors import FoldbotError
+from foldbot.planning.recipes import RECIPES
 
-ENVS = {"flatten": TowelFlattenEnv, "spread": TowelSpreadEnv}
-"""The environments by name: TowelFlatten (one arm, pick-and-place), TowelSpread (two arms)."""
-POLICIES = {"pulls": ("flatten",), "spreads": ("spread",), "random": ("flatten", "spread")}
+ENVS = {"flatten": TowelFlattenEnv, "spread": TowelSpreadEnv, "fold": TowelFoldEnv}
+"""The environments by name: TowelFlatten (one arm, pick-and-place), TowelSpread (two arms),
+TowelFold (one arm, fold carries)."""
+POLICIES = {
+    "pulls": ("flatten",),
+    "spreads": ("spread",),
+    "recipe": ("fold",),
+    "random": ("flatten", "spread", "fold"),
+}
 """Baselines by name, with the environments each drives: the one-arm flattening pulls, the
-two-arm spreads, or uniform random actions."""
+two-arm spreads, the recipe's carries, or uniform random actions."""
+BASELINES = {"flatten": "pulls", "spread": "spreads", "fold": "recipe"}
+"""Each environment's default policy."""
+MEASURES = {"flatten": "coverage", "spread": "coverage", "fold": "fold_error_mm"}
+"""What each environment's rows follow step by step (an info key)."""
+DONE = {"flatten": "flattened", "spread": "flattened", "fold": "folded"}
+"""What a success is called in each environment's summary."""
 
 
-def make_policy(name: str, env: TowelFlattenEnv, seed: int):
+def make_policy(name: str, env: TowelTaskEnv, seed: int):
     """The baseline `name` (POLICIES) for `env`."""
     if name == "pulls":
         return PullPolicy(env)
     if name == "spreads":
         return SpreadPolicy(env)
+    if name == "recipe":
+        return RecipePolicy(env)
     return RandomPolicy(env, seed)
 
 
 RECORD_NAME = "towel_{env}-s{seed:04d}.npz"
-"""An episode's file under --record DIR (env: flatten or spread)."""
+"""An episode's file under --record DIR (env: flatten, spread or fold)."""
 
 
 def write_episode(path: Path, steps: dict[str, list], row: dict[str, Any]) -> None:
     """Save one episode's transitions as an .npz, atomically (a hidden file renamed into
     place): `rgb`, `depth` (T+1 frames: the reset's, then one after each step), `action` (T × 4),
-    `reward`, `coverage` (T+1), `grasp_success` (T; False where no grasp was tried),
-    `terminated`, `truncated` (T), and `seed`, `suite_seed`, `env`, `policy`, `suite`,
-    `stopped` (the policy saw nothing left to do before the episode ended)."""
+    `reward`, `coverage` (T+1; a fold's also `fold_error_mm`, T+1), `grasp_success` (T; False
+    where no grasp was tried), `terminated`, `truncated` (T), and `seed`, `suite_seed`, `env`,
+    `policy`, `suite`, `stopped` (the policy saw nothing left to do before the episode ended)."""
     tmp = path.with_name(f".{path.name}.partial-{os.getpid()}")
+    more = {}
+    if "fold_error_mm" in steps:
+        more["fold_error_mm"] = np.asarray(steps["fold_error_mm"], np.float32)
     with tmp.open("wb") as f:
         np.savez_compressed(
             f,
@@ -78,6 +101,7 @@ def write_episode(path: Path, steps: dict[str, list], row: dict[str, Any]) -> No
             policy=row["policy"],
             suite=row["suite"],
             stopped=row["stopped"],
+            **more,
         )
     tmp.replace(path)
 
@@ -89,16 +113,17 @@ def read_episode(path: Path) -> dict[str, np.ndarray]:
 
 
 def run_seed(
-    config: TowelFlattenConfig,
+    config: TowelTaskConfig,
     policy_name: str,
     seed: int,
     record: Path | None = None,
     env_name: str = "flatten",
 ) -> dict[str, Any]:
     """One episode of `policy_name` on the towel of `seed` in the environment `env_name`
-    (ENVS): its coverage after each step; with `record`, its transitions saved there
-    (write_episode)."""
+    (ENVS): its measure (MEASURES: coverage, or fold error) after each step; with `record`, its
+    transitions saved there (write_episode)."""
     env = ENVS[env_name](config)
+    measure = MEASURES[env_name]
     try:
         policy = make_policy(policy_name, env, seed)
         wall = time.perf_counter()
@@ -107,13 +132,14 @@ def run_seed(
             "rgb": [obs["rgb"]],
             "depth": [obs["depth"]],
             "coverage": [info["coverage"]],
+            measure: [info[measure]],
             **{k: [] for k in ("action", "reward", "grasp_success", "terminated", "truncated")},
         }
         row: dict[str, Any] = {
             "seed": seed,
             "suite_seed": info["seed"],
             "skipped_seeds": sorted(info["skipped_seeds"]),
-            "coverage_start": info["coverage"],
+            f"{measure}_start": info[measure],
             "infeasible": 0,
             "diverged": None,
             "failed": None,
@@ -135,6 +161,7 @@ def run_seed(
                 ("rgb", obs["rgb"]),
                 ("depth", obs["depth"]),
                 ("coverage", info["coverage"]),
+                *(() if measure == "coverage" else ((measure, info[measure]),)),
                 ("action", action),
                 ("reward", reward),
                 ("grasp_success", bool(info["grasp_success"])),
@@ -143,7 +170,7 @@ def run_seed(
             ):
                 steps[key].append(value)
             row["infeasible"] += info["infeasible"] is not None
-        row["coverage"] = steps["coverage"][1:]
+        row[measure] = steps[measure][1:]
         row["grasps_held"] = sum(steps["grasp_success"])
         row["success"] = bool(info["is_success"]) and not (row["diverged"] or row["failed"])
         row["steps"] = info["steps"]
@@ -156,12 +183,12 @@ def run_seed(
         env.close()
 
 
-def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
-    """Flattened towels over all seeds, with the 95 % Wilson interval."""
+def summary(rows: list[dict[str, Any]], done: str = "flattened") -> dict[str, Any]:
+    """Towels flattened (or folded: `done`) over all seeds, with the 95 % Wilson interval."""
     n, ok = len(rows), sum(r["success"] for r in rows)
     return {
         "episodes": n,
-        "flattened": ok,
+        done: ok,
         "success_rate": ok / n if n else None,
         "interval_95": success_interval(ok, n),
         "diverged": sum(r["diverged"] is not None for r in rows),
@@ -169,22 +196,24 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
     }
 
 
-def table(rows: list[dict[str, Any]]) -> str:
-    """A Markdown row per seed: start coverage, coverage after each step, grasps held."""
+def table(rows: list[dict[str, Any]], measure: str = "coverage", done: str = "flattened") -> str:
+    """A Markdown row per seed: the measure (MEASURES) at the start and after each step, grasps
+    held, success."""
+    what, form = ("coverage", "{:.2f}") if measure == "coverage" else ("fold error (mm)", "{:.1f}")
     lines = [
-        "| seed | start | coverage after each step | grasps held | flattened |",
+        f"| seed | start | {what} after each step | grasps held | {done} |",
         "|---|---|---|---|---|",
     ]
     for r in rows:
         seed = str(r["seed"]) + (
             f" (ran {r['suite_seed']})" if r["suite_seed"] != r["seed"] else ""
         )
-        steps = " → ".join(f"{c:.2f}" for c in r["coverage"]) or "–"
+        steps = " → ".join(form.format(c) for c in r[measure]) or "–"
         if r["diverged"] or r.get("failed"):
             steps += " → diverged" if r["diverged"] else " → failed"
         held = f"{r['grasps_held']} of {r['steps']}"
         lines.append(
-            f"| {seed} | {r['coverage_start']:.2f} | {steps} | {held} | "
+            f"| {seed} | {form.format(r[f'{measure}_start'])} | {steps} | {held} | "
             f"{'yes' if r['success'] else 'no'} |"
         )
     return "\n".join(lines)
@@ -193,20 +222,27 @@ def table(rows: list[dict[str, Any]]) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="python -m foldbot.envs.evaluate",
-        description="Run a baseline policy on foldbot/TowelFlatten-v0 or TowelSpread-v0 over "
-        "seeds.",
+        description="Run a baseline policy on foldbot/TowelFlatten-v0, TowelSpread-v0 or "
+        "TowelFold-v0 over seeds.",
     )
     parser.add_argument(
         "--env",
         choices=tuple(ENVS),
         default="flatten",
-        help="flatten (one arm, the default) or spread (two arms)",
+        help="flatten (one arm, the default), spread (two arms) or fold (one arm)",
     )
     parser.add_argument(
         "--policy",
         choices=tuple(POLICIES),
         default=None,
-        help="pulls (flatten), spreads (spread) or random; default: the environment's baseline",
+        help="pulls (flatten), spreads (spread), recipe (fold) or random; default: the "
+        "environment's baseline",
+    )
+    parser.add_argument(
+        "--recipe",
+        choices=RECIPES,
+        default=None,
+        help="--env fold: the recipe whose goal the towel is folded to (default half)",
     )
     parser.add_argument("--seeds", default="0-9", help="e.g. 0-19 or 1,4,7 (default 0-9)")
     parser.add_argument("--suite", default=None, help="default: the environment's")
@@ -220,15 +256,20 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     env_cls = ENVS[args.env]
-    policy = args.policy or ("pulls" if args.env == "flatten" else "spreads")
+    policy = args.policy or BASELINES[args.env]
+    measure, done_word = MEASURES[args.env], DONE[args.env]
     try:
         if args.env not in POLICIES[policy]:
             raise FoldbotError(
                 f"policy {policy!r} drives {' or '.join(POLICIES[policy])}, not --env {args.env}"
             )
+        if args.recipe is not None and args.env != "fold":
+            raise FoldbotError(f"--recipe is TowelFold's (--env fold), not --env {args.env}'s")
         seeds = parse_seeds(args.seeds)
-        suite = {} if args.suite is None else {"suite": args.suite}
-        config = env_cls.CONFIG(resolution=args.resolution, **suite)
+        fields: dict[str, Any] = {} if args.suite is None else {"suite": args.suite}
+        if args.recipe is not None:
+            fields["recipe"] = args.recipe
+        config = env_cls.CONFIG(resolution=args.resolution, **fields)
         env_cls(config).close()  # the suite and settings, checked before any episode
         if args.workers < 1:
             raise FoldbotError(f"--workers must be ≥ 1, got {args.workers}")
@@ -250,13 +291,14 @@ def main(argv: list[str] | None = None) -> int:
         "env": args.env,
         "policy": policy,
         "suite": config.suite,
-        **summary(rows),
+        **({"recipe": config.recipe} if isinstance(config, TowelFoldEnv.CONFIG) else {}),
+        **summary(rows, done_word),
         "rows": rows,
     }
-    print(table(rows))
+    print(table(rows, measure, done_word))
     lo, hi = result["interval_95"] or (0.0, 0.0)
     print(
-        f"{policy}: flattened {result['flattened']} of {result['episodes']} "
+        f"{policy}: {done_word} {result[done_word]} of {result['episodes']} "
         f"(95 % interval {lo:.0%}–{hi:.0%}), diverged {result['diverged']}, "
         f"failed otherwise {result['failed']}"
     )

@@ -7,25 +7,36 @@
   of the simulator's state.
 - `SpreadPolicy`: for TowelSpread, the two-arm flattening spreads' choice of grasps: the pair of
   adjacent perceived corners the estimator is surest of, each taken just inside its corner.
+- `RecipePolicy`: for TowelFold, the recipe's one-arm carries planned stage by stage on the
+  corners the camera sees (planning.recipes.plan_stage), each grasp found again on the frame
+  before it, a missed grasp tried once more: the closed loop's plan without its verification,
+  relays and finishing carries.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import numpy as np
 
 from foldbot.envs.towel_flatten import TowelFlattenEnv, TowelSpreadEnv
-from foldbot.errors import FoldbotError
+from foldbot.envs.towel_fold import TowelFoldEnv
+from foldbot.envs.towel_task import TowelTaskEnv
+from foldbot.errors import ConfigError, FoldbotError
+from foldbot.grasp_points import regrasp_point
+from foldbot.loop import LoopConfig
 from foldbot.perception.estimator import VisionEstimator
+from foldbot.planning.actions import FoldAction, edge_middle
 from foldbot.planning.flatten import cloth_surface, plan_pulls
+from foldbot.planning.recipes import carries_stack, folded_as, plan_stage, recipe_stages
 from foldbot.planning.spread import corner_pairs, plan_spread
 
 
 class RandomPolicy:
     """Pick and place anywhere in the workspace, uniformly, from its own seeded generator."""
 
-    def __init__(self, env: TowelFlattenEnv, seed: int = 0) -> None:
+    def __init__(self, env: TowelTaskEnv, seed: int = 0) -> None:
         self.space = env.unwrapped.action_space
         self.rng = np.random.default_rng(seed)  # its own: the env's space is shared
 
@@ -127,3 +138,69 @@ class SpreadPolicy:
         self.tried.add(pair)
         a, b = (act.grasp[:2] for act in plan.actions)
         return self.env.world_to_action(a, b)
+
+
+class RecipePolicy:
+    """The recipe's carries for TowelFold, planned from what the camera sees: at each stage's
+    start, plan_stage on the perceived corners (in the order the cells fold the recipe,
+    folded_as), a folded stack carried by its edge's middle as the one-arm loop carries it;
+    before each carry its corner is found again on the frame just seen (regrasp_point, the
+    loop's radii), and a carry whose grasp closed on nothing is tried once more, found again.
+    No verification, relays or finishing carries: what the closed loop adds is measured
+    against this."""
+
+    def __init__(self, env: TowelFoldEnv) -> None:
+        self.env = env.unwrapped
+        if not isinstance(self.env, TowelFoldEnv):
+            raise FoldbotError(f"RecipePolicy drives TowelFold, not {type(self.env).__name__}")
+        self.recipe = folded_as(self.env.config.recipe)
+        self.loop = LoopConfig()
+        self.estimator = VisionEstimator()
+        self.reset()
+
+    def reset(self) -> None:
+        """A new towel: the recipe from its first stage."""
+        self.stage = 0
+        self.queue: list[FoldAction] = []
+        self.last: FoldAction | None = None
+        self.retried = False
+
+    def _plan_stage(self, corners: dict) -> list[FoldAction]:
+        actions = list(plan_stage(self.recipe, self.stage, corners).actions)
+        if carries_stack(self.recipe, self.stage) and len(actions) == 2:
+            actions = [edge_middle(actions)]
+        self.stage += 1
+        return actions
+
+    def __call__(self, info: dict[str, Any]) -> np.ndarray | None:
+        """The next carry, or None when the recipe is done or no corners are seen."""
+        state = self.estimator.estimate(self.env.observation)
+        if not state.detected:
+            return None
+        missed = info.get("grasp_success") is False and self.last is not None
+        if missed and not self.retried:
+            action, self.retried = self.last, True
+        else:
+            self.retried = False
+            if not self.queue:
+                if self.stage >= recipe_stages(self.recipe):
+                    return None
+                corners = {name: xyz for name, (xyz, _conf) in state.keypoints.items()}
+                try:
+                    self.queue = self._plan_stage(corners)
+                except ConfigError:  # fewer than four corners, or a degenerate quad
+                    return None
+            action = self.queue.pop(0)
+        grasp = None
+        if not action.label.startswith("middle_"):
+            grasp = regrasp_point(
+                state,
+                action.label,
+                action.grasp,
+                self.loop.regrasp_radius,
+                self.loop.regrasp_label_radius,
+                line=action.fold_line,
+            )
+        grasp = action.grasp if grasp is None else grasp
+        self.last = dataclasses.replace(action, grasp=np.asarray(grasp, dtype=float))
+        return self.env.world_to_action(grasp[:2], action.place[:2])

@@ -71,6 +71,7 @@ import numpy as np
 
 from foldbot.errors import ConfigError
 from foldbot.metrics import FoldLine
+from foldbot.perception.keypoints import label_corners, max_area_quad
 from foldbot.planning.actions import FoldAction, FoldPlan
 
 CORNER_NAMES = ("near_left", "near_right", "far_right", "far_left")
@@ -395,6 +396,30 @@ def plan_stage(
 def plan_recipe(recipe: str, corners: dict[str, np.ndarray], place_lift: float = 0.004) -> FoldPlan:
     """Plan the first stage of a named recipe on the perceived corners (see plan_stage)."""
     return plan_stage(recipe, 0, corners, place_lift)
+
+
+def recipe_fold_lines(recipe: str, corners: dict[str, np.ndarray]) -> tuple[Line, ...]:
+    """Every fold line of `recipe`, in the order a cell folds it (folded_as), planned from one
+    set of corners: each later stage on the four corners of the outline the earlier stages
+    predict (predicted_outline's largest quad, labelled by the perception's rule, as a camera
+    would find them), no crease room. The geometric goal of the whole recipe on a cloth whose
+    corners are known (an environment's goal, from ground truth); a cell instead plans each
+    stage on the corners it perceives then."""
+    order = folded_as(recipe)
+    c = _require_corners(corners)
+    lines: list[Line] = []
+    for k in range(recipe_stages(order)):
+        if k:
+            outline = predicted_outline(order, k - 1, c)
+            if len(outline) < 4:
+                raise ConfigError(
+                    f"recipe {recipe!r}: stage {k} needs a four-cornered outline, stage {k - 1} "
+                    f"predicts {len(outline)} corners"
+                )
+            quad = outline[max_area_quad(outline[:, :2])]
+            c = {name: quad[i] for name, i in label_corners(quad).items()}
+        lines.append(_stage_fold(order, k, c).line)
+    return tuple(lines)
 
 
 def half_fold(

@@ -1,0 +1,167 @@
+"""TowelFold: Gymnasium's checker on the real environment, the goal from the towel's true
+corners, the reward as the fold error's decrease, the recipe's carries folding a small towel,
+the same seed giving the same episode, a divergence reported, and bad input refused. Towels of
+5 vertices a side (every corner a mesh point the jaws find) keep each episode to seconds."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+from foldbot.envs import TowelFlattenEnv, TowelFoldConfig, TowelFoldEnv
+from foldbot.envs.policies import RandomPolicy, RecipePolicy
+from foldbot.envs.towel_fold import fold_episode_config
+from foldbot.errors import ConfigError, FoldbotError
+
+SMALL = {"resolution": 5, "image_size": (48, 64)}
+
+
+@pytest.fixture
+def env():
+    environment = TowelFoldEnv(**SMALL)
+    yield environment
+    environment.close()
+
+
+def run_recipe(env, seed):
+    """The recipe policy's carries on `seed`'s towel: (first info, rewards, last info)."""
+    _obs, first = env.reset(seed=seed)
+    policy, info, rewards = RecipePolicy(env), first, []
+    while (action := policy(info)) is not None:
+        _obs, reward, terminated, truncated, info = env.step(action)
+        rewards.append(reward)
+        if terminated or truncated:
+            break
+    return first, rewards, info
+
+
+def test_registered_with_gymnasium():
+    made = gym.make("foldbot/TowelFold-v0", resolution=5, recipe="quarter")
+    try:
+        assert isinstance(made.unwrapped, TowelFoldEnv)
+        assert made.unwrapped.config == TowelFoldConfig(resolution=5, recipe="quarter")
+    finally:
+        made.close()
+
+
+def test_gymnasium_checker_passes(env):
+    check_env(env, skip_render_check=True)
+
+
+def test_a_flat_towel_starts_far_from_its_goal(env):
+    obs, info = env.reset(seed=1)
+    assert env.observation_space.contains(obs)
+    assert info["recipe"] == "half" and info["seed"] == 1 and info["steps"] == 0
+    # towel_loop's towel for seed 1, flat: it covers its own area, and half of it lies a fold
+    # away from its goal.
+    assert info["coverage"] == pytest.approx(1.0, abs=0.02)
+    assert 50.0 < info["fold_error_mm"] < 200.0
+    assert info["normalized_performance"] == pytest.approx(0.0, abs=0.01)
+    assert not info["is_success"]
+    width, height = info["towel_size_m"]
+    assert 0.25 <= width <= 0.45 and 0.25 <= height <= 0.45
+
+
+def test_the_recipes_carries_fold_the_towel_and_the_reward_is_the_errors_decrease(env):
+    """The recipe policy's half fold of seed 1's towel, planned from the camera: two corner
+    carries, each holding the corner, bring the cloth most of the way to its goal."""
+    first, rewards, last = run_recipe(env, seed=1)
+    assert len(rewards) == 2 and last["grasp_success"] and last["infeasible"] is None
+    assert sum(rewards) == pytest.approx((first["fold_error_mm"] - last["fold_error_mm"]) / 1000)
+    assert last["fold_error_mm"] < 0.4 * first["fold_error_mm"]
+    assert last["normalized_performance"] > 0.7
+    assert last["coverage"] < 0.65  # half of it lies on the other half
+
+
+def test_the_same_seed_gives_the_same_fold(env):
+    one, two = run_recipe(env, seed=3), run_recipe(env, seed=3)
+    assert one[1] == two[1] and one[2]["fold_error_mm"] == two[2]["fold_error_mm"]
+
+
+def test_the_goal_is_the_recipes_and_differs_by_recipe():
+    """A quarter fold's goal lies further from the flat towel than a half fold's (two folds),
+    and the recipe policy plans two stages for it."""
+    errors = {}
+    for recipe in ("half", "quarter"):
+        env = TowelFoldEnv(recipe=recipe, **SMALL)
+        try:
+            errors[recipe] = env.reset(seed=1)[1]["fold_error_mm"]
+        finally:
+            env.close()
+    assert errors["quarter"] > errors["half"]
+
+
+def test_a_carry_that_grasps_bare_table_misses_and_the_episode_truncates():
+    env = TowelFoldEnv(max_steps=1, **SMALL)
+    try:
+        env.reset(seed=1)
+        # The workspace's near right corner: no towel reaches there.
+        corner = np.array([-0.97, -0.97, -0.9, -0.9], np.float32)
+        _obs, reward, terminated, truncated, info = env.step(corner)
+        assert info["grasp_success"] is False
+        assert "no cloth between the jaws" in info["grasp_reason"]
+        assert truncated and not terminated
+        assert abs(reward) < 0.002  # nothing was carried
+        pick, _place = env.action_to_world(corner)
+        np.testing.assert_allclose(info["grasp"][:2], pick, atol=1e-6)
+    finally:
+        env.close()
+
+
+def test_a_diverged_simulation_is_reported_not_scored():
+    env = TowelFoldEnv(fault_diverge_s=0.5, **SMALL)
+    try:
+        _obs, info = env.reset(seed=1)
+        _obs, reward, terminated, _truncated, info = env.step(RecipePolicy(env)(info))
+        assert terminated and reward == 0.0 and "injected divergence" in info["diverged"]
+        assert info["is_success"] is False
+    finally:
+        env.close()
+
+
+def test_the_workspace_reaches_every_corner_of_the_suites_towels(env):
+    x0, x1, y0, y1 = env.workspace
+    pick, place = env.action_to_world(np.array([-1.0, -1.0, 1.0, 1.0]))
+    np.testing.assert_allclose([*pick, *place], [x0, y0, x1, y1])
+    # The largest towel (45 cm) at its extreme yaw (15°) and offset (3 cm) about (0.45, 0).
+    yaw = np.radians(15.0)
+    half = 0.225 * (np.cos(yaw) + np.sin(yaw)) + 0.03
+    assert x0 < 0.45 - half and x1 > 0.45 + half and y0 < -half and y1 > half
+
+
+def test_the_random_policy_drives_it(env):
+    action = RandomPolicy(env, seed=2)({})
+    assert env.action_space.contains(action)
+
+
+def test_the_recipe_policy_drives_only_towelfold():
+    flatten = TowelFlattenEnv(**SMALL)
+    try:
+        with pytest.raises(FoldbotError, match="RecipePolicy drives TowelFold, not"):
+            RecipePolicy(flatten)
+    finally:
+        flatten.close()
+
+
+@pytest.mark.parametrize(
+    ("fields", "message"),
+    [
+        ({"recipe": "pleat"}, r"recipe must be one of half, .*, got 'pleat'"),
+        ({"workspace": (0.8, 0.2, -0.3, 0.3)}, r"workspace must be \(x min, x max, y min, y max\)"),
+        ({"workspace": (0.2, 0.8)}, r"workspace must be .* got \(0.2, 0.8\)"),
+        ({"suite": "towel_crumpled"}, r"starts its towels crumpled; TowelFold needs"),
+        ({"suite": "towel_two_arms"}, r"has 2 arms; TowelFold's carry is one arm's"),
+        ({"suite": "tshirt"}, r"starts its tshirts flat; TowelFold needs a towel"),
+        ({"max_steps": 0}, r"max_steps must be an integer in \[1, 100\], got 0"),
+        ({"goal_coverage": 0.9}, r"goal_coverage.*allowed: suite, resolution"),
+    ],
+)
+def test_bad_configuration_is_refused(fields, message):
+    with pytest.raises(ConfigError, match=message):
+        TowelFoldEnv(**fields)
+
+
+def test_the_episode_is_the_suites_towel_with_the_recipe():
+    cfg = fold_episode_config(TowelFoldConfig(recipe="thirds", resolution=5), 4)
+    assert cfg.recipe == "thirds" and cfg.seed == 4 and cfg.start == "flat"
+    assert cfg.towel_size_range == (0.25, 0.45) and cfg.video_fps == 0.0
