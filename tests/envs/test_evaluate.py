@@ -106,6 +106,16 @@ def test_the_recipe_policy_on_towelfold_records_its_fold_errors(tmp_path, capsys
 
 def test_a_recipe_is_towelfolds_alone(capsys):
     assert main(["--seeds", "0", "--recipe", "quarter"]) == 2
-    assert "--recipe is TowelFold's (--env fold), not --env flatten's" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "--recipe is TowelFold's (--env fold or fold_pair), not --env flatten's" in err
     assert main(["--env", "fold", "--policy", "pulls", "--seeds", "0"]) == 2
     assert "policy 'pulls' drives flatten, not --env fold" in capsys.readouterr().err
+
+
+def test_the_recipe_policy_drives_towelfoldpair_and_its_pairs_are_recorded(tmp_path, capsys):
+    args = ["--env", "fold_pair", "--seeds", "1", "--resolution", "5", "--record", str(tmp_path)]
+    assert main(args) == 0
+    assert "recipe: folded" in capsys.readouterr().out
+    ep = read_episode(tmp_path / "towel_fold_pair-s0001.npz")
+    assert ep["action"].shape == (1, 8)  # both corners of the half fold in one step
+    assert str(ep["suite"]) == "towel_two_arms"

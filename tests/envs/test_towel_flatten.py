@@ -28,6 +28,7 @@ def test_registered_with_gymnasium():
         "foldbot/TowelFlatten-v0",
         "foldbot/TowelSpread-v0",
         "foldbot/TowelFold-v0",
+        "foldbot/TowelFoldPair-v0",
     )
     made = gym.make("foldbot/TowelFlatten-v0", resolution=5)
     try:

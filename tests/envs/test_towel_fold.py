@@ -8,7 +8,13 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-from foldbot.envs import TowelFlattenEnv, TowelFoldConfig, TowelFoldEnv
+from foldbot.envs import (
+    TowelFlattenEnv,
+    TowelFoldConfig,
+    TowelFoldEnv,
+    TowelFoldPairConfig,
+    TowelFoldPairEnv,
+)
 from foldbot.envs.policies import RandomPolicy, RecipePolicy
 from foldbot.envs.towel_fold import fold_episode_config
 from foldbot.errors import ConfigError, FoldbotError
@@ -150,7 +156,7 @@ def test_the_recipe_policy_drives_only_towelfold():
         ({"workspace": (0.8, 0.2, -0.3, 0.3)}, r"workspace must be \(x min, x max, y min, y max\)"),
         ({"workspace": (0.2, 0.8)}, r"workspace must be .* got \(0.2, 0.8\)"),
         ({"suite": "towel_crumpled"}, r"starts its towels crumpled; TowelFold needs"),
-        ({"suite": "towel_two_arms"}, r"has 2 arms; TowelFold's carry is one arm's"),
+        ({"suite": "towel_two_arms"}, r"has 2 arms; TowelFold's carries are one arm's"),
         ({"suite": "tshirt"}, r"starts its tshirts flat; TowelFold needs a towel"),
         ({"max_steps": 0}, r"max_steps must be an integer in \[1, 100\], got 0"),
         ({"goal_coverage": 0.9}, r"goal_coverage.*allowed: suite, resolution"),
@@ -165,3 +171,85 @@ def test_the_episode_is_the_suites_towel_with_the_recipe():
     cfg = fold_episode_config(TowelFoldConfig(recipe="thirds", resolution=5), 4)
     assert cfg.recipe == "thirds" and cfg.seed == 4 and cfg.start == "flat"
     assert cfg.towel_size_range == (0.25, 0.45) and cfg.video_fps == 0.0
+
+
+# --- TowelFoldPair: two arms, two carries a step ------------------------------------------------
+
+
+@pytest.fixture
+def pair_env():
+    environment = TowelFoldPairEnv(**SMALL)
+    yield environment
+    environment.close()
+
+
+def test_the_pair_is_registered_and_passes_gymnasiums_checker(pair_env):
+    made = gym.make("foldbot/TowelFoldPair-v0", resolution=5)
+    try:
+        assert isinstance(made.unwrapped, TowelFoldPairEnv)
+        assert made.unwrapped.config == TowelFoldPairConfig(resolution=5)
+        assert made.action_space.shape == (8,)
+    finally:
+        made.close()
+    check_env(pair_env, skip_render_check=True)
+
+
+def test_two_arms_carry_the_half_folds_corners_at_once(pair_env):
+    """The recipe policy's half fold in the two-arm cell: one step, both far corners carried
+    together, the cloth most of the way to its goal (one arm's two carries: 0.23 of the start)."""
+    first, rewards, last = run_recipe(pair_env, seed=1)
+    assert len(rewards) == 1 and last["grasp_success"] and last["infeasible"] is None
+    assert len(last["grasp"]) == 6 and len(last["place"]) == 6  # a point per carry
+    assert "; " in last["grasp_reason"]  # each arm's grasp, named
+    assert last["fold_error_mm"] < 0.3 * first["fold_error_mm"]
+    assert rewards[0] == pytest.approx((first["fold_error_mm"] - last["fold_error_mm"]) / 1000)
+
+
+def test_a_carry_of_no_length_leaves_its_arm_parked(pair_env):
+    """The triangle fold's one corner: arm b's carry is none (its pick on its place), so arm a
+    carries alone; with neither carrying, nothing moves and the step says why."""
+    pair_env.reset(seed=1)
+    still = pair_env.world_to_action([np.array([0.45, 0.0]), None], [np.array([0.45, 0.0]), None])
+    _obs, reward, terminated, _truncated, info = pair_env.step(still)
+    assert "no carry" in info["infeasible"] and info["grasp"] == () and not terminated
+    assert reward == pytest.approx(0.0, abs=1e-4)
+    env = pair_env.unwrapped
+    policy = RecipePolicy(env)
+    policy.recipe = "diagonal"  # one corner, planned on the frame seen
+    action = policy(info)
+    picks, places = env.action_to_world(action)
+    np.testing.assert_allclose(picks[1], places[1])  # b: no carry
+    _obs, _reward, _terminated, _truncated, info = pair_env.step(action)
+    assert info["grasp_success"] and len(info["grasp"]) == 3
+    assert info["coverage"] < 0.9  # a triangle laid over the cloth (the goal is the half's)
+
+
+def test_a_pair_action_is_eight_numbers(pair_env):
+    with pytest.raises(ConfigError, match=r"an action is \(a pick x, .*b place y\), each finite"):
+        pair_env.action_to_world(np.zeros(4))
+    picks, places = pair_env.action_to_world(np.array([-1, -1, 1, 1, 1, 1, -1, -1.0]))
+    x0, x1, y0, y1 = pair_env.workspace
+    np.testing.assert_allclose(picks, [[x0, y0], [x1, y1]])
+    np.testing.assert_allclose(places, [[x1, y1], [x0, y0]])
+
+
+def test_the_pair_needs_a_two_arm_suite():
+    with pytest.raises(ConfigError, match=r"has 1 arm; TowelFoldPair's carries are two arms'"):
+        TowelFoldPairEnv(suite="towel_loop")
+
+
+def test_a_pair_the_arms_cannot_make_is_carried_one_corner_at_a_time(pair_env):
+    _obs, info = pair_env.reset(seed=1)
+    policy = RecipePolicy(pair_env)
+    env = pair_env.unwrapped
+    picks, places = env.action_to_world(policy(info))
+    assert np.linalg.norm(places[0] - picks[0]) > 0.1 and np.linalg.norm(places[1] - picks[1]) > 0.1
+    # Told the pair moved nothing, the policy carries its corners singly, in order.
+    for k in range(2):
+        one, where = env.action_to_world(
+            policy({"infeasible": "the arms would meet"} if k == 0 else {})
+        )
+        np.testing.assert_allclose(one[1], where[1])  # b: no carry
+        np.testing.assert_allclose(one[0], picks[k], atol=1e-6)
+        np.testing.assert_allclose(where[0], places[k], atol=1e-6)
+    assert policy({}) is None  # the half fold's one stage is done

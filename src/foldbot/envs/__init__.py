@@ -2,14 +2,16 @@
 
 - `towel_flatten`: TowelFlatten, a crumpled towel flattened by pick-and-place from RGB-D, and
   TowelSpread, the same with two arms whose step is a spread from two grasp points.
-- `towel_fold`: TowelFold, a flat towel folded to a recipe's goal by one-arm carries.
+- `towel_fold`: TowelFold, a flat towel folded to a recipe's goal by one-arm carries, and
+  TowelFoldPair, the same with two arms whose step is two carries at once.
 - `towel_task`: what they share (episodes per seed, observations, actions, the ends).
 - `episode_process`: one episode's simulation in a fresh child process (Bullet's soft-body
   state is process-global, so a seed reproduces only as the first simulation in its process).
 
 `import foldbot.envs` registers the environments with Gymnasium:
 `gymnasium.make("foldbot/TowelFlatten-v0")`, `gymnasium.make("foldbot/TowelSpread-v0")`,
-`gymnasium.make("foldbot/TowelFold-v0", recipe="quarter")`.
+`gymnasium.make("foldbot/TowelFold-v0", recipe="quarter")`,
+`gymnasium.make("foldbot/TowelFoldPair-v0", recipe="quarter")`.
 """
 
 from __future__ import annotations
@@ -28,12 +30,18 @@ from foldbot.envs.towel_flatten import (
     TowelSpreadConfig,
     TowelSpreadEnv,
 )
-from foldbot.envs.towel_fold import TowelFoldConfig, TowelFoldEnv
+from foldbot.envs.towel_fold import (
+    TowelFoldConfig,
+    TowelFoldEnv,
+    TowelFoldPairConfig,
+    TowelFoldPairEnv,
+)
 
 _ENTRY_POINTS = {
     "foldbot/TowelFlatten-v0": "foldbot.envs.towel_flatten:TowelFlattenEnv",
     "foldbot/TowelSpread-v0": "foldbot.envs.towel_flatten:TowelSpreadEnv",
     "foldbot/TowelFold-v0": "foldbot.envs.towel_fold:TowelFoldEnv",
+    "foldbot/TowelFoldPair-v0": "foldbot.envs.towel_fold:TowelFoldPairEnv",
 }
 ENV_IDS = tuple(_ENTRY_POINTS)
 """The environments this package registers."""
@@ -48,6 +56,8 @@ __all__ = [
     "TowelFlattenEnv",
     "TowelFoldConfig",
     "TowelFoldEnv",
+    "TowelFoldPairConfig",
+    "TowelFoldPairEnv",
     "TowelSpreadConfig",
     "TowelSpreadEnv",
 ]

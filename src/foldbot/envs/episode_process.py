@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from foldbot import metrics
-from foldbot.carry import execute_action, execute_together
+from foldbot.carry import assign_arms, execute_action, execute_together
 from foldbot.errors import (
     ArmsWouldCollideError,
     ConfigError,
@@ -72,8 +72,9 @@ class StepOutcome:
     infeasible: str | None = None
     """Why the arm could not do the step (nothing moved), or None."""
     grasp: tuple[float, ...] | None = None
-    """Where the jaws closed (world, m): the pick point at the height the depth image gave,
-    (x, y, z); a spread's two, the +y arm's first, (x, y, z, x, y, z)."""
+    """Where the jaws closed (world, m), (x, y, z): the pick point at the height the step
+    grasps at; a spread's two, the +y arm's first, (x, y, z, x, y, z); a fold pair's one per
+    carry made, in the action's order."""
     place: tuple[float, ...] | None = None
     """Where the jaws opened (world, m), as `grasp`."""
     sim_seconds: float = 0.0
@@ -173,6 +174,36 @@ def spread_at(
     return record | {"infeasible": f"the arms cannot make this spread ({why})"}
 
 
+def fold_carry_action(
+    state: ClothState,
+    obs: Observation,
+    pick_xy: np.ndarray,
+    place_xy: np.ndarray,
+    stack_height: float,
+    place_lift: float,
+) -> FoldAction:
+    """The fold carry from `pick_xy` to `place_xy` (world, m) on the frame seen (`obs`, seen as
+    `state`): grasped `stack_height` over the perceived table, so the jaws close under every
+    layer there, let go `place_lift` above the higher of the grasp and the surface seen at the
+    place point (the layer it is laid on); its fold line the carry's mirror line."""
+    if not state.detected:
+        raise FoldbotError(f"the cell's camera sees no cloth: {state.reason}")
+    grasp = np.array([pick_xy[0], pick_xy[1], table_z(state.table_plane, pick_xy) + stack_height])
+    under = surface_height(
+        obs, np.array([place_xy[0], place_xy[1], grasp[2]]), 2, state.table_plane
+    )
+    place_z = max(float(grasp[2]), -np.inf if under is None else under)
+    place = np.array([place_xy[0], place_xy[1], place_z + place_lift])
+    direction = place[:2] - grasp[:2]
+    middle = (place[:2] + grasp[:2]) / 2
+    return FoldAction(
+        grasp=grasp,
+        place=place,
+        fold_line=(float(middle[0]), float(middle[1]), float(-direction[1]), float(direction[0])),
+        label="fold carry",
+    )
+
+
 def fold_carry(
     cell: SimCell,
     state: ClothState,
@@ -184,30 +215,13 @@ def fold_carry(
     settle_time: float,
 ) -> dict[str, Any]:
     """Carry the cloth at `pick_xy` over to `place_xy` (world, m) with the cell's arm as a fold
-    carries a folded stack's corner: grasped `stack_height` over the perceived table, so the
-    jaws close under every layer there, carried over the half-sine arc, let go `place_lift`
-    above the higher of the grasp and the surface seen at the place point (the layer it is
-    laid on); then park and settle `settle_time`. Planned on the frame the policy was shown;
-    perception only. An unreachable carry moves nothing and says why."""
-    if not state.detected:
-        raise FoldbotError(f"the cell's camera sees no cloth: {state.reason}")
-    grasp = np.array([pick_xy[0], pick_xy[1], table_z(state.table_plane, pick_xy) + stack_height])
-    under = surface_height(
-        obs, np.array([place_xy[0], place_xy[1], grasp[2]]), 2, state.table_plane
-    )
-    place_z = max(float(grasp[2]), -np.inf if under is None else under)
-    place = np.array([place_xy[0], place_xy[1], place_z + place_lift])
-    direction = place[:2] - grasp[:2]
-    middle = (place[:2] + grasp[:2]) / 2  # the carry's mirror line: the fold it makes
-    action = FoldAction(
-        grasp=grasp,
-        place=place,
-        fold_line=(float(middle[0]), float(middle[1]), float(-direction[1]), float(direction[0])),
-        label="fold carry",
-    )
+    carries a folded stack's corner (fold_carry_action), over the half-sine arc; then park and
+    settle `settle_time`. Planned on the frame the policy was shown; perception only. An
+    unreachable carry moves nothing and says why."""
+    action = fold_carry_action(state, obs, pick_xy, place_xy, stack_height, place_lift)
     record: dict[str, Any] = {
-        "grasp": tuple(float(v) for v in grasp),
-        "place": tuple(float(v) for v in place),
+        "grasp": tuple(float(v) for v in action.grasp),
+        "place": tuple(float(v) for v in action.place),
     }
     try:
         outcome = execute_action(cell, action)
@@ -221,9 +235,65 @@ def fold_carry(
     }
 
 
-PRIMITIVES = ("pick_and_place", "spread", "fold")
-"""What one step does: one arm's pick-and-place (a flattening pull), two arms' spread, or one
-arm's fold carry."""
+NO_CARRY = 0.01
+"""A pair's carry shorter than this (m, pick to place) is no carry: that arm stays parked."""
+
+
+def fold_pair(
+    cell: SimCell,
+    state: ClothState,
+    obs: Observation,
+    picks: np.ndarray,
+    places: np.ndarray,
+    stack_height: float,
+    place_lift: float,
+    settle_time: float,
+) -> dict[str, Any]:
+    """Two fold carries at once in the two-arm cell, picks[i] to places[i] (world, m; 2×2), as
+    fold_carry_action shapes each: both arms on one clock, each on its grasp's side of the cell
+    (assign_arms; the other way round where their motions would meet). A carry shorter than
+    NO_CARRY is none: the other runs alone, with the arm on its side; none at all moves nothing.
+    A missed grasp lets both go (nothing is carried by one arm of a pair); an unreachable pair
+    moves nothing and says why. Then park and settle."""
+    picks = np.asarray(picks, dtype=float).reshape(2, 2)
+    places = np.asarray(places, dtype=float).reshape(2, 2)
+    actions = [
+        fold_carry_action(state, obs, p, q, stack_height, place_lift)
+        for p, q in zip(picks, places, strict=True)
+        if np.linalg.norm(q - p) >= NO_CARRY
+    ]
+    record: dict[str, Any] = {
+        "grasp": tuple(float(v) for a in actions for v in a.grasp),
+        "place": tuple(float(v) for a in actions for v in a.place),
+    }
+    if not actions:
+        return record | {"infeasible": f"no carry: both are shorter than {NO_CARRY * 100:g} cm"}
+    if len(actions) == 1:
+        cell.use_arm(cell.arm_for(actions[0].grasp))
+        try:
+            outcomes = [execute_action(cell, actions[0])]
+        except UnreachableTargetError as exc:
+            return record | {"infeasible": str(exc)}
+    else:
+        arms = assign_arms(cell.arm_for, tuple(actions))
+        try:
+            try:
+                outcomes = execute_together(cell, list(zip(arms, actions, strict=True)))
+            except ArmsWouldCollideError:
+                outcomes = execute_together(cell, list(zip(arms[::-1], actions, strict=True)))
+        except (UnreachableTargetError, ArmsWouldCollideError) as exc:
+            return record | {"infeasible": f"the arms cannot make this pair of carries: {exc}"}
+    cell.park()
+    cell.wait(settle_time)
+    return record | {
+        "grasp_success": all(bool(o["grasp_success"]) for o in outcomes),
+        "grasp_reason": "; ".join(str(o["grasp_reason"]) for o in outcomes),
+    }
+
+
+PRIMITIVES = ("pick_and_place", "spread", "fold", "fold_pair")
+"""What one step does: one arm's pick-and-place (a flattening pull), two arms' spread, one arm's
+fold carry, or two arms' fold carries at once."""
 
 
 def _diverge_at(sim_time: float):
@@ -299,15 +369,15 @@ def _serve(conn: Connection) -> None:
                     t0 = world.sim_time
                     if primitive == "spread":
                         step = spread_at(cell, *seen, p, q, pulls, spreads, size)
-                    elif primitive == "fold":
-                        motion = episode.motion
-                        step = fold_carry(
+                    elif primitive in ("fold", "fold_pair"):
+                        carry = fold_carry if primitive == "fold" else fold_pair
+                        step = carry(
                             cell,
                             *seen,
                             p,
                             q,
-                            motion.stack_grasp_height,
-                            motion.place_lift,
+                            episode.motion.stack_grasp_height,
+                            episode.motion.place_lift,
                             pulls.settle_time,
                         )
                     else:
@@ -358,7 +428,8 @@ class EpisodeProcess:
         self.first: StepOutcome = self._reply("reset")
 
     def step(self, primitive: str, p: np.ndarray, q: np.ndarray) -> StepOutcome:
-        """Run one step: `primitive` (PRIMITIVES) from table points p and q (world, m)."""
+        """Run one step: `primitive` (PRIMITIVES) from table points p and q (world, m; a pair's
+        two picks and two places, 2×2 each)."""
         if primitive not in PRIMITIVES:
             raise ConfigError(f"unknown primitive {primitive!r}; allowed: {', '.join(PRIMITIVES)}")
         self._conn.send(("step", primitive, np.asarray(p, float), np.asarray(q, float)))

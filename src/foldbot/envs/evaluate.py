@@ -6,13 +6,15 @@ flattened or folded.
     python -m foldbot.envs.evaluate --env fold --recipe quarter --seeds 0-19 --workers 2
 
 Each seed is the suite's towel (`--suite`, default the environment's: towel_crumpled for
-TowelFlatten, towel_crumpled_two_arms for TowelSpread, towel_loop for TowelFold); a towel counts
+TowelFlatten, towel_crumpled_two_arms for TowelSpread, towel_loop for TowelFold,
+towel_two_arms for TowelFoldPair); a towel counts
 as flattened when the coverage reaches the environment's goal (0.9) within its steps (6), issue
 6's target, and as folded when the fold meets the benchmark's success rule within its steps (6).
 Prints a per-seed table and the success rate with its 95 % interval, and writes them as JSON.
 
 `--record DIR` also keeps every episode's transitions for learning, one file per seed
-(DIR/towel_flatten-sNNNN.npz, or towel_spread-…, towel_fold-…; written whole or not at all;
+(DIR/towel_flatten-sNNNN.npz, or towel_spread-…, towel_fold-…, towel_fold_pair-…; written whole
+or not at all;
 `read_episode` loads one). A seed already recorded there is not run again, so an interrupted
 recording resumes.
 """
@@ -35,27 +37,37 @@ from foldbot.bench.suite import parse_seeds
 from foldbot.bench.summary import success_interval
 from foldbot.envs.policies import PullPolicy, RandomPolicy, RecipePolicy, SpreadPolicy
 from foldbot.envs.towel_flatten import TowelFlattenEnv, TowelSpreadEnv
-from foldbot.envs.towel_fold import TowelFoldEnv
+from foldbot.envs.towel_fold import TowelFoldEnv, TowelFoldPairEnv
 from foldbot.envs.towel_task import TowelTaskConfig, TowelTaskEnv
 from foldbot.errors import FoldbotError
 from foldbot.planning.recipes import RECIPES
 
-ENVS = {"flatten": TowelFlattenEnv, "spread": TowelSpreadEnv, "fold": TowelFoldEnv}
+ENVS = {
+    "flatten": TowelFlattenEnv,
+    "spread": TowelSpreadEnv,
+    "fold": TowelFoldEnv,
+    "fold_pair": TowelFoldPairEnv,
+}
 """The environments by name: TowelFlatten (one arm, pick-and-place), TowelSpread (two arms),
-TowelFold (one arm, fold carries)."""
+TowelFold (one arm, fold carries), TowelFoldPair (two arms, two carries at once)."""
 POLICIES = {
     "pulls": ("flatten",),
     "spreads": ("spread",),
-    "recipe": ("fold",),
-    "random": ("flatten", "spread", "fold"),
+    "recipe": ("fold", "fold_pair"),
+    "random": tuple(ENVS),
 }
 """Baselines by name, with the environments each drives: the one-arm flattening pulls, the
 two-arm spreads, the recipe's carries, or uniform random actions."""
-BASELINES = {"flatten": "pulls", "spread": "spreads", "fold": "recipe"}
+BASELINES = {"flatten": "pulls", "spread": "spreads", "fold": "recipe", "fold_pair": "recipe"}
 """Each environment's default policy."""
-MEASURES = {"flatten": "coverage", "spread": "coverage", "fold": "fold_error_mm"}
+MEASURES = {
+    "flatten": "coverage",
+    "spread": "coverage",
+    "fold": "fold_error_mm",
+    "fold_pair": "fold_error_mm",
+}
 """What each environment's rows follow step by step (an info key)."""
-DONE = {"flatten": "flattened", "spread": "flattened", "fold": "folded"}
+DONE = {"flatten": "flattened", "spread": "flattened", "fold": "folded", "fold_pair": "folded"}
 """What a success is called in each environment's summary."""
 
 
@@ -76,7 +88,7 @@ RECORD_NAME = "towel_{env}-s{seed:04d}.npz"
 
 def write_episode(path: Path, steps: dict[str, list], row: dict[str, Any]) -> None:
     """Save one episode's transitions as an .npz, atomically (a hidden file renamed into
-    place): `rgb`, `depth` (T+1 frames: the reset's, then one after each step), `action` (T × 4),
+    place): `rgb`, `depth` (T+1 frames: the reset's, then one after each step), `action` (T × 4, or T × 8 for a pair),
     `reward`, `coverage` (T+1; a fold's also `fold_error_mm`, T+1), `grasp_success` (T; False
     where no grasp was tried), `terminated`, `truncated` (T), and `seed`, `suite_seed`, `env`,
     `policy`, `suite`, `stopped` (the policy saw nothing left to do before the episode ended)."""
@@ -89,7 +101,9 @@ def write_episode(path: Path, steps: dict[str, list], row: dict[str, Any]) -> No
             f,
             rgb=np.stack(steps["rgb"]),
             depth=np.stack(steps["depth"]),
-            action=np.asarray(steps["action"], np.float32).reshape(-1, 4),
+            action=np.asarray(steps["action"], np.float32).reshape(
+                -1, ENVS[row["env"]].ACTION_SIZE
+            ),
             reward=np.asarray(steps["reward"], np.float32),
             coverage=np.asarray(steps["coverage"], np.float32),
             grasp_success=np.asarray(steps["grasp_success"], bool),
@@ -229,20 +243,21 @@ def main(argv: list[str] | None = None) -> int:
         "--env",
         choices=tuple(ENVS),
         default="flatten",
-        help="flatten (one arm, the default), spread (two arms) or fold (one arm)",
+        help="flatten (one arm, the default), spread (two arms), fold (one arm) or fold_pair "
+        "(two arms)",
     )
     parser.add_argument(
         "--policy",
         choices=tuple(POLICIES),
         default=None,
-        help="pulls (flatten), spreads (spread), recipe (fold) or random; default: the "
+        help="pulls (flatten), spreads (spread), recipe (fold, fold_pair) or random; default: the "
         "environment's baseline",
     )
     parser.add_argument(
         "--recipe",
         choices=RECIPES,
         default=None,
-        help="--env fold: the recipe whose goal the towel is folded to (default half)",
+        help="--env fold or fold_pair: the recipe whose goal the towel is folded to (default half)",
     )
     parser.add_argument("--seeds", default="0-9", help="e.g. 0-19 or 1,4,7 (default 0-9)")
     parser.add_argument("--suite", default=None, help="default: the environment's")
@@ -263,8 +278,10 @@ def main(argv: list[str] | None = None) -> int:
             raise FoldbotError(
                 f"policy {policy!r} drives {' or '.join(POLICIES[policy])}, not --env {args.env}"
             )
-        if args.recipe is not None and args.env != "fold":
-            raise FoldbotError(f"--recipe is TowelFold's (--env fold), not --env {args.env}'s")
+        if args.recipe is not None and args.env not in ("fold", "fold_pair"):
+            raise FoldbotError(
+                f"--recipe is TowelFold's (--env fold or fold_pair), not --env {args.env}'s"
+            )
         seeds = parse_seeds(args.seeds)
         fields: dict[str, Any] = {} if args.suite is None else {"suite": args.suite}
         if args.recipe is not None:

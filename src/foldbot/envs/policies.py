@@ -20,8 +20,9 @@ from typing import Any
 
 import numpy as np
 
+from foldbot.carry import arms_apart
 from foldbot.envs.towel_flatten import TowelFlattenEnv, TowelSpreadEnv
-from foldbot.envs.towel_fold import TowelFoldEnv
+from foldbot.envs.towel_fold import TowelFoldEnv, TowelFoldPairEnv
 from foldbot.envs.towel_task import TowelTaskEnv
 from foldbot.errors import ConfigError, FoldbotError
 from foldbot.grasp_points import regrasp_point
@@ -146,13 +147,17 @@ class RecipePolicy:
     folded_as), a folded stack carried by its edge's middle as the one-arm loop carries it;
     before each carry its corner is found again on the frame just seen (regrasp_point, the
     loop's radii), and a carry whose grasp closed on nothing is tried once more, found again.
-    No verification, relays or finishing carries: what the closed loop adds is measured
-    against this."""
+    For TowelFoldPair a stage's two corners go as one pair of carries (a stack's too, as the
+    two-arm loop carries them), a single corner alone, and one at a time where the corners or
+    their places lie too close for two grippers (carry.arms_apart) or the arms could not make
+    the pair. No verification, relays or finishing
+    carries: what the closed loop adds is measured against this."""
 
     def __init__(self, env: TowelFoldEnv) -> None:
         self.env = env.unwrapped
         if not isinstance(self.env, TowelFoldEnv):
             raise FoldbotError(f"RecipePolicy drives TowelFold, not {type(self.env).__name__}")
+        self.pairs = isinstance(self.env, TowelFoldPairEnv)
         self.recipe = folded_as(self.env.config.recipe)
         self.loop = LoopConfig()
         self.estimator = VisionEstimator()
@@ -161,36 +166,22 @@ class RecipePolicy:
     def reset(self) -> None:
         """A new towel: the recipe from its first stage."""
         self.stage = 0
-        self.queue: list[FoldAction] = []
-        self.last: FoldAction | None = None
+        self.queue: list[list[FoldAction]] = []
+        self.last: list[FoldAction] | None = None
         self.retried = False
 
-    def _plan_stage(self, corners: dict) -> list[FoldAction]:
+    def _plan_stage(self, corners: dict) -> list[list[FoldAction]]:
         actions = list(plan_stage(self.recipe, self.stage, corners).actions)
-        if carries_stack(self.recipe, self.stage) and len(actions) == 2:
-            actions = [edge_middle(actions)]
+        stack = carries_stack(self.recipe, self.stage)
         self.stage += 1
-        return actions
+        if self.pairs and (len(actions) < 2 or arms_apart(tuple(actions))):
+            return [actions]  # both corners at once (a triangle fold's one alone)
+        if stack and len(actions) == 2:
+            return [[edge_middle(actions)]]
+        return [[a] for a in actions]
 
-    def __call__(self, info: dict[str, Any]) -> np.ndarray | None:
-        """The next carry, or None when the recipe is done or no corners are seen."""
-        state = self.estimator.estimate(self.env.observation)
-        if not state.detected:
-            return None
-        missed = info.get("grasp_success") is False and self.last is not None
-        if missed and not self.retried:
-            action, self.retried = self.last, True
-        else:
-            self.retried = False
-            if not self.queue:
-                if self.stage >= recipe_stages(self.recipe):
-                    return None
-                corners = {name: xyz for name, (xyz, _conf) in state.keypoints.items()}
-                try:
-                    self.queue = self._plan_stage(corners)
-                except ConfigError:  # fewer than four corners, or a degenerate quad
-                    return None
-            action = self.queue.pop(0)
+    def _found_again(self, state, action: FoldAction) -> FoldAction:
+        """`action` with its grasp on the corner seen now (the planned grasp where none is)."""
         grasp = None
         if not action.label.startswith("middle_"):
             grasp = regrasp_point(
@@ -202,5 +193,34 @@ class RecipePolicy:
                 line=action.fold_line,
             )
         grasp = action.grasp if grasp is None else grasp
-        self.last = dataclasses.replace(action, grasp=np.asarray(grasp, dtype=float))
-        return self.env.world_to_action(grasp[:2], action.place[:2])
+        return dataclasses.replace(action, grasp=np.asarray(grasp, dtype=float))
+
+    def __call__(self, info: dict[str, Any]) -> np.ndarray | None:
+        """The next carry (or pair), or None when the recipe is done or no corners are seen."""
+        state = self.estimator.estimate(self.env.observation)
+        if not state.detected:
+            return None
+        if info.get("infeasible") and self.last is not None and len(self.last) == 2:
+            self.queue[:0] = [[self.last[0]], [self.last[1]]]  # the arms cannot: one at a time
+            self.last = None
+        missed = info.get("grasp_success") is False and self.last is not None
+        if missed and not self.retried:
+            carries, self.retried = self.last, True
+        else:
+            self.retried = False
+            if not self.queue:
+                if self.stage >= recipe_stages(self.recipe):
+                    return None
+                corners = {name: xyz for name, (xyz, _conf) in state.keypoints.items()}
+                try:
+                    self.queue = self._plan_stage(corners)
+                except ConfigError:  # fewer than four corners, or a degenerate quad
+                    return None
+            carries = self.queue.pop(0)
+        self.last = [self._found_again(state, a) for a in carries]
+        if not self.pairs:
+            (action,) = self.last
+            return self.env.world_to_action(action.grasp[:2], action.place[:2])
+        picks = [a.grasp[:2] for a in self.last] + [None] * (2 - len(self.last))
+        places = [a.place[:2] for a in self.last] + [None] * (2 - len(self.last))
+        return self.env.world_to_action(picks, places)

@@ -32,6 +32,8 @@ folds pose it.
 The goal is the recipe's geometry on the true corners: a cell's closed loop plans each stage on
 the corners it perceives then and scores against those lines, so the same fold scores a few mm
 differently here than in the benchmark.
+
+TowelFoldPair (at the end) is the same task in the two-arm cell, two carries a step.
 """
 
 from __future__ import annotations
@@ -41,10 +43,12 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from foldbot.bench.suite import load_suite
 from foldbot.envs.episode_process import StepOutcome
 from foldbot.envs.towel_task import TowelTaskConfig, TowelTaskEnv
-from foldbot.errors import require
+from foldbot.errors import ConfigError, require
 from foldbot.pipeline import EpisodeConfig
 from foldbot.planning.recipes import RECIPES
 
@@ -80,20 +84,34 @@ class TowelFoldConfig(TowelTaskConfig):
         )
 
 
-def fold_episode_config(cfg: TowelFoldConfig, seed: int) -> EpisodeConfig:
+@dataclass(frozen=True)
+class TowelFoldPairConfig(TowelFoldConfig):
+    """TowelFoldPair's episodes: a two-arm suite's flat towels, folded to one recipe's goal."""
+
+    suite: str = "towel_two_arms"
+    """Benchmark suite whose episode for the reset's seed is the towel and its cloth: a two-arm
+    towel suite with flat starts (its recipes are not used)."""
+
+
+def fold_episode_config(cfg: TowelFoldConfig, seed: int, arms: int = 1) -> EpisodeConfig:
     """The suite's towel for `seed` at `cfg.resolution`, with the config's recipe; ConfigError
-    for a suite this task cannot run (not a towel, a crumpled start, or two arms)."""
+    for a suite this task cannot run (not a towel, a crumpled start, or not `arms` arms)."""
     suite = load_suite(cfg.suite, seeds=[seed])
     spec = suite.episodes[0]
-    require(
-        spec.garment == "towel" and spec.start == "flat",
-        f"suite {suite.name!r} starts its {spec.garment}s {spec.start}; TowelFold needs a towel "
-        'suite with start = "flat" (e.g. towel_loop)',
+    task, example, whose = (
+        ("TowelFold", "towel_loop", "one arm's")
+        if arms == 1
+        else ("TowelFoldPair", "towel_two_arms", "two arms'")
     )
     require(
-        spec.arms == 1,
-        f"suite {suite.name!r} has {spec.arms} arms; TowelFold's carry is one arm's "
-        "(e.g. towel_loop)",
+        spec.garment == "towel" and spec.start == "flat",
+        f"suite {suite.name!r} starts its {spec.garment}s {spec.start}; {task} needs a towel "
+        f'suite with start = "flat" (e.g. {example})',
+    )
+    require(
+        spec.arms == arms,
+        f"suite {suite.name!r} has {spec.arms} arm{'s' if spec.arms > 1 else ''}; {task}'s "
+        f"carries are {whose} (e.g. {example})",
     )
     spec = dataclasses.replace(spec, recipe=cfg.recipe)
     if cfg.resolution is not None:
@@ -110,7 +128,7 @@ class TowelFoldEnv(TowelTaskEnv):
     config: TowelFoldConfig
 
     def episode_config(self, seed: int) -> EpisodeConfig:
-        return fold_episode_config(self.config, seed)
+        return fold_episode_config(self.config, seed, self.ARMS)
 
     @property
     def workspace(self) -> tuple[float, float, float, float]:
@@ -135,3 +153,48 @@ class TowelFoldEnv(TowelTaskEnv):
             "fold_error_mm": None if fold is None else fold.fold_error_mm,
             "normalized_performance": None if fold is None else fold.normalized_performance,
         }
+
+
+class TowelFoldPairEnv(TowelFoldEnv):
+    """TowelFoldPair: the same task in the two-arm cell, where a step is two fold carries at
+    once (a stage's two corners, as the two-arm loop carries them). The action is (a pick x,
+    a pick y, a place x, a place y, b pick x, b pick y, b place x, b place y) in [-1, 1] over
+    the same workspace: each carry as TowelFold's, both arms on one clock, each arm on its
+    grasp's side of the cell (the other way round where their motions would meet). A carry
+    shorter than 1 cm is none: that arm stays parked and the other carries alone (a triangle
+    fold's single corner); a missed grasp lets both go; a pair the arms cannot make moves
+    nothing (`info["infeasible"]` says why). Episodes are `towel_two_arms`' towels by default;
+    goal, reward and ends as TowelFold's."""
+
+    ARMS = 2
+    PRIMITIVE = "fold_pair"
+    CONFIG = TowelFoldPairConfig
+    ACTION_SIZE = 8
+
+    def action_to_world(self, action: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(picks, places), each 2×2 (world, m; carry a's, then b's) for an action in [-1, 1]⁸."""
+        a = np.asarray(action, dtype=float).reshape(-1)
+        if a.shape != (8,) or not np.all(np.isfinite(a)) or np.any(np.abs(a) > 1.0 + 1e-6):
+            raise ConfigError(
+                "an action is (a pick x, a pick y, a place x, a place y, b pick x, b pick y, "
+                "b place x, b place y), each finite and in [-1, 1]; "
+                f"got {np.asarray(action).tolist()!r}"
+            )
+        (pa, qa), (pb, qb) = (
+            super(TowelFoldPairEnv, self).action_to_world(h) for h in (a[:4], a[4:])
+        )
+        return np.array([pa, pb]), np.array([qa, qb])
+
+    def world_to_action(self, pick_xy: np.ndarray, place_xy: np.ndarray) -> np.ndarray:
+        """The action for two carries, `pick_xy[i]` to `place_xy[i]` (world, m; 2×2 each); a
+        carry given as None (both its points) is none: its pick is laid on its place, at the
+        other carry's pick."""
+        picks = [None if p is None else np.asarray(p, float)[:2] for p in pick_xy]
+        places = [None if q is None else np.asarray(q, float)[:2] for q in place_xy]
+        halves = []
+        for i in range(2):
+            p, q = picks[i], places[i]
+            if p is None or q is None:
+                p = q = picks[1 - i]
+            halves.append(super().world_to_action(p, q))
+        return np.concatenate(halves).astype(np.float32)

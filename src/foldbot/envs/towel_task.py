@@ -95,6 +95,8 @@ class TowelTaskEnv(gym.Env):
     """Arms in the cell the suite must have."""
     PRIMITIVE: ClassVar[str] = "pick_and_place"
     """What a step does with the action's two points (episode_process.PRIMITIVES)."""
+    ACTION_SIZE: ClassVar[int] = 4
+    """Numbers in an action: two table points (x, y), or two per arm."""
     CONFIG: ClassVar[type[TowelTaskConfig]] = TowelTaskConfig
 
     def __init__(
@@ -125,7 +127,7 @@ class TowelTaskEnv(gym.Env):
                 "depth": spaces.Box(0.0, float(probe.camera.far), (h, w), np.float32),
             }
         )
-        self.action_space = spaces.Box(-1.0, 1.0, (4,), np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, (self.ACTION_SIZE,), np.float32)
         self._episode: EpisodeProcess | None = None
         self._last: StepOutcome | None = None
         self._steps = 0
