@@ -113,6 +113,12 @@ def pick_and_place(
     level, _reaches = grasp_level(surface, pick_xy, flatten)
     grasp = np.array([pick_xy[0], pick_xy[1], table_z(state.table_plane, pick_xy) + level])
     action = pull_action(grasp, place_xy, state.table_plane, flatten, "pick-and-place")
+    return carry_one(cell, action, flatten.settle_time)
+
+
+def carry_one(cell: SimCell, action: FoldAction, settle_time: float) -> dict[str, Any]:
+    """Run one arm's pick-and-place, then park and settle `settle_time`: the step's record
+    (grasp, place, and how the grasp went, or why nothing moved)."""
     record: dict[str, Any] = {
         "grasp": tuple(float(v) for v in action.grasp),
         "place": tuple(float(v) for v in action.place),
@@ -122,7 +128,7 @@ def pick_and_place(
     except UnreachableTargetError as exc:
         return record | {"infeasible": str(exc)}
     cell.park()
-    cell.wait(flatten.settle_time)
+    cell.wait(settle_time)
     return record | {
         "grasp_success": bool(outcome["grasp_success"]),
         "grasp_reason": str(outcome["grasp_reason"]),
@@ -219,20 +225,7 @@ def fold_carry(
     settle `settle_time`. Planned on the frame the policy was shown; perception only. An
     unreachable carry moves nothing and says why."""
     action = fold_carry_action(state, obs, pick_xy, place_xy, stack_height, place_lift)
-    record: dict[str, Any] = {
-        "grasp": tuple(float(v) for v in action.grasp),
-        "place": tuple(float(v) for v in action.place),
-    }
-    try:
-        outcome = execute_action(cell, action)
-    except UnreachableTargetError as exc:
-        return record | {"infeasible": str(exc)}
-    cell.park()
-    cell.wait(settle_time)
-    return record | {
-        "grasp_success": bool(outcome["grasp_success"]),
-        "grasp_reason": str(outcome["grasp_reason"]),
-    }
+    return carry_one(cell, action, settle_time)
 
 
 NO_CARRY = 0.01
