@@ -41,10 +41,6 @@ from foldbot.commands.ros_fold import add_arguments, fold_args_text
         ),
         (["ros-fold", "--out", "{tmp}/e", "--suite", "smoke", "--arms", "2"], "drop --arms"),
         (
-            ["ros-fold", "--out", "{tmp}/e", "--arms", "2", "--arm-interface", "actions"],
-            "--arm-interface actions drives one arm, got --arms 2",
-        ),
-        (
             [
                 "ros-fold",
                 "--out",
@@ -55,10 +51,6 @@ from foldbot.commands.ros_fold import add_arguments, fold_args_text
                 "0",
             ],
             "--real-time-factor must be > 0, got 0.0",
-        ),
-        (
-            ["ros-fold", "--out", "{tmp}/e", "--cell", "real", "--arms", "2"],
-            "--cell real: --arms 2",
         ),
         (
             ["ros-fold", "--out", "{tmp}/e", "--cell", "real", "--arm-interface", "topics"],
@@ -73,7 +65,6 @@ from foldbot.commands.ros_fold import add_arguments, fold_args_text
             ["ros-fold", "--out", "{tmp}/e", "--cell", "real", "--camera-rate", "5"],
             "--cell real: --camera-rate: a real cell's camera streams at its own rate",
         ),
-        (["ros-cell", "--arms", "2"], "--arms 2: the cell serves one arm's driver actions"),
         (["ros-cell", "--camera-rate", "0"], "--camera-rate must be > 0 frames per s, got 0.0"),
         (["ros-cell", "--real-time-factor", "-1"], "--real-time-factor must be > 0, got -1.0"),
         (["ros-cell", "--port", "0"], "--port must be in 1–65535, got 0"),

@@ -36,6 +36,42 @@ def test_a_camera_transform_that_never_comes_is_named():
         RosCell.camera_transform(cell, timeout_s=0.1)
 
 
+class _Listened:
+    """A publisher with a subscriber connected (rospy's Publisher needs a running node)."""
+
+    resolved_name = "/planner/request"
+
+    def get_num_connections(self) -> int:
+        return 1
+
+    def publish(self, msg) -> None:
+        pass
+
+
+def test_a_plan_that_never_comes_because_the_cell_diverged_says_it_diverged(monkeypatch):
+    # The cell diverged while running on by itself and took every node down with it: the task,
+    # waiting for a plan, raises the cell's report, not the planner's silence.
+    import itertools
+
+    from foldbot.errors import SimulationDivergedError
+    from foldbot.ros import task_node
+    from foldbot.ros.task_node import RosCell, _Inbox
+
+    monkeypatch.setattr(task_node, "REPLY_TIMEOUT_S", 0.2)
+    cell = SimpleNamespace(
+        _ids=itertools.count(1), pub_plan=_Listened(), plans=_Inbox(), results=_Inbox()
+    )
+    cell.raise_reported_error = lambda: RosCell.raise_reported_error(cell)
+    with pytest.raises(FoldbotError, match=r"no together plan from the planner node within 0 s"):
+        RosCell._plan(cell, "together")
+    cell.results.put(
+        {"command": "run", "ok": False, "error": "cloth simulation diverged: the whole cloth "
+         "slid across the table", "error_type": "SimulationDivergedError"}
+    )  # fmt: skip
+    with pytest.raises(SimulationDivergedError, match="the cell: cloth simulation diverged"):
+        RosCell._plan(cell, "together")
+
+
 def _record(ious, start_m2=0.09, final_m2=0.045):
     from foldbot.loop import FoldRecord
     from foldbot.perception.state import ClothState

@@ -1,7 +1,8 @@
 """`foldbot ros-cell`: the simulated cell alone on a ROS 1 master, presenting itself as a real
 one does — a UR5's and a gripper's driver actions (control_msgs FollowJointTrajectory on
 scaled_pos_joint_traj_controller/follow_joint_trajectory, GripperCommand on
-gripper_controller/gripper_cmd), /joint_states, an RGB-D camera's images and camera_info, the
+gripper_controller/gripper_cmd; with `--arms 2` each arm's under left/ and right/, its joints
+prefixed left_ and right_), /joint_states, an RGB-D camera's images and camera_info, the
 world → camera transform on /tf_static — running on at real-time pace until interrupted (Ctrl-C
 or `kill`: roslaunch takes its nodes and roscore down first).
 
@@ -59,11 +60,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Validate, then roslaunch the cell and keep it up until interrupted."""
     cfg = fold.config_from_args(args)
-    if cfg.arms != 1:
-        raise ConfigError(
-            f"--arms {cfg.arms}: the cell serves one arm's driver actions (a two-arm cell's "
-            "pairs move on one clock; use `foldbot ros-fold --arms 2`)"
-        )
     check_real_time_factor(args.real_time_factor)
     check_port(args.port)
     if not args.camera_rate > 0:
@@ -88,6 +84,7 @@ def run(args: argparse.Namespace) -> int:
             f"the simulated cell comes up on the ROS master at http://localhost:{port}; fold "
             f"on it with `foldbot ros-fold --cell real --port {port} --out DIR` and the same "
             "cloth options"
+            + (" and --arms 2" if cfg.arms == 2 else "")
             + (" (with --start crumpled: flatten it first)" if cfg.start == "crumpled" else "")
             + "; Ctrl-C stops it",
             flush=True,

@@ -82,8 +82,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="sim",
         help="sim (default): start the sim node, which scores the fold; real: fold on a cell "
         "already running on the ROS master (a UR5's and gripper's drivers and an RGB-D camera, "
-        "or `foldbot ros-cell`) through its drivers' actions, one arm (with --start crumpled, "
-        "flattened by pulls first); the fold is not scored (no ground truth): result.json "
+        "or `foldbot ros-cell`) through its drivers' actions, one arm or two (with --start "
+        "crumpled, flattened first); the fold is not scored (no ground truth): result.json "
         "gives what the camera saw",
     )
     parser.add_argument(
@@ -93,7 +93,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="topics (default with --cell sim): the sim node's lockstep commands "
         "(repeatable); actions (--cell real's): control_msgs/FollowJointTrajectory and "
         "GripperCommand as a real arm's drivers serve them, the cell running on at real-time "
-        "pace (one arm)",
+        "pace (with --arms 2, each arm's drivers under left/ and right/, a pair's two goals "
+        "stamped to start together)",
     )
     add_real_time_factor(parser, "with --cell sim --arm-interface actions: ")
     parser.add_argument(
@@ -226,7 +227,6 @@ def check_real_cell(args: argparse.Namespace, cfg, interface: str) -> None:
     refused = [
         (interface != "actions", f"--arm-interface {interface}: a real cell is driven "
          "through its drivers' actions (--arm-interface actions)"),
-        (cfg.arms != 1, f"--arms {cfg.arms}: one arm (a two-arm cell's pairs need one clock)"),
         (args.real_time_factor is not None, "--real-time-factor: a real cell runs at its own "
          "pace (`foldbot ros-cell --real-time-factor` sets the simulated cell's)"),
         (args.camera_rate is not None, "--camera-rate: a real cell's camera streams at its "
@@ -252,11 +252,6 @@ def run(args: argparse.Namespace) -> int:
     interface = args.arm_interface or ("actions" if real else "topics")
     if real:
         check_real_cell(args, cfg, interface)
-    if interface == "actions" and cfg.arms != 1:
-        raise ConfigError(
-            f"--arm-interface actions drives one arm, got --arms {cfg.arms}: a two-arm cell's "
-            "pairs move on one clock over arm/joint_trajectory (--arm-interface topics)"
-        )
     check_real_time_factor(args.real_time_factor)
     check_port(args.port)
     rate = args.video_fps if args.camera_rate is None else args.camera_rate

@@ -483,3 +483,22 @@ def hermite_resample(
     spline = CubicHermiteSpline(np.asarray(times, float), positions, velocities, axis=0)
     g = np.clip(np.asarray(grid, float), times[0], times[-1])
     return spline(g), spline.derivative()(g)
+
+
+def commands_at_steps(
+    times: np.ndarray, pos: np.ndarray, vel: np.ndarray, dt: float, splined: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """A trajectory's commanded joints and velocities at each physics step after its start
+    (`dt` s apart, to its last point's time): its own samples where they lie on those steps (as
+    the planner sends them); else `splined` (points with velocities, as ros_control's
+    controller splines them) on cubic Hermite spans, or interpolated linearly."""
+    n = round(times[-1] / dt)
+    if len(times) == n + 1 and np.allclose(times, np.arange(n + 1) * dt, atol=1e-6):
+        return pos[1:], vel[1:]
+    grid = np.arange(1, n + 1) * dt
+    if splined:
+        return hermite_resample(times, pos, vel, grid)
+    cols = range(pos.shape[1])
+    q_cmd = np.column_stack([np.interp(grid, times, pos[:, j]) for j in cols])
+    v_cmd = np.column_stack([np.interp(grid, times, vel[:, j]) for j in cols])
+    return q_cmd, v_cmd

@@ -64,3 +64,18 @@ def arm_prefixes(arms: int) -> tuple[str, ...]:
 def arm_joint_names(joint_names: tuple[str, ...], arms: int) -> list[list[str]]:
     """Each arm's joint names as they go over topics: the robot's names with the arm's prefix."""
     return [[prefix + name for name in joint_names] for prefix in arm_prefixes(arms)]
+
+
+def driver_namespaces(arms: int) -> tuple[str, ...]:
+    """Each arm's drivers' namespace, arm 0 first: none for one arm (its drivers' own names);
+    each of two arms' drivers under its arm's name (left/, right/), as a bimanual cell launches
+    one ur_robot_driver and one gripper driver per arm."""
+    return tuple(f"{prefix.rstrip('_')}/" if prefix else "" for prefix in arm_prefixes(arms))
+
+
+def driver_actions(arms: int) -> list[tuple[str, str]]:
+    """Each arm's (FollowJointTrajectory, GripperCommand) action names, arm 0 first."""
+    return [
+        (ns + TOPICS["trajectory_action"], ns + TOPICS["gripper_action"])
+        for ns in driver_namespaces(arms)
+    ]

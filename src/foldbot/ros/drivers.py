@@ -6,7 +6,10 @@ feedback with the commanded, measured and error joints, the result's error codes
 control_msgs/GripperCommand action (position = the jaws' gap in m; the result says whether the
 jaws stalled on something). `ActionArm` is the task node's side: it sends those goals and reads
 the cell back the way it would on a real arm, from /joint_states and the camera stream, so the
-same task node drives a real UR5 by remapping these names onto its drivers'.
+same task node drives a real UR5 by remapping these names onto its drivers'. A two-arm cell has
+a pair of drivers per arm, each under its arm's namespace (foldbot.ros.driver_actions), and
+moves both arms together by stamping both goals with one start time, as ros_control's
+trajectory controller takes a goal's header stamp.
 """
 
 from __future__ import annotations
@@ -14,7 +17,6 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable
-from types import SimpleNamespace
 
 import actionlib
 import numpy as np
@@ -23,9 +25,9 @@ from actionlib_msgs.msg import GoalStatus
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectoryPoint
 
-from foldbot.control.trajectory import thin_samples
+from foldbot.control.trajectory import commands_at_steps, thin_samples
 from foldbot.errors import FoldbotError
-from foldbot.ros import TOPICS, convert
+from foldbot.ros import TOPICS, convert, driver_actions
 from foldbot.ros.control_msgs import msg as control_msgs
 
 DRIVER_PERIOD_S = 0.02
@@ -35,6 +37,9 @@ GONE_GRACE_S = 0.5
 """How long a driver found gone is given for the cell's report of why to arrive."""
 SERVER_WAIT_S = 60.0
 """Longest wall time the task node waits for the drivers' action servers."""
+LATE_START_S = 0.05
+"""A goal that reaches the sim's driver this long (s) after its stamped start is logged (it
+starts on arrival): two arms' goals meant to start together would not."""
 CLOSE_BELOW = 0.5
 """A GripperCommand position under this fraction of the jaws' largest gap closes them."""
 OPEN_GAP_M = 0.085
@@ -65,38 +70,65 @@ class _Handover:
     """A goal taken by an action server's thread, executed on the sim node's main thread (every
     PyBullet call happens there)."""
 
-    def __init__(self, goal) -> None:
+    def __init__(self, goal, arm: int = 0) -> None:
         self.goal = goal
+        self.arm = arm
         self.done = threading.Event()
         self.succeeded = False
         self.result = None
         self.text = ""
 
 
+class _Motion:
+    """A FollowJointTrajectory goal under way on one arm, stepped with every other arm's on the
+    cell's one clock: waiting for its start stamp, then moving (its commands at each physics
+    step), then settling into its goal tolerance."""
+
+    def __init__(self, handover: _Handover, start: float, times, pos, vel, splined: bool,
+                 path_tol: np.ndarray, goal_tol: np.ndarray, goal_time_s: float) -> None:  # fmt: skip
+        self.handover = handover
+        self.start = start
+        self.times, self.pos, self.vel, self.splined = times, pos, vel, splined
+        self.path_tol, self.goal_tol, self.goal_time_s = path_tol, goal_tol, goal_time_s
+        self.q_cmd = self.v_cmd = np.zeros((0, pos.shape[1]))
+        self.k = -1  # −1: waiting for its start; then the next step's index
+        self.check: set[int] = set()
+        self.deadline = 0.0  # when settling must end (simulated s)
+
+
 class SimDrivers:
-    """The sim node's arm and gripper drivers (one arm)."""
+    """The sim node's arm and gripper drivers, a pair per arm (one arm: their own names; two:
+    each under its arm's namespace, foldbot.ros.driver_actions). Goals on both arms run at once
+    on the cell's clock, each from its own start stamp, as two arms' drivers run them; a
+    gripper goal waits until no arm moves (the simulated jaws take the cell's physics steps)."""
 
     def __init__(self, node) -> None:
         self.node = node
-        self.trajectory = actionlib.SimpleActionServer(
-            TOPICS["trajectory_action"],
-            control_msgs.FollowJointTrajectoryAction,
-            execute_cb=lambda goal: self._hand_over("follow", goal, self.trajectory),
-            auto_start=False,
-        )
-        self.gripper = actionlib.SimpleActionServer(
-            TOPICS["gripper_action"],
-            control_msgs.GripperCommandAction,
-            execute_cb=lambda goal: self._hand_over("grip", goal, self.gripper),
-            auto_start=False,
-        )
+        self.trajectories: list[actionlib.SimpleActionServer] = []
+        self.grippers: list[actionlib.SimpleActionServer] = []
+        for arm, (follow_name, grip_name) in enumerate(driver_actions(len(node.executors))):
+            follow = actionlib.SimpleActionServer(
+                follow_name, control_msgs.FollowJointTrajectoryAction, auto_start=False,
+                execute_cb=lambda goal, a=arm: self._hand_over("follow", a, goal),
+            )  # fmt: skip
+            grip = actionlib.SimpleActionServer(
+                grip_name, control_msgs.GripperCommandAction, auto_start=False,
+                execute_cb=lambda goal, a=arm: self._hand_over("grip", a, goal),
+            )  # fmt: skip
+            self.trajectories.append(follow)
+            self.grippers.append(grip)
+        self.motions: dict[int, _Motion] = {}
+        """Each moving arm's goal under way."""
+        self.grips: list[_Handover] = []
+        """Gripper goals waiting for the arms to stop, in the order they came."""
 
     def start(self) -> None:
-        self.trajectory.start()
-        self.gripper.start()
+        for server in (*self.trajectories, *self.grippers):
+            server.start()
 
-    def _hand_over(self, kind: str, goal, server: actionlib.SimpleActionServer) -> None:
-        handover = _Handover(goal)
+    def _hand_over(self, kind: str, arm: int, goal) -> None:
+        server = (self.trajectories if kind == "follow" else self.grippers)[arm]
+        handover = _Handover(goal, arm)
         self.node.commands.put((kind, handover))
         while not handover.done.wait(0.1):
             if rospy.is_shutdown():
@@ -106,44 +138,80 @@ class SimDrivers:
         else:
             server.set_aborted(handover.result, handover.text)
 
-    def execute(self, kind: str, handover: _Handover) -> bool:
-        """Run a handed-over goal; False when the cell diverged (reported; the node stops)."""
+    @property
+    def busy(self) -> bool:
+        """Whether a goal is under way or waiting (the cell steps for it, not at rest)."""
+        return bool(self.motions or self.grips)
+
+    def accept(self, kind: str, handover: _Handover) -> bool:
+        """Take a handed-over goal: a trajectory starts moving its arm (or is refused, its
+        goal ended at once); a gripper goal acts now if no arm moves, else once none does.
+        False when the cell diverged (reported; the node stops)."""
+        if kind == "follow":
+            return self._guarded(lambda: self._begin_follow(handover), handover)
+        if kind == "grip":
+            self.grips.append(handover)
+            return self.run_grips() if not self.motions else True
+        raise FoldbotError(f"unknown driver goal {kind!r}")
+
+    def _guarded(self, run: Callable[[], None], taken: _Handover | None = None) -> bool:
+        """Run `run`; a divergence (or any cell error) on the way aborts every goal under way
+        or waiting (and `taken`, the goal being taken) with it, the node reports it (and,
+        diverged, stops: False)."""
         try:
-            if kind == "follow":
-                self._follow(handover)
-            elif kind == "grip":
-                self._grip(handover)
-            else:
-                raise FoldbotError(f"unknown driver goal {kind!r}")
+            run()
         except FoldbotError as exc:
-            # A divergence mid-goal: the goal aborts with it, and the node reports it and stops.
-            result = control_msgs.FollowJointTrajectoryResult
-            handover.result = (
-                result(error_code=result.INVALID_GOAL, error_string=str(exc))
-                if kind == "follow"
-                else control_msgs.GripperCommandResult()
-            )
-            handover.text = f"{type(exc).__name__}: {exc}"
-            handover.done.set()
-            self.node.fail(kind, exc)
+            handovers = [m.handover for m in self.motions.values()] + self.grips
+            if taken is not None and taken not in handovers:
+                handovers.append(taken)
+            for handover in handovers:
+                result = control_msgs.FollowJointTrajectoryResult
+                handover.result = (
+                    result(error_code=result.INVALID_GOAL, error_string=str(exc))
+                    if isinstance(handover.goal, control_msgs.FollowJointTrajectoryGoal)
+                    else control_msgs.GripperCommandResult()
+                )
+                handover.text = f"{type(exc).__name__}: {exc}"
+                handover.done.set()
+            self.motions.clear()
+            self.grips.clear()
+            self.node.fail("driver goal", exc)
             return type(exc).__name__ != "SimulationDivergedError"
-        handover.done.set()
+        return True
+
+    def step(self) -> bool:
+        """One physics step of every arm's goal under way (a motion's start, its commands, its
+        checks and its end), then the waiting gripper goals once no arm moves. False when the
+        cell diverged."""
+        return self._guarded(self._step) and self.run_grips()
+
+    def run_grips(self) -> bool:
+        """The waiting gripper goals, in turn, when no arm moves."""
+        while self.grips and not self.motions:
+            handover = self.grips[0]
+            if not self._guarded(lambda h=handover: self._grip(h)):
+                return False
+            if self.grips and self.grips[0] is handover:
+                self.grips.pop(0)
+                handover.done.set()
         return True
 
     # ------------------------------------------------------------------ FollowJointTrajectory
-    def _follow(self, handover: _Handover) -> None:
+    def _begin_follow(self, handover: _Handover) -> None:
         R = control_msgs.FollowJointTrajectoryResult
-        goal, node = handover.goal, self.node
-        robot = node.executors[0].robot
-        names, arm_names = list(goal.trajectory.joint_names), node.arm_joints[0]
+        goal, node, arm = handover.goal, self.node, handover.arm
+        names, arm_names = list(goal.trajectory.joint_names), node.arm_joints[arm]
 
         def refuse(code: int, text: str) -> None:
             handover.result, handover.text = R(error_code=code, error_string=text), text
+            handover.done.set()
 
         if sorted(names) != sorted(arm_names):
             return refuse(
                 R.INVALID_JOINTS, f"joint_names {names} must be this arm's joints {arm_names}"
             )
+        if arm in self.motions:  # a driver runs one goal at a time (its server queues them)
+            return refuse(R.INVALID_GOAL, "this arm already follows a trajectory")
         try:
             times, pos, vel = convert.trajectory_arrays(goal.trajectory)
             path_tol = tolerances(goal.path_tolerance, arm_names)
@@ -154,61 +222,120 @@ class SimDrivers:
         pos, vel = pos[:, order], vel[:, order]
         if not (np.isfinite(pos).all() and np.isfinite(vel).all() and np.isfinite(times).all()):
             return refuse(R.INVALID_GOAL, "trajectory points must be finite")
-        start = goal.trajectory.header.stamp.to_sec()
-        while start > node.world.sim_time:  # a start in the future: the cell runs on until then
-            node.world.step()
-        if times[0] > 0.0:  # the first point later than now: go there from where the arm is
-            times = np.concatenate([[0.0], times])
-            pos = np.vstack([robot.joint_positions(), pos])
-            vel = np.vstack([np.zeros(len(arm_names)), vel])
-        feedback = control_msgs.FollowJointTrajectoryFeedback(joint_names=arm_names)
-
-        def on_check(_k: int, t: float, q_cmd: np.ndarray, q: np.ndarray) -> None:
-            feedback.header = convert.header(node.world.sim_time, "")
-            feedback.desired = JointTrajectoryPoint(
-                positions=q_cmd.tolist(), time_from_start=rospy.Duration.from_sec(t)
-            )
-            feedback.actual = JointTrajectoryPoint(positions=q.tolist())
-            feedback.error = JointTrajectoryPoint(positions=(q_cmd - q).tolist())
-            self.trajectory.publish_feedback(feedback)
-            off = np.abs(q_cmd - q) - path_tol
-            if (off > 0).any():
-                j = int(np.argmax(off))
-                raise _PathToleranceViolated(
-                    f"{arm_names[j]} was {abs(q_cmd[j] - q[j]):.4f} rad off its command at "
-                    f"t = {t:.3f} s (path tolerance {path_tol[j]:g} rad)"
-                )
-
         # ros_control's controller splines points that carry velocities (cubic), else lerps.
         splined = all(len(pt.velocities) == len(names) for pt in goal.trajectory.points)
         splined = splined and bool(np.all(np.diff(times) > 0))
-        try:
-            node.execute_trajectory(
-                SimpleNamespace(joint_names=arm_names), on_check, (times, pos, vel), splined
-            )
-        except _PathToleranceViolated as exc:
+        self.motions[arm] = _Motion(
+            handover, goal.trajectory.header.stamp.to_sec(), times, pos, vel, splined,
+            path_tol, goal_tol, goal.goal_time_tolerance.to_sec(),
+        )  # fmt: skip
+        self._start_due()
+
+    def _start_due(self) -> None:
+        """Start the motions whose start stamp the clock has reached (a start in the future:
+        the cell runs on until then; one in the past starts now)."""
+        node = self.node
+        for arm, m in list(self.motions.items()):
+            if m.k >= 0 or m.start > node.world.sim_time:
+                continue
+            late = node.world.sim_time - m.start
+            if m.start > 0.0 and late > LATE_START_S:
+                rospy.logwarn(
+                    "arm %d's goal arrived %.3f s after the start it is stamped with; it "
+                    "starts now", arm, late,
+                )  # fmt: skip
+            times, pos, vel = m.times, m.pos, m.vel
+            if times[0] > 0.0:  # the first point later than now: go there from where the arm is
+                robot = node.executors[arm].robot
+                times = np.concatenate([[0.0], times])
+                pos = np.vstack([robot.joint_positions(), pos])
+                vel = np.vstack([np.zeros(pos.shape[1]), vel])
+            m.q_cmd, m.v_cmd = commands_at_steps(times, pos, vel, node.world.time_step, m.splined)
+            n = len(m.q_cmd)
+            m.check = set(range(7, n, 8)) | ({n - 1} if n else set())
+            m.pos = pos
+            m.k = 0
+            if n == 0:
+                self._settling(arm, m)
+
+    def _step(self) -> None:
+        node = self.node
+        self._start_due()
+        moving = {a: m for a, m in self.motions.items() if 0 <= m.k < len(m.q_cmd)}
+        for arm, m in moving.items():
+            node.executors[arm].robot.command_joint_positions(m.q_cmd[m.k], m.v_cmd[m.k])
+        node.world.step()
+        for arm, m in list(self.motions.items()):
+            if arm in moving:
+                k, m.k = m.k, m.k + 1
+                if k in m.check and not self._checked(arm, m, k):
+                    continue
+                if m.k == len(m.q_cmd):
+                    self._settling(arm, m)
+            elif m.k >= 0:
+                self._settle_check(arm, m)
+
+    def _checked(self, arm: int, m: _Motion, k: int) -> bool:
+        """Feedback at a tracking check, and the path tolerances: a joint off its command by
+        more stops the arm where it is and aborts the goal (False)."""
+        node = self.node
+        robot, arm_names = node.executors[arm].robot, node.arm_joints[arm]
+        t, q_cmd, q = (k + 1) * node.world.time_step, m.q_cmd[k], robot.joint_positions()
+        feedback = control_msgs.FollowJointTrajectoryFeedback(joint_names=arm_names)
+        feedback.header = convert.header(node.world.sim_time, "")
+        feedback.desired = JointTrajectoryPoint(
+            positions=q_cmd.tolist(), time_from_start=rospy.Duration.from_sec(t)
+        )
+        feedback.actual = JointTrajectoryPoint(positions=q.tolist())
+        feedback.error = JointTrajectoryPoint(positions=(q_cmd - q).tolist())
+        self.trajectories[arm].publish_feedback(feedback)
+        off = np.abs(q_cmd - q) - m.path_tol
+        if (off > 0).any():
+            j = int(np.argmax(off))
             robot.command_joint_positions(robot.joint_positions())  # stop where it is
-            return refuse(R.PATH_TOLERANCE_VIOLATED, str(exc))
-        deadline = node.world.sim_time + goal.goal_time_tolerance.to_sec()
-        while True:
-            off = np.abs(robot.joint_positions() - pos[-1]) - goal_tol
-            if (off <= 0).all():
-                break
-            if node.world.sim_time >= deadline:
-                j = int(np.argmax(off))
-                return refuse(
-                    R.GOAL_TOLERANCE_VIOLATED,
-                    f"{arm_names[j]} ended {off[j] + goal_tol[j]:.4f} rad from its goal "
-                    f"(goal tolerance {goal_tol[j]:g} rad)",
-                )
-            node.world.step()
-        handover.succeeded = True
-        handover.result = R(error_code=R.SUCCESSFUL, error_string="")
+            self._end(
+                arm,
+                control_msgs.FollowJointTrajectoryResult.PATH_TOLERANCE_VIOLATED,
+                f"{arm_names[j]} was {abs(q_cmd[j] - q[j]):.4f} rad off its command at "
+                f"t = {t:.3f} s (path tolerance {m.path_tol[j]:g} rad)",
+            )
+            return False
+        return True
+
+    def _settling(self, arm: int, m: _Motion) -> None:
+        """The last command sent: the arm has goal_time_tolerance to come within its goal
+        tolerance (checked now, then after each step)."""
+        m.deadline = self.node.world.sim_time + m.goal_time_s
+        self._settle_check(arm, m)
+
+    def _settle_check(self, arm: int, m: _Motion) -> None:
+        robot = self.node.executors[arm].robot
+        off = np.abs(robot.joint_positions() - m.pos[-1]) - m.goal_tol
+        if (off <= 0).all():
+            self._end(arm, control_msgs.FollowJointTrajectoryResult.SUCCESSFUL, "")
+        elif self.node.world.sim_time >= m.deadline:
+            j = int(np.argmax(off))
+            self._end(
+                arm,
+                control_msgs.FollowJointTrajectoryResult.GOAL_TOLERANCE_VIOLATED,
+                f"{self.node.arm_joints[arm][j]} ended {off[j] + m.goal_tol[j]:.4f} rad from "
+                f"its goal (goal tolerance {m.goal_tol[j]:g} rad)",
+            )
+
+    def _end(self, arm: int, code: int, text: str) -> None:
+        handover = self.motions.pop(arm).handover
+        handover.succeeded = code == control_msgs.FollowJointTrajectoryResult.SUCCESSFUL
+        handover.result = control_msgs.FollowJointTrajectoryResult(
+            error_code=code, error_string=text
+        )
+        handover.text = text
+        handover.done.set()
 
     # ------------------------------------------------------------------ GripperCommand
     def _grip(self, handover: _Handover) -> None:
         node = self.node
-        robot, grasp = node.executors[0].robot, node.executors[0].grasp
+        executor = node.executors[handover.arm]
+        robot, grasp = executor.robot, executor.grasp
         position = handover.goal.command.position
         result = control_msgs.GripperCommandResult
         if not (np.isfinite(position) and position >= 0.0):
@@ -223,7 +350,7 @@ class SimDrivers:
                         "success": g.success,
                         "vertex_ids": list(g.vertex_ids),
                         "reason": g.reason,
-                        "arm": 0,
+                        "arm": handover.arm,
                     }
                 )
             )
@@ -246,23 +373,47 @@ def _gripper_goal(close: bool):
     return goal
 
 
-class ActionArm:
-    """The task node's arm and gripper through their drivers' actions (one arm)."""
+class _Following:
+    """A trajectory goal sent: its feedback as it comes (time from the start, commanded and
+    measured joints)."""
 
-    def __init__(self, arm_joints: list[str], failure: Callable[[], None]) -> None:
+    def __init__(self, duration: float) -> None:
+        self.duration = duration
+        self.stamps: list[float] = []
+        self.desired: list[list[float]] = []
+        self.actual: list[list[float]] = []
+
+    def on_feedback(self, fb) -> None:
+        self.stamps.append(fb.desired.time_from_start.to_sec())
+        self.desired.append(list(fb.desired.positions))
+        self.actual.append(list(fb.actual.positions))
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return np.array(self.stamps), np.array(self.desired), np.array(self.actual)
+
+
+class ActionArm:
+    """The task node's side of one arm's drivers: its trajectory and gripper actions."""
+
+    def __init__(
+        self,
+        arm_joints: list[str],
+        failure: Callable[[], None],
+        actions: tuple[str, str] = (TOPICS["trajectory_action"], TOPICS["gripper_action"]),
+    ) -> None:
         """`failure()` raises when the cell has reported an error (the sim node's divergence),
-        so no wait outlasts a cell that has stopped."""
+        so no wait outlasts a cell that has stopped. `actions`: the arm's FollowJointTrajectory
+        and GripperCommand action names (foldbot.ros.driver_actions)."""
         self.arm_joints = arm_joints
         self.failure = failure
+        self.actions = actions
         self.joints: np.ndarray | None = None
         self.joints_stamp = -1.0
         self._lock = threading.Lock()
         self.trajectory = actionlib.SimpleActionClient(
-            TOPICS["trajectory_action"], control_msgs.FollowJointTrajectoryAction
+            actions[0], control_msgs.FollowJointTrajectoryAction
         )
-        self.gripper = actionlib.SimpleActionClient(
-            TOPICS["gripper_action"], control_msgs.GripperCommandAction
-        )
+        self.gripper = actionlib.SimpleActionClient(actions[1], control_msgs.GripperCommandAction)
         self._served = False
         """Whether both servers have been found (from then on, one that goes away is an error)."""
         rospy.Subscriber(TOPICS["joint_states"], JointState, self._on_joints, queue_size=10)
@@ -286,10 +437,7 @@ class ActionArm:
         be answered, nor /joint_states stamped again)."""
         if not self._served:
             return
-        for client, name in (
-            (self.trajectory, TOPICS["trajectory_action"]),
-            (self.gripper, TOPICS["gripper_action"]),
-        ):
+        for client, name in zip((self.trajectory, self.gripper), self.actions, strict=True):
             if client.action_client.pub_goal.get_num_connections() == 0:
                 time.sleep(GONE_GRACE_S)  # the cell's own report of why, should one be on its way
                 self.failure()
@@ -312,10 +460,7 @@ class ActionArm:
     def wait_for_servers(self, timeout_s: float = SERVER_WAIT_S) -> None:
         """Wait for both action servers and the first joint state, naming what did not come."""
         deadline = time.monotonic() + timeout_s
-        for client, name in (
-            (self.trajectory, TOPICS["trajectory_action"]),
-            (self.gripper, TOPICS["gripper_action"]),
-        ):
+        for client, name in zip((self.trajectory, self.gripper), self.actions, strict=True):
             while not client.wait_for_server(rospy.Duration(0.2)):
                 self.failure()
                 if time.monotonic() > deadline or rospy.is_shutdown():
@@ -323,7 +468,9 @@ class ActionArm:
         while self.joints is None:
             self.failure()
             if time.monotonic() > deadline or rospy.is_shutdown():
-                raise FoldbotError(f"no {TOPICS['joint_states']} within {timeout_s:g} s")
+                raise FoldbotError(
+                    f"no {TOPICS['joint_states']} naming {self.arm_joints} within {timeout_s:g} s"
+                )
             time.sleep(0.02)
         self._served = True
 
@@ -345,6 +492,32 @@ class ActionArm:
             time.sleep(0.005)
         self.failure()
 
+    def send(
+        self, joint_names: list[str], times: np.ndarray, positions: np.ndarray,
+        velocities: np.ndarray, start: float = 0.0,
+    ) -> _Following:  # fmt: skip
+        """Send a trajectory goal, starting at the cell's time `start` (s; 0: on arrival);
+        returns where its feedback collects (`finish` waits for its result)."""
+        keep = thin_samples(times, DRIVER_PERIOD_S, velocities)  # the driver splines them
+        goal = control_msgs.FollowJointTrajectoryGoal(
+            trajectory=convert.trajectory_msg(
+                joint_names, times[keep], positions[keep], velocities[keep], start, ""
+            )
+        )
+        following = _Following(float(times[-1]))
+        self.trajectory.send_goal(goal, feedback_cb=following.on_feedback)
+        return following
+
+    def finish(
+        self, following: _Following, what: str, timeout_s: float,
+        meanwhile: Callable[[], None] | None = None,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+        """Wait for a sent trajectory's result; its feedback (`_Following.arrays`). A goal the
+        driver aborts or rejects raises, with its error code and text."""
+        self._wait(self.trajectory, what, timeout_s, meanwhile)
+        self._trajectory_succeeded(what)
+        return following.arrays()
+
     def follow(
         self, joint_names: list[str], times: np.ndarray, positions: np.ndarray,
         velocities: np.ndarray, what: str, timeout_s: float,
@@ -356,36 +529,20 @@ class ActionArm:
         trajectory's end by its feedback (or at its result), so the jaws act as the arm arrives
         rather than a round trip later. A goal the driver aborts or rejects raises, with its
         error code and text (a gripper goal already sent is cancelled)."""
-        keep = thin_samples(times, DRIVER_PERIOD_S, velocities)  # the driver splines them
-        goal = control_msgs.FollowJointTrajectoryGoal(
-            trajectory=convert.trajectory_msg(
-                joint_names, times[keep], positions[keep], velocities[keep], 0.0, ""
-            )
-        )
-        stamps: list[float] = []
-        desired: list[list[float]] = []
-        actual: list[list[float]] = []
-
-        def on_feedback(fb) -> None:
-            stamps.append(fb.desired.time_from_start.to_sec())
-            desired.append(list(fb.desired.positions))
-            actual.append(list(fb.actual.positions))
-
+        following = self.send(joint_names, times, positions, velocities)
         gripping = [then_grip is None]  # whether the gripper goal has gone
 
         def grip_when_due() -> None:
             due = float(times[-1]) - lead_s
             if not gripping[0] and (
-                (stamps and stamps[-1] >= due)
+                (following.stamps and following.stamps[-1] >= due)
                 or self.trajectory.simple_state == actionlib.SimpleGoalState.DONE
             ):
                 self.gripper.send_goal(_gripper_goal(bool(then_grip)))
                 gripping[0] = True
 
-        self.trajectory.send_goal(goal, feedback_cb=on_feedback)
         try:
-            self._wait(self.trajectory, what, timeout_s, grip_when_due)
-            self._trajectory_succeeded(what)
+            stamps, desired, actual = self.finish(following, what, timeout_s, grip_when_due)
         except FoldbotError:
             if then_grip is not None and gripping[0]:  # no jaws acting on a failed motion
                 self.gripper.cancel_goal()
@@ -394,13 +551,23 @@ class ActionArm:
         if then_grip is not None:
             grip_when_due()  # sent already, unless no feedback came near the end
             gripped = self._grip_result(f"{what}: gripper", timeout_s)
-        return np.array(stamps), np.array(desired), np.array(actual), gripped
+        return stamps, desired, actual, gripped
+
+    def _reported_cause(self) -> None:
+        """A goal the driver ended: give the cell's own report of why (the sim node's
+        divergence, on another topic than the goal's result) GONE_GRACE_S to arrive, and raise
+        it if it does; a real cell sends none."""
+        deadline = time.monotonic() + GONE_GRACE_S
+        while time.monotonic() < deadline:
+            self.failure()
+            time.sleep(0.02)
 
     def _trajectory_succeeded(self, what: str) -> None:
         """Raise, with the driver's error code and text, unless the last goal succeeded."""
         result = self.trajectory.get_result()
         state = self.trajectory.get_state()
         if state != GoalStatus.SUCCEEDED or result is None or result.error_code != 0:
+            self._reported_cause()
             code = None if result is None else result.error_code
             text = (result.error_string if result is not None else "") or (
                 self.trajectory.get_goal_status_text()
@@ -420,6 +587,7 @@ class ActionArm:
         self._wait(self.gripper, what, timeout_s)
         result = self.gripper.get_result()
         if self.gripper.get_state() != GoalStatus.SUCCEEDED or result is None:
+            self._reported_cause()
             raise FoldbotError(
                 f"{what}: the gripper driver ended the goal: {self.gripper.get_goal_status_text()}"
             )

@@ -29,7 +29,7 @@ from std_msgs.msg import Empty, Float64, String
 from tf2_msgs.msg import TFMessage
 from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
 
-from foldbot.control.trajectory import hermite_resample
+from foldbot.control.trajectory import commands_at_steps
 from foldbot.errors import FoldbotError
 from foldbot.pipeline import build_sim_cell, crumple_start
 from foldbot.ros import (
@@ -102,11 +102,6 @@ class SimNode:
         if arm_interface not in ARM_INTERFACES:
             raise FoldbotError(
                 f"arm interface must be one of {', '.join(ARM_INTERFACES)}, got {arm_interface!r}"
-            )
-        if arm_interface == "actions" and self.cfg.arms != 1:
-            raise FoldbotError(
-                f"the arm interface 'actions' drives one arm, this cell has {self.cfg.arms}: a "
-                "two-arm cell's pairs move on one clock over arm/joint_trajectory (topics)"
             )
         if not (np.isfinite(real_time_factor) and real_time_factor > 0):
             raise FoldbotError(f"real_time_factor must be > 0, got {real_time_factor!r}")
@@ -273,17 +268,8 @@ class SimNode:
         arms = trajectory_arms(list(msg.joint_names), self.arm_joints)
         times, pos, vel = times_pos_vel or convert.trajectory_arrays(msg)
         dt = self.world.time_step
-        n = round(times[-1] / dt)
-        if len(times) == n + 1 and np.allclose(times, np.arange(n + 1) * dt, atol=1e-6):
-            # Sampled at the physics step (as the planner sends them): play the samples as they are.
-            q_cmd, v_cmd = pos[1:], vel[1:]
-        elif splined:  # points with velocities: splined as ros_control's controller does
-            q_cmd, v_cmd = hermite_resample(times, pos, vel, np.arange(1, n + 1) * dt)
-        else:  # any other sampling: interpolated onto the physics steps
-            grid = np.arange(1, n + 1) * dt
-            cols = range(pos.shape[1])
-            q_cmd = np.column_stack([np.interp(grid, times, pos[:, j]) for j in cols])
-            v_cmd = np.column_stack([np.interp(grid, times, vel[:, j]) for j in cols])
+        q_cmd, v_cmd = commands_at_steps(times, pos, vel, dt, splined)
+        n = len(q_cmd)
         # Each moved arm's columns; arms not named hold their last command.
         dof = self.robot.dof
         moved = [(self.executors[arm], slice(i * dof, (i + 1) * dof)) for i, arm in enumerate(arms)]
@@ -384,12 +370,15 @@ class SimNode:
                     else self.commands.get_nowait()
                 )
             except queue.Empty:
-                if self.drivers is not None and not self._run_on():
+                if self.drivers is None:
+                    continue
+                # The drivers' goals under way, else the cell left to itself: one step.
+                if not (self.drivers.step() if self.drivers.busy else self._run_on()):
                     return
                 continue
             if self.drivers is not None and kind != "ground_truth":
                 self.rest.wake()
-                if not self.drivers.execute(kind, msg):
+                if not self.drivers.accept(kind, msg):
                     return
                 continue
             try:

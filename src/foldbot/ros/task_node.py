@@ -52,7 +52,14 @@ from foldbot.pipeline import (
 from foldbot.planning.actions import FoldAction, FoldPlan
 from foldbot.planning.garment_recipes import GarmentPlan
 from foldbot.planning.spread import SpreadAction, action_as_dict
-from foldbot.ros import CAMERA_FRAME, TOPICS, WORLD_FRAME, arm_joint_names, convert
+from foldbot.ros import (
+    CAMERA_FRAME,
+    TOPICS,
+    WORLD_FRAME,
+    arm_joint_names,
+    convert,
+    driver_actions,
+)
 from foldbot.ros.frames import StaticFrames
 from foldbot.ros.node_args import (
     ARM_INTERFACE_PARAM,
@@ -76,6 +83,9 @@ TF_WAIT_S = 30.0
 """How long the task waits for the latched world → camera transform after its first frame."""
 FRAME_RETRY_S = 10.0
 """Wall time after which a resting frame whose perception has not arrived is asked for again."""
+TOGETHER_LEAD_S = 0.25
+"""How far ahead of the cell's clock (s) several arms' drivers are told to start a motion they
+make together: time for every goal to reach its driver before the common start."""
 
 
 def _same_corners(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> bool:
@@ -94,7 +104,9 @@ class _Inbox:
             self.items.append(item)
             self.cond.notify_all()
 
-    def take(self, match, what: str, timeout: float = REPLY_TIMEOUT_S) -> Any:
+    def take(self, match, what: str, timeout: float | None = None) -> Any:
+        """The first message `match` accepts, waited for up to `timeout` s (REPLY_TIMEOUT_S)."""
+        timeout = REPLY_TIMEOUT_S if timeout is None else timeout
         deadline = time.monotonic() + timeout
         with self.cond:
             while True:
@@ -102,7 +114,9 @@ class _Inbox:
                     if match(item):
                         return self.items.pop(i)
                 left = deadline - time.monotonic()
-                if left <= 0 or rospy.is_shutdown():
+                if rospy.is_shutdown():
+                    raise errors.FoldbotError(f"shut down while waiting for the {what}")
+                if left <= 0:
                     raise errors.FoldbotError(f"no {what} within {timeout:.0f} s")
                 self.cond.wait(min(left, 0.5))
 
@@ -126,9 +140,9 @@ class RosCell(FoldCell):
         gripper_lead: float | None = None,
     ) -> None:
         """`arm_interface` "actions" drives the arm through its drivers' actions
-        (foldbot.ros.drivers.ActionArm: one arm, whose `joint_names` they are) and reads where
-        it left the cell from /joint_states and the camera stream; "topics" through the sim
-        node's commands and reports. `cell` "real" (actions only) neither publishes nor
+        (foldbot.ros.drivers.ActionArm, one per arm: `joint_names` are an arm's, prefixed
+        per arm as over topics) and reads where it left the cell from /joint_states and the
+        camera stream; "topics" through the sim node's commands and reports. `cell` "real" (actions only) neither publishes nor
         subscribes to anything of the sim node's own (its reports, commands, clock, ground
         truth): the cell is whatever serves the drivers' actions and the camera."""
         if cell not in CELLS:
@@ -216,11 +230,18 @@ class RosCell(FoldCell):
             queue_size=200,
             buff_size=2**26,
         )
-        self.driver = None
+        self.drivers: list = []
+        """With the actions interface, each arm's drivers (foldbot.ros.drivers.ActionArm), arm 0
+        first."""
         if arm_interface == "actions":
             from foldbot.ros.drivers import ActionArm
 
-            self.driver = ActionArm(arm_joint_names(joint_names, 1)[0], self.raise_reported_error)
+            self.drivers = [
+                ActionArm(names, self.raise_reported_error, actions)
+                for names, actions in zip(
+                    arm_joint_names(joint_names, arms), driver_actions(arms), strict=True
+                )
+            ]
 
     # ------------------------------------------------------------------ subscriptions
     def _on_clock(self, msg: Clock) -> None:
@@ -307,8 +328,8 @@ class RosCell(FoldCell):
         """Raise when the cell has reported an error or, on a real cell, its drivers or its
         camera went away (a cell that died: nothing waited for from it would come)."""
         self.raise_reported_error()
-        if self.driver is not None:
-            self.driver.check_servers()
+        for driver in self.drivers:
+            driver.check_servers()
         if self.frames and self._color_sub.get_num_connections() == 0:
             raise errors.FoldbotError(
                 f"the camera went away: nothing publishes {TOPICS['color']} any more"
@@ -320,7 +341,7 @@ class RosCell(FoldCell):
         the first after it, taken when `observe` asks (a real cell's camera streams; nothing
         waits for a frame between motions)."""
         since = max(self._now(), ended)
-        self.rest_qs = [self.driver.joints_after(since, REPLY_TIMEOUT_S)]
+        self.rest_qs = [d.joints_after(since, REPLY_TIMEOUT_S) for d in self.drivers]
         self._frame_after = since
         self.rest_stamp = None
 
@@ -355,7 +376,15 @@ class RosCell(FoldCell):
         rid = next(self._ids)
         request = String(data=json.dumps({"id": rid, "kind": kind, **payload}))
         publish_when_heard(self.pub_plan, request, REPLY_TIMEOUT_S)
-        reply = self.plans.take(lambda r: r.get("id") == rid, f"{kind} plan from the planner node")
+        try:
+            reply = self.plans.take(
+                lambda r: r.get("id") == rid, f"{kind} plan from the planner node"
+            )
+        except errors.FoldbotError:
+            # A cell that diverged meanwhile (running on by itself between goals) takes every
+            # node down with it: its report is why no plan came.
+            self.raise_reported_error()
+            raise
         if not reply.get("ok"):
             raise errors.reported_error(reply, f"planning {kind}")
         return reply
@@ -371,8 +400,11 @@ class RosCell(FoldCell):
     def _gripper(self, command: str, arm: int) -> dict:
         """Open or close `arm`'s gripper (the sim node's gripper/command: "close", "close 1"; or
         the gripper driver's GripperCommand, where a grasp holds when the jaws stall)."""
-        if self.driver is not None:
-            held, text = self.driver.grip(command == "close", f"gripper {command}", REPLY_TIMEOUT_S)
+        if self.drivers:
+            held, text = self.drivers[arm].grip(
+                command == "close", f"gripper {command}" + (f" {arm}" if self.arms > 1 else ""),
+                REPLY_TIMEOUT_S,
+            )  # fmt: skip
             self._settle()
             if command != "close":
                 return {}
@@ -422,21 +454,23 @@ class RosCell(FoldCell):
         if not reply.get("ok"):
             raise errors.reported_error(reply, "preparing the cloth")
         self._at_rest(reply)
-        if self.driver is not None:
-            self.driver.wait_for_servers()
+        for driver in self.drivers:
+            driver.wait_for_servers()
         return reply
 
     def wait_for_real_cell(self) -> None:
-        """A real cell (no ready report): wait for the drivers' action servers and the first
-        /joint_states, open the gripper and take the arm's joints from there; the first frame
-        to observe is the first the camera streams after."""
-        self.driver.wait_for_servers()
+        """A real cell (no ready report): wait for every arm's drivers' action servers and the
+        first /joint_states, open the grippers and take the arms' joints from there; the first
+        frame to observe is the first the camera streams after."""
+        for driver in self.drivers:
+            driver.wait_for_servers()
         while rospy.get_time() <= 0.0:  # /use_sim_time set: no /clock received yet
             if rospy.is_shutdown():
                 raise errors.FoldbotError("shut down before the cell's clock started")
             time.sleep(0.02)
         self._start = rospy.get_time()
-        self._gripper("open", 0)
+        for arm in range(len(self.drivers)):
+            self._gripper("open", arm)
 
     def _have_frame(self, key: float) -> bool:
         return (
@@ -452,7 +486,7 @@ class RosCell(FoldCell):
         interface) the first perceived since, should perception have passed over it."""
         if self._have_frame(key):
             return key
-        if self.driver is not None:
+        if self.drivers:
             later = [k for k in self.states if k > key and self._have_frame(k)]
             if later:
                 return min(later)
@@ -606,10 +640,8 @@ class RosCell(FoldCell):
         return logs
 
     def _follow(self, traj: dict) -> dict:
-        if self.driver is not None:
-            _times, errs, _ = self._follow_through_driver(traj)
-            err = float(errs.max(initial=0.0))
-            return {"max_tracking_error": err, "arms": [0], "tracking_errors": [err]}
+        if self.drivers:
+            return self._follow_through_drivers(traj)
         msg = convert.trajectory_msg(
             traj["joint_names"],
             np.array(traj["times"]),
@@ -620,18 +652,81 @@ class RosCell(FoldCell):
         )
         return self._command(self.pub_traj, msg, f"trajectory '{traj['name']}'")
 
+    def _driver_columns(self, joint_names: list[str]) -> list[tuple[int, list[int]]]:
+        """The arms a trajectory moves, each with its joints' columns in its driver's order."""
+        moved = []
+        for arm, driver in enumerate(self.drivers):
+            cols = [joint_names.index(n) for n in driver.arm_joints if n in joint_names]
+            if cols and len(cols) != len(driver.arm_joints):
+                raise errors.FoldbotError(
+                    f"a trajectory moves some of arm {arm}'s joints, not all: {joint_names}"
+                )
+            if cols:
+                moved.append((arm, cols))
+        if sum(len(cols) for _, cols in moved) != len(joint_names) or not moved:
+            raise errors.FoldbotError(f"a trajectory names joints no arm has: {joint_names}")
+        return moved
+
+    def _follow_through_drivers(self, traj: dict) -> dict:
+        """A trajectory of one arm, or of several on one clock, through the arms' drivers: one
+        arm's goal starts on arrival; several arms' goals, one to each arm's driver, start
+        together at a stamp TOGETHER_LEAD_S ahead of the cell's clock, as drivers take a goal's
+        header stamp for its start. Each arm's TCP tracking error from its driver's feedback."""
+        names = list(traj["joint_names"])
+        moved = self._driver_columns(names)
+        if len(moved) == 1:
+            arm = moved[0][0]
+            _times, errs, _ = self._follow_through_driver(traj, arm=arm)
+            err = float(errs.max(initial=0.0))
+            return {"max_tracking_error": err, "arms": [arm], "tracking_errors": [err]}
+        times = np.array(traj["times"])
+        pos, vel = np.array(traj["positions"]), np.array(traj["velocities"])
+        what = f"trajectory '{traj['name']}'"
+        start = self._now() + TOGETHER_LEAD_S
+        sent = [
+            (arm, self.drivers[arm].send(
+                [names[c] for c in cols], times, pos[:, cols], vel[:, cols], start))
+            for arm, cols in moved
+        ]  # fmt: skip
+        try:
+            feedback = [
+                (arm, self.drivers[arm].finish(following, what, REPLY_TIMEOUT_S))
+                for arm, following in sent
+            ]
+        except errors.FoldbotError:
+            for arm, _following in sent:  # the other arm stops too (a done goal ignores it)
+                self.drivers[arm].trajectory.cancel_goal()
+            raise
+        tracking = [self._tracking(arm, desired, actual) for arm, (_t, desired, actual) in feedback]
+        self._settle(start + float(times[-1]))
+        errs = [float(e.max(initial=0.0)) for e in tracking]
+        return {
+            "max_tracking_error": max(errs),
+            "arms": [arm for arm, _ in moved],
+            "tracking_errors": errs,
+        }
+
+    def _tracking(self, arm: int, desired: np.ndarray, actual: np.ndarray) -> np.ndarray:
+        """TCP tracking error (m) per feedback sample, on the planner node's kinematic model."""
+        if not len(desired):
+            return np.zeros(0)
+        reply = self._plan("tracking", arm=arm, desired=desired.tolist(), actual=actual.tolist())
+        return np.array(reply["errors"])
+
     def _follow_through_driver(
-        self, traj: dict, then_grip: bool | None = None
+        self, traj: dict, then_grip: bool | None = None, arm: int | None = None
     ) -> tuple[np.ndarray, np.ndarray, tuple[bool, str] | None]:
-        """One FollowJointTrajectory goal; the driver's feedback as (time from the start, TCP
-        tracking error on the planner node's kinematic model) per sample, and with `then_grip`
-        (True: close, False: open) the gripper's outcome, its goal sent `gripper_lead` s before
-        the motion's end (None: after the motion's result)."""
+        """One FollowJointTrajectory goal to `arm`'s driver (the active arm's by default); the
+        driver's feedback as (time from the start, TCP tracking error on the planner node's
+        kinematic model) per sample, and with `then_grip` (True: close, False: open) the
+        gripper's outcome, its goal sent `gripper_lead` s before the motion's end (None: after
+        the motion's result)."""
+        arm = self.active if arm is None else arm
         # It ends no sooner than its duration after it was sent (the clock reaching this node
         # may lag the driver's result by a step or two: the arm is all but still then).
         ended = self._now() + float(traj["times"][-1])
         ahead = then_grip is not None and self.gripper_lead is not None
-        times, desired, actual, gripped = self.driver.follow(
+        times, desired, actual, gripped = self.drivers[arm].follow(
             traj["joint_names"],
             np.array(traj["times"]),
             np.array(traj["positions"]),
@@ -641,13 +736,7 @@ class RosCell(FoldCell):
             then_grip if ahead else None,
             self.gripper_lead or 0.0,
         )
-        errs = np.zeros(0)
-        if len(desired):
-            errs = np.array(
-                self._plan("tracking", arm=0, desired=desired.tolist(), actual=actual.tolist())[
-                    "errors"
-                ]
-            )
+        errs = self._tracking(arm, desired, actual)
         self._settle(ended)
         return times, errs, gripped
 
@@ -707,7 +796,7 @@ class RosCell(FoldCell):
             start = end
 
     def run_step(self, step: dict) -> StepLog:
-        if self.driver is not None:
+        if self.drivers:
             if id(step) not in self._ran:
                 self._run_chain(step)
             err = self._ran.pop(id(step))
@@ -740,7 +829,7 @@ class RosCell(FoldCell):
             self._follow(traj)
 
     def wait(self, seconds: float) -> None:
-        if self.driver is not None:  # a real cell rests by itself: wait on its clock
+        if self.drivers:  # a real cell rests by itself: wait on its clock
             until = self._now() + seconds
             deadline = time.monotonic() + REPLY_TIMEOUT_S
             while self._now() < until:
@@ -830,10 +919,9 @@ def run_real_task(
     """Fold on a real cell (whatever serves the drivers' actions and the camera) and write the
     episode folder, unscored: result.json, video.mp4 and the overlays; no cloth.npz."""
     args, cfg = parse_fold_args(fold_args)
-    if cfg.arms != 1 or cfg.perception != "vision":
+    if cfg.perception != "vision":
         raise errors.ConfigError(
-            "a real cell folds with one arm, with vision perception; got "
-            f"arms {cfg.arms}, perception {cfg.perception!r}"
+            f"a real cell folds with vision perception; got perception {cfg.perception!r}"
         )
     writer = EpisodeWriter(args.out, overwrite=args.overwrite, fps=max(cfg.video_fps, 1.0))
     wall0 = time.perf_counter()
@@ -841,7 +929,7 @@ def run_real_task(
         cell = RosCell(
             cfg.sim.layout,
             writer if cfg.video_fps > 0 else None,
-            1,
+            cfg.arms,
             "actions",
             robot_class(cfg.robot).ARM_JOINT_NAMES,
             cell="real",
