@@ -9,8 +9,7 @@ import numpy as np
 import rospy
 from actionlib import SimpleActionClient
 from actionlib_msgs.msg import GoalStatus
-from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import CameraInfo, Image, JointState
+from probe_cell import CellListener
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from foldbot.ros import TOPICS
@@ -18,20 +17,8 @@ from foldbot.ros.control_msgs import msg
 from foldbot.sim.robots import robot_class
 
 rospy.init_node("driver_probe")
-for topic, cls in (("color", Image), ("depth", Image), ("color_info", CameraInfo)):
-    rospy.Subscriber(TOPICS[topic], cls, lambda m: None)  # the sim node waits for a camera reader
-joints: dict[str, float] = {}
-history: list[tuple[float, dict[str, float]]] = []
-
-
-def on_joints(m: JointState) -> None:
-    joints.update(zip(m.name, m.position, strict=True))
-    history.append((m.header.stamp.to_sec(), dict(joints)))
-
-
-rospy.Subscriber("/joint_states", JointState, on_joints)
-clock = [0.0]
-rospy.Subscriber("/clock", Clock, lambda m: clock.__setitem__(0, m.clock.to_sec()))
+cell = CellListener()
+joints, history = cell.joints, cell.history
 arm = SimpleActionClient(TOPICS["trajectory_action"], msg.FollowJointTrajectoryAction)
 gripper = SimpleActionClient(TOPICS["gripper_action"], msg.GripperCommandAction)
 deadline = time.monotonic() + 240
@@ -70,9 +57,9 @@ time.sleep(0.2)
 out["moved_to"] = float(np.abs(np.array([joints[n] for n in names]) - target).max())
 tight = [msg.JointTolerance(name=n, position=1e-7) for n in names]
 out["tight_path"] = follow(names, [point(q0, 1.0)], path_tolerance=tight)
-w0, c0 = time.monotonic(), clock[0]
+w0, c0 = time.monotonic(), cell.clock
 time.sleep(2.0)
-out["rate"] = (clock[0] - c0) / (time.monotonic() - w0)
+out["rate"] = (cell.clock - c0) / (time.monotonic() - w0)
 for name, position in (("close", 0.0), ("open", 0.085), ("bad", -1.0)):
     goal = msg.GripperCommandGoal()
     goal.command.position = position
@@ -87,7 +74,7 @@ away = q1 + np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.2])
 arm.send_goal(msg.FollowJointTrajectoryGoal(trajectory=JointTrajectory(
     joint_names=names, points=[point(q1, 0.0), point(away, 1.0)])))  # fmt: skip
 time.sleep(0.2)
-sent = clock[0]
+sent = cell.clock
 close = msg.GripperCommandGoal()
 close.command.position = 0.0
 gripper.send_goal(close)

@@ -9,29 +9,16 @@ import numpy as np
 import rospy
 from actionlib import SimpleActionClient
 from actionlib_msgs.msg import GoalStatus
-from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import CameraInfo, Image, JointState
+from probe_cell import CellListener
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from foldbot.ros import TOPICS, arm_joint_names, driver_actions
+from foldbot.ros import arm_joint_names, driver_actions
 from foldbot.ros.control_msgs import msg
 from foldbot.sim.robots import robot_class
 
 rospy.init_node("driver_probe_two_arms")
-for topic, cls in (("color", Image), ("depth", Image), ("color_info", CameraInfo)):
-    rospy.Subscriber(TOPICS[topic], cls, lambda m: None)  # the sim node waits for a camera reader
-joints: dict[str, float] = {}
-history: list[tuple[float, dict[str, float]]] = []
-
-
-def on_joints(m: JointState) -> None:
-    joints.update(zip(m.name, m.position, strict=True))
-    history.append((m.header.stamp.to_sec(), dict(joints)))
-
-
-rospy.Subscriber("/joint_states", JointState, on_joints)
-clock = [0.0]
-rospy.Subscriber("/clock", Clock, lambda m: clock.__setitem__(0, m.clock.to_sec()))
+cell = CellListener()
+joints, history = cell.joints, cell.history
 names = arm_joint_names(robot_class("ur5").ARM_JOINT_NAMES, 2)
 fingers = arm_joint_names(robot_class("ur5").FINGER_JOINT_NAMES, 2)
 arms = [SimpleActionClient(a, msg.FollowJointTrajectoryAction) for a, _ in driver_actions(2)]
@@ -40,7 +27,7 @@ deadline = time.monotonic() + 240
 for client in (*arms, *grippers):
     while not client.wait_for_server(rospy.Duration(0.2)):
         assert time.monotonic() < deadline, "no action servers"
-while not all(n in joints for n in names[0] + names[1]) or clock[0] <= 0.0:
+while not all(n in joints for n in names[0] + names[1]) or cell.clock <= 0.0:
     time.sleep(0.05)
 out: dict = {"actions": driver_actions(2)}
 
@@ -62,7 +49,7 @@ r = arms[0].get_result()
 out["crossed"] = [arms[0].get_state(), r.error_code, r.error_string]
 # Both arms, one goal each, stamped to start together 0.5 s from now: each turns its base.
 q0 = [np.array([joints[n] for n in arm_names]) for arm_names in names]
-start = clock[0] + 0.5
+start = cell.clock + 0.5
 turn = np.array([0.15, 0.0, 0.0, 0.0, 0.0, 0.0])
 for client, arm_names, q in zip(arms, names, q0, strict=True):
     client.send_goal(goal(arm_names, [point(q + turn, 1.0)], start))

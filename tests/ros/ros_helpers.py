@@ -30,3 +30,49 @@ def wait_for_master(port: int, timeout_s: float = 60.0) -> None:
     while not master.is_online():
         assert time.monotonic() < deadline, f"no ROS master on port {port} within {timeout_s} s"
         time.sleep(0.2)
+
+
+DRIVERS_LAUNCH = """<launch>
+  <param name="/use_sim_time" value="true"/>
+  <param name="/foldbot/fold_args" value="--out {out} --resolution 5 --video-fps 2 {extra}"/>
+  <param name="/foldbot/camera_rate" value="2"/>
+  <param name="/foldbot/arm_interface" value="actions"/>
+  <param name="/foldbot/real_time_factor" value="2.0"/>
+  <node pkg="foldbot_ros" type="sim_node" name="foldbot_sim" output="screen" required="true"/>
+</launch>
+"""
+"""A sim node alone serving its drivers' actions (a 5 × 5 towel, the clock at twice real time)."""
+
+
+def probe_drivers(tmp_path, probe: str, fold_args: str = "") -> dict:
+    """Run the sim node as drivers (DRIVERS_LAUNCH, `fold_args` added) on a private master and
+    the probe script `probe` (beside this file) against it; the JSON the probe printed."""
+    import json
+    import os
+    import signal
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from foldbot.commands.ros_fold import ros_env
+
+    port = free_port()
+    launch = tmp_path / "sim.launch"
+    launch.write_text(DRIVERS_LAUNCH.format(out=tmp_path / "unused", extra=fold_args))
+    env = ros_env(port)
+    sim = subprocess.Popen(
+        ["roslaunch", "-p", str(port), str(launch)],
+        env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        start_new_session=True,
+    )  # fmt: skip
+    try:
+        run = subprocess.run(
+            [sys.executable, str(Path(__file__).with_name(probe))],
+            env=env, capture_output=True, text=True, timeout=300, check=False,
+        )  # fmt: skip
+    finally:
+        os.killpg(sim.pid, signal.SIGINT)
+        log = sim.communicate(timeout=60)[0]
+    lines = [ln for ln in run.stdout.splitlines() if ln.startswith("PROBE ")]
+    assert lines, run.stdout[-2000:] + run.stderr[-3000:] + log[-3000:]
+    return json.loads(lines[0][len("PROBE ") :])

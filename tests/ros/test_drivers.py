@@ -2,30 +2,14 @@
 GripperCommand goals from a client that knows nothing of foldbot but the joint names, the way
 ur_robot_driver and a gripper driver answer them."""
 
-import json
-import os
-import signal
-import subprocess
-import sys
-from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
-from ros_helpers import free_port, requires_ros
+from ros_helpers import probe_drivers, requires_ros
 
 from foldbot.errors import FoldbotError
 
 pytestmark = requires_ros
-
-LAUNCH = """<launch>
-  <param name="/use_sim_time" value="true"/>
-  <param name="/foldbot/fold_args" value="--out {out} --resolution 5 --video-fps 2"/>
-  <param name="/foldbot/camera_rate" value="2"/>
-  <param name="/foldbot/arm_interface" value="actions"/>
-  <param name="/foldbot/real_time_factor" value="2.0"/>
-  <node pkg="foldbot_ros" type="sim_node" name="foldbot_sim" output="screen" required="true"/>
-</launch>
-"""
 
 
 def test_tolerances_follow_control_msgs_conventions():
@@ -42,35 +26,7 @@ def test_tolerances_follow_control_msgs_conventions():
 
 @pytest.mark.slow
 def test_the_sim_node_answers_as_a_real_arms_drivers(tmp_path):
-    from foldbot.commands.ros_fold import ros_env
-
-    port = free_port()
-    launch = tmp_path / "sim.launch"
-    launch.write_text(LAUNCH.format(out=tmp_path / "unused"))
-    env = ros_env(port)
-    sim = subprocess.Popen(
-        ["roslaunch", "-p", str(port), str(launch)],
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        start_new_session=True,
-    )
-    try:
-        probe = subprocess.run(
-            [sys.executable, str(Path(__file__).with_name("driver_probe.py"))],
-            env=env,
-            capture_output=True,
-            text=True,
-            timeout=300,
-            check=False,
-        )
-    finally:
-        os.killpg(sim.pid, signal.SIGINT)
-        log = sim.communicate(timeout=60)[0]
-    lines = [ln for ln in probe.stdout.splitlines() if ln.startswith("PROBE ")]
-    assert lines, probe.stdout[-2000:] + probe.stderr[-3000:] + log[-3000:]
-    out = json.loads(lines[0][len("PROBE ") :])
+    out = probe_drivers(tmp_path, "driver_probe.py")
     ok = out["succeeded"]
     # A joint the arm does not have: refused with INVALID_JOINTS, nothing moves.
     state, code, text, _ = out["bad_joints"]
