@@ -50,7 +50,7 @@ from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState
 from foldbot.planning.actions import FoldAction
 from foldbot.planning.garment_recipes import GARMENT_RECIPES
-from foldbot.planning.motion import MotionConfig, Segment, action_segments, line_path
+from foldbot.planning.motion import MotionConfig, action_segments
 from foldbot.planning.recipes import RECIPES, folded_as
 from foldbot.planning.spread import SpreadAction, motion_segments
 from foldbot.sim.camera import CameraConfig, RGBDCamera
@@ -437,13 +437,14 @@ class SimCell(FoldCell):
 
     def release_and_lift(self) -> None:
         self.executor.grasp.open()
-        start = self.robot.tcp_pose()[0]
-        target = start + [0.0, 0.0, self.motion.retreat_height]
+        lift = self.executor.lift_segment(
+            *self.robot.tcp_pose(), self.motion.retreat_height, self.motion.free_speed
+        )
         try:
-            self.executor.run(Segment("lift", line_path(start, target), self.motion.free_speed))
+            self.executor.run(lift)
         except UnreachableTargetError as exc:
             raise UnreachableTargetError(
-                f"cannot move to {np.round(target, 3).tolist()}: {exc}"
+                f"cannot move to {np.round(lift.points[-1], 3).tolist()}: {exc}"
             ) from exc
 
     def park(self) -> None:

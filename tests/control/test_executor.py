@@ -160,3 +160,37 @@ def test_a_relays_few_mm_carry_is_timed_in_seconds_over_a_stadium_not_a_minute(e
         traj = executor.trajectory_for(planned.joint_path, planned.points, planned.segment.speed)
         durations[carry] = traj.duration
     assert durations["stadium"] < 10.0 < 30.0 < durations["arc"], durations
+
+
+def test_a_tilted_tool_is_lifted_as_it_is_held_in_a_second(executor):
+    """After a failed grasp with the tool tilted 20° and turned 109° about the vertical (a
+    spread's lean away from the other corner), the lift keeps the tool as it is: righting it
+    at the lift's start (as every lift did: the wrist turning 1.9 rad there) capped the speed
+    of the whole 8 cm. An upright tool lifts gripper down, as before."""
+    from scipy.spatial.transform import Rotation
+
+    from foldbot.sim.robots.base import gripper_down_quaternion
+
+    world, robot = executor.world, executor.robot
+    x, y = world.layout.workspace_center_xy
+    down = gripper_down_quaternion(executor.yaw)
+    lean = Rotation.from_rotvec([0.0, 0.0, -1.9]) * Rotation.from_rotvec([0.35, 0.0, 0.0])
+    tilted = (lean * Rotation.from_quat(down)).as_quat()
+    start = robot.tcp_pose()[0]
+    reach = line_path(start, np.array([x, y, world.layout.table_height + 0.03]))
+    executor.run(Segment("reach", reach, 0.25, orientations=np.tile(tilted, (len(reach), 1))))
+    here, held = robot.tcp_pose()
+    lift = executor.lift_segment(here, held, 0.08, 0.5)
+    assert lift.orientations is not None and np.allclose(lift.orientations, held)
+    assert lift.points[-1] == pytest.approx(here + [0.0, 0.0, 0.08])
+
+    def duration(segment: Segment) -> float:
+        (planned,) = executor.plan([segment])
+        return executor.trajectory_for(planned.joint_path, planned.points, 0.5).duration
+
+    righted = Segment("lift", lift.points, 0.5)  # gripper down from the first waypoint on
+    assert duration(lift) < 1.0 < 5.0 < duration(righted)
+    executor.run(lift)
+    assert robot.tcp_pose()[0] == pytest.approx(lift.points[-1], abs=2e-3)
+    # Upright (within KEEP_TURN_RAD of gripper down): lifted gripper down, the executor's own.
+    assert executor.lift_segment(here, down, 0.08, 0.5).orientations is None

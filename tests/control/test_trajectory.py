@@ -116,6 +116,27 @@ def test_sharp_corner_is_cut_by_a_bounded_amount() -> None:
     _assert_within_limits(traj, UR5_VEL, UR5_ACC, UR5_JERK)
 
 
+def test_a_path_that_turns_back_comes_to_rest_at_the_turn() -> None:
+    """Out and back along one line (a lift and a lowering at one place): the arm stops at the
+    far end, and each way takes as long as it would alone, rather than the whole path crawling
+    under the bounds the kink's curvature sets (control.trajectory, CUSP_COS)."""
+    out = np.linspace(0.0, 1.0, 20)[:, None] * np.array([[0.2, -0.1, 0.3, 0.0, 0.05, 0.0]])
+    path = np.vstack([out, out[-2::-1]])
+    traj = time_parametrize(path, UR5_VEL, UR5_ACC, UR5_JERK, DT)
+    there = time_parametrize(out, UR5_VEL, UR5_ACC, UR5_JERK, DT)
+    back = time_parametrize(out[::-1], UR5_VEL, UR5_ACC, UR5_JERK, DT)
+    assert traj.duration == pytest.approx(there.duration + back.duration)
+    turn = int(np.argmax(traj.positions[:, 2]))
+    assert np.array_equal(traj.positions[turn], out[-1])
+    assert not traj.velocities[turn].any() and not traj.accelerations[turn].any()
+    assert np.array_equal(traj.positions[0], path[0]) and np.array_equal(
+        traj.positions[-1], path[0]
+    )
+    assert np.all(np.diff(traj.times) > 0) and np.all(np.diff(traj.arc) >= 0)
+    assert traj.arc[-1] == pytest.approx(2 * np.linalg.norm(out[-1]))
+    _assert_within_limits(traj, UR5_VEL, UR5_ACC, UR5_JERK)
+
+
 def test_position_limits_are_respected_at_a_waypoint_on_the_limit() -> None:
     """A joint peaking at its upper limit: the trajectory must not overshoot it."""
     t = np.linspace(0, 1, 7)
@@ -312,11 +333,13 @@ def test_executor_rejects_a_non_positive_speed(executor: ArmExecutor) -> None:
 
 def _two_motions_with_a_rest() -> JointTrajectory:
     """Two rest-to-rest motions with 0.3 s at rest between them, one sample clock (as the task
-    node chains a gripper event's steps into one driver goal)."""
+    node chains a gripper event's steps into one driver goal). Each path keeps on its way (every
+    joint moving one way), so neither comes to rest on the way (no cusp)."""
     rng = np.random.default_rng(5)
-    first = time_parametrize(np.cumsum(rng.normal(0, 0.2, (8, 6)), axis=0), UR5_VEL, UR5_ACC,
-                             UR5_JERK, DT).held(0.3, DT)  # fmt: skip
-    path = np.vstack([first.positions[-1], first.positions[-1] + rng.normal(0, 0.3, (5, 6))])
+    first = time_parametrize(np.cumsum(np.abs(rng.normal(0, 0.2, (8, 6))), axis=0), UR5_VEL,
+                             UR5_ACC, UR5_JERK, DT).held(0.3, DT)  # fmt: skip
+    onward = np.cumsum(np.abs(rng.normal(0, 0.3, (5, 6))), axis=0)
+    path = np.vstack([first.positions[-1], first.positions[-1] - onward])
     second = time_parametrize(path, UR5_VEL, UR5_ACC, UR5_JERK, DT)
     t0 = first.times[-1]
     return JointTrajectory(

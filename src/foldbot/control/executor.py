@@ -4,13 +4,14 @@ with velocity feed-forward every physics step, tracking monitoring."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from foldbot.control.trajectory import JointTrajectory, time_parametrize
 from foldbot.errors import ConfigError, SimulationDivergedError, UnreachableTargetError
-from foldbot.planning.motion import Segment
+from foldbot.planning.motion import Segment, line_path
 from foldbot.sim.grasp import ClothGrasp
 from foldbot.sim.robots.base import Robot
 from foldbot.sim.robots.base import gripper_down_quaternion as _down
@@ -18,6 +19,9 @@ from foldbot.types import GraspResult
 
 TABLE_CLEARANCE = 0.0
 """An arm link closer to the table than this (m; 0 = touching) makes a waypoint infeasible."""
+KEEP_TURN_RAD = 0.05
+"""A tool turned further than this from gripper down (a tilted spread grasp) is lifted as it is
+held (ArmExecutor.lift_segment)."""
 
 
 @dataclass
@@ -89,6 +93,20 @@ class ArmExecutor:
                 raise UnreachableTargetError(f"waypoint {i} of the path: {exc}") from exc
             out.append(q)
         return np.asarray(out)
+
+    def lift_segment(
+        self, start: np.ndarray, quat: np.ndarray, height: float, speed: float
+    ) -> Segment:
+        """Straight up `height` (m) from the TCP at `start` (m) turned as `quat` (x y z w), at
+        `speed` (m/s): gripper down at the executor's yaw, or, for a tool turned more than
+        KEEP_TURN_RAD from that (a tilted spread grasp), as it is held. Righting a tilted tool
+        on the way up would sweep the jaws through the cloth below, and the turn, made over the
+        path's first centimetre, capped the speed of the whole lift (7.5 s for 8 cm)."""
+        start, quat = np.asarray(start, dtype=float), np.asarray(quat, dtype=float)
+        points = line_path(start, start + np.array([0.0, 0.0, height]))
+        cos = min(1.0, abs(float(np.dot(quat, _down(self.yaw)))))
+        held = None if 2.0 * math.acos(cos) <= KEEP_TURN_RAD else np.tile(quat, (len(points), 1))
+        return Segment("lift", points, speed, orientations=held)
 
     def check_table_clearance(self, path: np.ndarray) -> None:
         """Raise UnreachableTargetError when at some waypoint of the joint path (N × dof) an arm

@@ -32,7 +32,7 @@ from foldbot.control.trajectory import JointTrajectory
 from foldbot.errors import FoldbotError, failed_segment
 from foldbot.planning.actions import FoldAction
 from foldbot.planning.garment_recipes import plan_garment
-from foldbot.planning.motion import Segment, action_segments, line_path
+from foldbot.planning.motion import action_segments
 from foldbot.planning.recipes import plan_stage, predicted_outline
 from foldbot.planning.spread import action_from_dict, motion_segments
 from foldbot.ros import TOPICS, arm_joint_names, convert
@@ -235,7 +235,7 @@ class MotionPlanner:
             return {"trajectory": self._stacked("park", arms, trajs)}
         arm = self._arm(req)
         q = np.array(req["q"], dtype=float) if "q" in req else qs[arm]
-        start = self.robots[arm].fk_tcp(q)[0]
+        start, quat = self.robots[arm].fk_tcp(q)
         if kind == "action":
             action = FoldAction.from_dict(req["action"])
             plan = self._plan(arm, action_segments(action, start, self.cfg.motion), q)
@@ -244,10 +244,9 @@ class MotionPlanner:
             check_clear_of_still_arms(arm, (self.executors[arm], plan), still)
             return {"steps": [_step_dict(ps) for ps in plan]}
         if kind == "lift":
-            up = start + [0.0, 0.0, float(req.get("height", self.cfg.motion.retreat_height))]
-            plan = self._plan(
-                arm, [Segment("lift", line_path(start, up), self.cfg.motion.free_speed)], q
-            )
+            height = float(req.get("height", self.cfg.motion.retreat_height))
+            lift = self.executors[arm].lift_segment(start, quat, height, self.cfg.motion.free_speed)
+            plan = self._plan(arm, [lift], q)
             return {"steps": [_step_dict(ps) for ps in plan]}
         raise AssertionError(kind)  # unreachable: REQUEST_KINDS is checked first
 
