@@ -4,17 +4,16 @@ crumpled towel to flatten (TowelFlatten, TowelSpread) or a flat one to fold (Tow
 Bullet's soft-body solver keeps process-global state, so an episode reproduces from its seed only
 as the first simulation in its process (README, Determinism): a second crumple in one process
 lands centimetres elsewhere. Each episode of an environment therefore runs in a fresh child
-process (`python -m foldbot.envs.episode_process`, as `foldbot bench` gives each episode a fresh
-worker; not multiprocessing's spawn, which would re-run an unguarded caller's script), talking
-over a socket pair; only small values cross it: the camera's frame and each step's outcome.
+process (forked from a process that has imported foldbot and simulated nothing: fork_server; as
+`foldbot bench` gives each episode a fresh worker; not multiprocessing's spawn, which would re-run
+an unguarded caller's script), talking over a socket pair; only small values cross it: the
+camera's frame and each step's outcome.
 """
 
 from __future__ import annotations
 
 import contextlib
 import socket
-import subprocess
-import sys
 import traceback
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
@@ -24,6 +23,7 @@ import numpy as np
 
 from foldbot import metrics
 from foldbot.carry import assign_arms, execute_action, execute_together
+from foldbot.envs import fork_server
 from foldbot.errors import (
     ArmsWouldCollideError,
     ConfigError,
@@ -52,8 +52,8 @@ from foldbot.sim.cloth import settle
 from foldbot.sim.world import SimWorld
 from foldbot.types import Observation
 
-_CHILD = "from foldbot.envs.episode_process import serve_socket as serve; serve"
-"""What the child runs (`python -c`), given its socket's file descriptor."""
+_ENTRY = "foldbot.envs.episode_process:serve_socket"
+"""What the child runs, given its socket's file descriptor (fork_server.start)."""
 REPLY_TIMEOUT_S = 900.0
 """Longest wall time (s) one reset or step may take before the child is given up as hung."""
 
@@ -409,13 +409,8 @@ class EpisodeProcess:
         goal: str | None = None,
     ) -> None:
         ours, theirs = socket.socketpair()
-        with theirs:
-            self._process = subprocess.Popen(
-                [sys.executable, "-c", f"{_CHILD}({theirs.fileno()})"],
-                pass_fds=[theirs.fileno()],
-                stdin=subprocess.DEVNULL,
-                stdout=subprocess.DEVNULL,  # Bullet's banner; errors come back over the socket
-            )
+        with theirs:  # errors come back over the socket
+            self._process = fork_server.start(_ENTRY, theirs.fileno())
         self._conn = Connection(ours.detach())
         self._conn.send(("episode", episode, fault_diverge_s, goal))
         self.first: StepOutcome = self._reply("reset")
@@ -425,7 +420,8 @@ class EpisodeProcess:
         two picks and two places, 2×2 each)."""
         if primitive not in PRIMITIVES:
             raise ConfigError(f"unknown primitive {primitive!r}; allowed: {', '.join(PRIMITIVES)}")
-        self._conn.send(("step", primitive, np.asarray(p, float), np.asarray(q, float)))
+        with contextlib.suppress(OSError):  # a child gone: the reply says so
+            self._conn.send(("step", primitive, np.asarray(p, float), np.asarray(q, float)))
         return self._reply("step")
 
     def _reply(self, what: str) -> StepOutcome:
@@ -435,13 +431,10 @@ class EpisodeProcess:
         try:
             reply = self._conn.recv()
         except EOFError:
-            try:
-                code = self._process.wait(5.0)
-            except subprocess.TimeoutExpired:
-                code = None
-            raise FoldbotError(
-                f"the episode's process ended during its {what} (exit code {code})"
-            ) from None
+            self._process.ended(5.0)
+            code = self._process.exit_code
+            said = "" if code is None else f" (exit code {code})"
+            raise FoldbotError(f"the episode's process ended during its {what}{said}") from None
         if reply[0] == "ok":
             return reply[1]
         self.close()
@@ -453,16 +446,15 @@ class EpisodeProcess:
 
     @property
     def alive(self) -> bool:
-        return self._process.poll() is None
+        return not self._process.ended()
 
     def close(self) -> None:
         """End the child (politely, then by force) and release the socket; safe to call twice."""
         if self.alive and not self._conn.closed:
             with contextlib.suppress(OSError):
                 self._conn.send(("close",))
-            try:
-                self._process.wait(10.0)
-            except subprocess.TimeoutExpired:
+            if not self._process.ended(10.0):
                 self._process.kill()
-                self._process.wait(5.0)
+                self._process.ended(5.0)
         self._conn.close()
+        self._process.close()
