@@ -65,6 +65,14 @@ from foldbot.commands.ros_fold import add_arguments, fold_args_text
             ["ros-fold", "--out", "{tmp}/e", "--cell", "real", "--camera-rate", "5"],
             "--cell real: --camera-rate: a real cell's camera streams at its own rate",
         ),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--master-wait", "5"],
+            "--master-wait is for --cell real (with --cell sim, ros-fold starts its own master)",
+        ),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--cell", "real", "--master-wait", "-1"],
+            "--master-wait must be seconds >= 0, got -1.0",
+        ),
         (["ros-cell", "--camera-rate", "0"], "--camera-rate must be > 0 frames per s, got 0.0"),
         (["ros-cell", "--real-time-factor", "-1"], "--real-time-factor must be > 0, got -1.0"),
         (["ros-cell", "--port", "0"], "--port must be in 1–65535, got 0"),

@@ -554,10 +554,15 @@ def test_scoring_on_a_cell_that_has_stopped_says_so(tmp_path):
 
 def test_a_real_cell_needs_its_master_running(tmp_path):
     port = free_port()
-    proc = foldbot("ros-fold", "--cell", "real", "--out", str(tmp_path / "e"), "--port", str(port))
+    began = time.monotonic()
+    proc = foldbot(
+        "ros-fold", "--cell", "real", "--out", str(tmp_path / "e"), "--port", str(port),
+        "--master-wait", "1.5",
+    )  # fmt: skip
     assert proc.returncode == 2
-    assert f"no ROS master answers at http://localhost:{port}" in proc.stderr
+    assert f"no ROS master answers at http://localhost:{port} within 1.5 s" in proc.stderr
     assert not (tmp_path / "e").exists()
+    assert time.monotonic() - began < 12  # not the default 15 s
 
 
 def test_a_failed_ros_fold_names_the_task_nodes_error(tmp_path):
@@ -601,6 +606,11 @@ with SimWorld(cfg.sim) as world:
 """
 CRUMPLED = ["--start", "crumpled", "--seed", "2", "--width", "0.26", "--height", "0.26"]
 CRUMPLED += ["--resolution", "8", "--video-fps", "0"]
+REAL_TARGET = 0.6
+TO_REAL_TARGET = ["--flatten-option", f"target_coverage={REAL_TARGET}"]
+TO_REAL_TARGET += ["--flatten-option", "finish_coverage=none"]
+"""Pulls until the perceived coverage reaches 0.6, no finishing pulls: two pulls of seed 2's heap
+over topics, where the suite's 0.9 and finishing pulls take all six (the test's time)."""
 
 
 def crumpled_over_topics(episode: list[str], tmp_path) -> tuple[object, dict]:
@@ -626,7 +636,8 @@ def crumpled_over_topics(episode: list[str], tmp_path) -> tuple[object, dict]:
 def test_crumpled_towel_is_flattened_over_topics(tmp_path):
     # The coarse towel of the in-process test (tests/test_pipeline_garments.py): other seeds of
     # it diverge while crumpled, over topics as in process.
-    out, result = crumpled_over_topics(CRUMPLED, tmp_path)
+    out, result = crumpled_over_topics([*CRUMPLED, *TO_REAL_TARGET], tmp_path)
+    assert result["flatten_options"] == {"target_coverage": 0.6, "finish_coverage": None}
     f = result["flatten"]
     # The task node flattened it with pulls planned from the perception node's outputs, then
     # folded; the fold is scored from the flattened cloth.
@@ -640,11 +651,8 @@ def test_crumpled_towel_is_flattened_over_topics(tmp_path):
     assert rescore(out).fold_error_mm == pytest.approx(result["fold_error_mm"])
 
 
-REAL_TARGET = 0.6
 REAL_CRUMPLED = [*CRUMPLED, "--jaw-catch", "surface", "--cloth", "crossing_guard=1"]
-REAL_CRUMPLED += ["--cloth", "layer_friction=0.25"]
-REAL_CRUMPLED += ["--flatten-option", f"target_coverage={REAL_TARGET}"]
-REAL_CRUMPLED += ["--flatten-option", "finish_coverage=none"]
+REAL_CRUMPLED += ["--cloth", "layer_friction=0.25", *TO_REAL_TARGET]
 """A running cell's crumpled towel on the crumpled suite's cloth (0.36 perceived), flattened to a
 perceived 0.6 with no finishing pulls (3 to all 6 pulls in 14 runs, each a chance for the heap
 to diverge: below), then folded. The jaws catch the surface between them: on a mesh this coarse
@@ -731,16 +739,17 @@ def test_a_crumpled_towel_on_a_running_cell_is_flattened_then_folded(tmp_path):
 
 SPREAD = ["--start", "crumpled", "--arms", "2", "--seed", "9", "--width", "0.3", "--height", "0.3"]
 SPREAD += ["--resolution", "9", "--jaw-catch", "surface", "--video-fps", "0"]
-SPREAD += ["--flatten-option", "spread_hang_time=0.8"]
+SPREAD += ["--flatten-option", "spread_hang_time=0.8", "--flatten-option", "finish_coverage=none"]
 
 
 def test_two_arms_spread_a_crumpled_towel_over_topics(tmp_path):
     """`--arms 2 --start crumpled`: the task node flattens by spreads (flatten.run_spreads), each
     planned for both arms together by the planner node (its hang timed there) and moved by the
-    sim node on one clock, then folds. A flatten option reaches the spread the nodes make."""
+    sim node on one clock, then folds. A flatten option reaches the spread the nodes make. (No
+    finishing pulls: five more actions, after the spread's 0.51 to 0.91, for the test's time.)"""
     out, result = crumpled_over_topics(SPREAD, tmp_path)
     assert result["arms"] == 2 and result["jaw_catch"] == "surface"
-    assert result["flatten_options"] == {"spread_hang_time": 0.8}
+    assert result["flatten_options"] == {"spread_hang_time": 0.8, "finish_coverage": None}
     f = result["flatten"]
     spread = f["pulls"][0]
     assert [arm["hang_time"] for arm in spread["arms"]] == [0.8, 0.8]

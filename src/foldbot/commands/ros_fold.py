@@ -98,6 +98,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     add_real_time_factor(parser, "with --cell sim --arm-interface actions: ")
     parser.add_argument(
+        "--master-wait",
+        type=float,
+        default=None,
+        metavar="S",
+        help="with --cell real: seconds to wait for the running cell's ROS master to answer "
+        f"before giving up (default {MASTER_WAIT_S:g}; a cell just started may still be "
+        "bringing its roscore up)",
+    )
+    parser.add_argument(
         "--gripper-lead",
         type=gripper_lead,
         default=GRIPPER_LEAD_S,
@@ -254,6 +263,13 @@ def run(args: argparse.Namespace) -> int:
         check_real_cell(args, cfg, interface)
     check_real_time_factor(args.real_time_factor)
     check_port(args.port)
+    wait = args.master_wait
+    if wait is not None and not real:
+        raise ConfigError(
+            "--master-wait is for --cell real (with --cell sim, ros-fold starts its own master)"
+        )
+    if wait is not None and not (math.isfinite(wait) and wait >= 0):
+        raise ConfigError(f"--master-wait must be seconds >= 0, got {wait!r}")
     rate = args.video_fps if args.camera_rate is None else args.camera_rate
     if real:
         rate = 0.0  # the cell's camera streams at its own rate
@@ -278,9 +294,10 @@ def run(args: argparse.Namespace) -> int:
     if missing:
         raise FoldbotError(missing)
     env = ros_env(args.port if args.port is not None or real else DEFAULT_PORT)
-    if real and not master_running(env):
+    wait_s = MASTER_WAIT_S if args.master_wait is None else args.master_wait
+    if real and not master_running(env, wait_s):
         raise FoldbotError(
-            f"no ROS master answers at {env['ROS_MASTER_URI']} within {MASTER_WAIT_S:g} s: "
+            f"no ROS master answers at {env['ROS_MASTER_URI']} within {wait_s:g} s: "
             "--cell real folds on a cell "
             "that is already running (its drivers, camera and roscore; or `foldbot ros-cell`); "
             "set ROS_MASTER_URI or --port to its master"
