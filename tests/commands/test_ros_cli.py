@@ -73,6 +73,16 @@ from foldbot.commands.ros_fold import add_arguments, fold_args_text
             ["ros-fold", "--out", "{tmp}/e", "--cell", "real", "--master-wait", "-1"],
             "--master-wait must be seconds >= 0, got -1.0",
         ),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--arms", "2", "--together-lead", "0.5"],
+            "--together-lead is for two arms through their drivers (--arms 2 --arm-interface "
+            "actions), got --arms 2 and --arm-interface topics",
+        ),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--cell", "real", "--arms", "2"]
+            + ["--together-lead", "-0.1"],
+            "--together-lead must be seconds in [0, 5], got -0.1",
+        ),
         (["ros-cell", "--camera-rate", "0"], "--camera-rate must be > 0 frames per s, got 0.0"),
         (["ros-cell", "--real-time-factor", "-1"], "--real-time-factor must be > 0, got -1.0"),
         (["ros-cell", "--port", "0"], "--port must be in 1–65535, got 0"),

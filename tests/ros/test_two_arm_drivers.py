@@ -36,7 +36,8 @@ def test_each_arms_drivers_answer_under_its_namespace_and_start_together(tmp_pat
 
 def test_a_fold_on_a_running_two_arm_cell_as_on_a_real_one(tmp_path):
     # `ros-cell --arms 2` serves both arms' drivers; `ros-fold --cell real --arms 2` folds on it
-    # through them alone, unscored, and the cell's ground truth scores it afterwards.
+    # through them alone, unscored, and the cell's ground truth scores it afterwards. A pair's
+    # goals are stamped to start 0.4 s ahead (--together-lead): none reaches its driver late.
     cell, port = start_cell("--arms", "2", "--resolution", "8", "--camera-rate", "2")
     out = tmp_path / "episode"
     try:
@@ -44,6 +45,7 @@ def test_a_fold_on_a_running_two_arm_cell_as_on_a_real_one(tmp_path):
         proc = foldbot(
             "ros-fold", "--cell", "real", "--arms", "2", "--resolution", "8",
             "--video-fps", "2", "--out", str(out), "--port", str(port),
+            "--together-lead", "0.4",
         )  # fmt: skip
         assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
         score = score_on_cell(out, port)
@@ -52,6 +54,8 @@ def test_a_fold_on_a_running_two_arm_cell_as_on_a_real_one(tmp_path):
     assert score.returncode == 0, score.stderr[-3000:] + log[-3000:]
     result = json.loads((out / "result.json").read_text())
     assert result["cell"] == "real" and result["scored"] is False and result["arms"] == 2
+    assert result["together_lead_s"] == 0.4
+    assert "after the start it is stamped with" not in log
     assert result["perceived"]["verified"]
     # The half fold's two far corners carried together, each by the arm on its side, through
     # its own drivers; each arm's tracking from its driver's feedback, on the planner's model.

@@ -23,7 +23,7 @@ from pathlib import Path
 from foldbot import errors
 from foldbot.commands import fold
 from foldbot.errors import ConfigError, FoldbotError, OutputError
-from foldbot.ros.node_args import ARM_INTERFACES, CELLS, GRIPPER_LEAD_S
+from foldbot.ros.node_args import ARM_INTERFACES, CELLS, GRIPPER_LEAD_S, TOGETHER_LEAD_S
 from foldbot.verdict import unscored_outcome
 
 DEFAULT_PORT = 11311
@@ -97,6 +97,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "stamped to start together)",
     )
     add_real_time_factor(parser, "with --cell sim --arm-interface actions: ")
+    parser.add_argument(
+        "--together-lead",
+        type=float,
+        default=None,
+        metavar="S",
+        help="with --arms 2 and --arm-interface actions: seconds ahead of the cell's clock a "
+        "motion both arms make is stamped to start, so that both goals reach their drivers "
+        f"before it (default {TOGETHER_LEAD_S:g}; a goal that arrives late starts on arrival, "
+        "out of step with the other arm)",
+    )
     parser.add_argument(
         "--master-wait",
         type=float,
@@ -270,6 +280,14 @@ def run(args: argparse.Namespace) -> int:
         )
     if wait is not None and not (math.isfinite(wait) and wait >= 0):
         raise ConfigError(f"--master-wait must be seconds >= 0, got {wait!r}")
+    together = args.together_lead
+    if together is not None and not (cfg.arms == 2 and interface == "actions"):
+        raise ConfigError(
+            "--together-lead is for two arms through their drivers (--arms 2 --arm-interface "
+            f"actions), got --arms {cfg.arms} and --arm-interface {interface}"
+        )
+    if together is not None and not (math.isfinite(together) and 0.0 <= together <= 5.0):
+        raise ConfigError(f"--together-lead must be seconds in [0, 5], got {together!r}")
     rate = args.video_fps if args.camera_rate is None else args.camera_rate
     if real:
         rate = 0.0  # the cell's camera streams at its own rate
@@ -316,6 +334,7 @@ def run(args: argparse.Namespace) -> int:
         f"arm_interface:={interface}",
         f"real_time_factor:={args.real_time_factor or 1.0!r}",
         f"gripper_lead:={-1.0 if args.gripper_lead is None else args.gripper_lead!r}",
+        f"together_lead:={TOGETHER_LEAD_S if together is None else together!r}",
     ]
     result_file = out / "result.json"
     before = result_file.stat().st_mtime_ns if result_file.is_file() else None

@@ -28,6 +28,13 @@ gripper goal that follows it; negative: only after the motion's result (a round 
 GRIPPER_LEAD_S = 0.05
 """The default lead: about the round trip a driver pair adds between a motion and its gripper
 event (README, "A real arm's drivers")."""
+TOGETHER_LEAD_PARAM = "/foldbot/together_lead"
+"""With the actions interface and two arms: how far ahead of the cell's clock (s) the task node
+stamps the common start of a motion both arms make together, so that both goals reach their
+drivers before it (a driver starts a goal at its stamp, or on arrival when that has passed)."""
+TOGETHER_LEAD_S = 0.25
+"""The default: a goal's trip to a driver on one machine is milliseconds; a real cell's links
+and its drivers' own latency may need more."""
 REAL_TIME_FACTOR_PARAM = "/foldbot/real_time_factor"
 """With the actions interface: simulated seconds per wall second the sim node runs at."""
 ERROR_FILE_PARAM = "/foldbot/error_file"

@@ -69,6 +69,8 @@ from foldbot.ros.node_args import (
     FOLD_ARGS_PARAM,
     GRIPPER_LEAD_PARAM,
     GRIPPER_LEAD_S,
+    TOGETHER_LEAD_PARAM,
+    TOGETHER_LEAD_S,
     parse_fold_args,
 )
 from foldbot.ros.publish import publish_when_heard
@@ -83,9 +85,6 @@ TF_WAIT_S = 30.0
 """How long the task waits for the latched world → camera transform after its first frame."""
 FRAME_RETRY_S = 10.0
 """Wall time after which a resting frame whose perception has not arrived is asked for again."""
-TOGETHER_LEAD_S = 0.25
-"""How far ahead of the cell's clock (s) several arms' drivers are told to start a motion they
-make together: time for every goal to reach its driver before the common start."""
 
 
 def _same_corners(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> bool:
@@ -138,6 +137,7 @@ class RosCell(FoldCell):
         joint_names: tuple[str, ...] = (),
         cell: str = "sim",
         gripper_lead: float | None = None,
+        together_lead: float = TOGETHER_LEAD_S,
     ) -> None:
         """`arm_interface` "actions" drives the arm through its drivers' actions
         (foldbot.ros.drivers.ActionArm, one per arm: `joint_names` are an arm's, prefixed
@@ -191,6 +191,9 @@ class RosCell(FoldCell):
         self.gripper_lead = gripper_lead
         """With the actions interface: how long (s) before a chain's end its gripper goal is
         sent (None: after the motion's result, a round trip later)."""
+        self.together_lead = together_lead
+        """With the actions interface: how far ahead of the cell's clock (s) a motion several
+        arms make together is stamped to start."""
         self.rest_stamp: float | None = 0.0
         """The stamp of the frame the cell rests in (None: the next frame after _frame_after)."""
         self._frame_after = 0.0
@@ -670,7 +673,7 @@ class RosCell(FoldCell):
     def _follow_through_drivers(self, traj: dict) -> dict:
         """A trajectory of one arm, or of several on one clock, through the arms' drivers: one
         arm's goal starts on arrival; several arms' goals, one to each arm's driver, start
-        together at a stamp TOGETHER_LEAD_S ahead of the cell's clock, as drivers take a goal's
+        together at a stamp `together_lead` ahead of the cell's clock, as drivers take a goal's
         header stamp for its start. Each arm's TCP tracking error from its driver's feedback."""
         names = list(traj["joint_names"])
         moved = self._driver_columns(names)
@@ -682,7 +685,7 @@ class RosCell(FoldCell):
         times = np.array(traj["times"])
         pos, vel = np.array(traj["positions"]), np.array(traj["velocities"])
         what = f"trajectory '{traj['name']}'"
-        start = self._now() + TOGETHER_LEAD_S
+        start = self._now() + self.together_lead
         sent = [
             (arm, self.drivers[arm].send(
                 [names[c] for c in cols], times, pos[:, cols], vel[:, cols], start))
@@ -914,7 +917,10 @@ def real_cell_result(
 
 
 def run_real_task(
-    fold_args: str, log=rospy.loginfo, gripper_lead: float | None = GRIPPER_LEAD_S
+    fold_args: str,
+    log=rospy.loginfo,
+    gripper_lead: float | None = GRIPPER_LEAD_S,
+    together_lead: float = TOGETHER_LEAD_S,
 ) -> dict:
     """Fold on a real cell (whatever serves the drivers' actions and the camera) and write the
     episode folder, unscored: result.json, video.mp4 and the overlays; no cloth.npz."""
@@ -934,6 +940,7 @@ def run_real_task(
             robot_class(cfg.robot).ARM_JOINT_NAMES,
             cell="real",
             gripper_lead=gripper_lead,
+            together_lead=together_lead,
         )
         stack.callback(cell.stop_video)
         cell.wait_for_real_cell()
@@ -960,6 +967,8 @@ def run_real_task(
             result["transport"] = "ros"
             result["arm_interface"] = "actions"
             result["gripper_lead_s"] = gripper_lead
+            if cfg.arms > 1:
+                result["together_lead_s"] = together_lead
             result["cell"] = "real"
             writer.write_result(result)
             path = writer.commit(require_cloth=False)
@@ -972,6 +981,7 @@ def run_task(
     log=rospy.loginfo,
     arm_interface: str = "topics",
     gripper_lead: float | None = GRIPPER_LEAD_S,
+    together_lead: float = TOGETHER_LEAD_S,
 ) -> dict:
     """Fold over topics and write the episode folder; returns result.json's content."""
     args, cfg = parse_fold_args(fold_args)
@@ -986,6 +996,7 @@ def run_task(
             arm_interface,
             robot_class(cfg.robot).ARM_JOINT_NAMES,
             gripper_lead=gripper_lead,
+            together_lead=together_lead,
         )
         stack.callback(cell.stop_video)  # before the writer closes the video, error or not
         cell.wait_ready()
@@ -1043,6 +1054,8 @@ def run_task(
             result["arm_interface"] = arm_interface
             if arm_interface == "actions":
                 result["gripper_lead_s"] = gripper_lead
+                if cfg.arms > 1:
+                    result["together_lead_s"] = together_lead
             result["cell"] = "sim"
             writer.write_result(result)
             path = writer.commit()
@@ -1070,14 +1083,16 @@ def main(argv: list[str] | None = None) -> int:
     fold_args = rospy.get_param(FOLD_ARGS_PARAM)
     lead = float(rospy.get_param(GRIPPER_LEAD_PARAM, GRIPPER_LEAD_S))
     lead = None if lead < 0 else lead
+    together = float(rospy.get_param(TOGETHER_LEAD_PARAM, TOGETHER_LEAD_S))
     try:
         if rospy.get_param(CELL_PARAM, "sim") == "real":
-            result = run_real_task(fold_args, gripper_lead=lead)
+            result = run_real_task(fold_args, gripper_lead=lead, together_lead=together)
         else:
             result = run_task(
                 fold_args,
                 arm_interface=rospy.get_param(ARM_INTERFACE_PARAM, "topics"),
                 gripper_lead=lead,
+                together_lead=together,
             )
     except errors.FoldbotError as exc:
         failure = {"ok": False, "error": str(exc), "error_type": type(exc).__name__}
