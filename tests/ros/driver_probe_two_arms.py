@@ -14,6 +14,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from foldbot.ros import arm_joint_names, driver_actions
 from foldbot.ros.control_msgs import msg
+from foldbot.ros.drivers import OPEN_GAP_M
 from foldbot.sim.robots import robot_class
 
 rospy.init_node("driver_probe_two_arms")
@@ -74,5 +75,16 @@ grippers[0].wait_for_result()
 time.sleep(0.3)
 out["left_close"] = [grippers[0].get_state(), grippers[0].get_result().reached_goal]
 out["fingers_moved"] = [max(abs(joints[n] - f0[n]) for n in arm_fingers) for arm_fingers in fingers]
+# Two gripper goals at once, as a pair's grippers act: the right closes as the left opens.
+f1 = {n: joints[n] for n in fingers[0] + fingers[1]}
+opening = msg.GripperCommandGoal()
+opening.command.position = OPEN_GAP_M
+grippers[1].send_goal(close)
+grippers[0].send_goal(opening)
+for client in grippers:
+    assert client.wait_for_result(rospy.Duration(60))
+time.sleep(0.3)
+out["both"] = [client.get_state() for client in grippers]
+out["both_moved"] = [max(abs(joints[n] - f1[n]) for n in arm_fingers) for arm_fingers in fingers]
 out["succeeded"] = GoalStatus.SUCCEEDED
 print("PROBE " + json.dumps(out), flush=True)

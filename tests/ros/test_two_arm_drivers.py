@@ -32,6 +32,8 @@ def test_each_arms_drivers_answer_under_its_namespace_and_start_together(tmp_pat
     # A gripper goal moves its own arm's jaws only.
     assert out["left_close"] == [ok, True]
     assert out["fingers_moved"][0] > 1e-3 and out["fingers_moved"][1] < 1e-6
+    # Two gripper goals at once (a pair's): both answered, both arms' jaws moved.
+    assert out["both"] == [ok, ok] and min(out["both_moved"]) > 1e-3
 
 
 def test_a_fold_on_a_running_two_arm_cell_as_on_a_real_one(tmp_path):

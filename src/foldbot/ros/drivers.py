@@ -550,7 +550,7 @@ class ActionArm:
         gripped = None
         if then_grip is not None:
             grip_when_due()  # sent already, unless no feedback came near the end
-            gripped = self._grip_result(f"{what}: gripper", timeout_s)
+            gripped = self.grip_result(f"{what}: gripper", timeout_s)
         return stamps, desired, actual, gripped
 
     def _reported_cause(self) -> None:
@@ -580,10 +580,17 @@ class ActionArm:
     def grip(self, close: bool, what: str, timeout_s: float) -> tuple[bool, str]:
         """Close (to a zero gap) or open (OPEN_GAP_M) the gripper; returns (whether the jaws
         stalled on something, the driver's text)."""
-        self.gripper.send_goal(_gripper_goal(close))
-        return self._grip_result(what, timeout_s)
+        self.send_grip(close)
+        return self.grip_result(what, timeout_s)
 
-    def _grip_result(self, what: str, timeout_s: float) -> tuple[bool, str]:
+    def send_grip(self, close: bool) -> None:
+        """Send the gripper goal that closes or opens the jaws, not waiting for it (grip_result
+        does): several arms' grippers then act at once."""
+        self.gripper.send_goal(_gripper_goal(close))
+
+    def grip_result(self, what: str, timeout_s: float) -> tuple[bool, str]:
+        """The gripper goal's outcome (send_grip's), waited for: (whether the jaws stalled on
+        something, the driver's text); FoldbotError where the driver did not succeed."""
         self._wait(self.gripper, what, timeout_s)
         result = self.gripper.get_result()
         if self.gripper.get_state() != GoalStatus.SUCCEEDED or result is None:

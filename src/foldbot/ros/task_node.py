@@ -631,16 +631,37 @@ class RosCell(FoldCell):
         traj = self._plan("time_together", name=steps[0][1]["name"], steps=timed)["trajectory"]
         reply = self._follow(traj)
         errs = dict(zip(reply["arms"], reply["tracking_errors"], strict=True))
+        grips = [(arm, step["gripper"]) for arm, step in steps if step["gripper"]]
+        if self.drivers and len(grips) > 1:
+            held = self._grip_together(grips)
+        else:
+            held = {arm: self._gripper(command, arm).get("grasp") for arm, command in grips}
         logs = []
         for arm, step in steps:
+            g = held.get(arm) if step["gripper"] == "close" else None
             grasp = None
-            if step["gripper"] == "close":
-                g = self._gripper("close", arm)["grasp"]
+            if g is not None:
                 grasp = GraspResult(bool(g["success"]), tuple(g["vertex_ids"]), g["reason"])
-            elif step["gripper"] == "open":
-                self._gripper("open", arm)
             logs.append(StepLog(step["name"], float(errs[arm]), grasp))
         return logs
+
+    def _grip_together(self, grips: list[tuple[int, str]]) -> dict[int, dict | None]:
+        """Several arms' gripper events through their drivers at once, as a bimanual cell's
+        grippers act (each goal sent, then each outcome waited for); a close's grasp by arm."""
+        for arm, command in grips:
+            self.drivers[arm].send_grip(command == "close")
+        held: dict[int, dict | None] = {}
+        try:
+            for arm, command in grips:
+                what = f"gripper {command} {arm}"
+                ok, text = self.drivers[arm].grip_result(what, REPLY_TIMEOUT_S)
+                held[arm] = {"success": ok, "vertex_ids": [], "reason": text}
+        except errors.FoldbotError:
+            for arm, _command in grips:  # no jaws left acting (a done goal ignores it)
+                self.drivers[arm].gripper.cancel_goal()
+            raise
+        self._settle()
+        return held
 
     def _follow(self, traj: dict) -> dict:
         if self.drivers:
