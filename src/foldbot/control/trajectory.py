@@ -286,19 +286,22 @@ def _joined(parts: list[JointTrajectory], starts: list[float]) -> JointTrajector
     one's first sample (the last one's last) dropped, its times and path coordinate (from 0)
     moved on to where the previous one ended (`starts`: each part's coordinate on the whole
     path)."""
-    times, arcs = [parts[0].times], [parts[0].arc + starts[0]]
-    for part, start in zip(parts[1:], starts[1:], strict=True):
-        times.append(part.times[1:] + times[-1][-1])
-        arcs.append(part.arc[1:] + start)
-    rest = [p.positions[1:] for p in parts[1:]]
+    first, rest = parts[0], parts[1:]
+    offsets = np.cumsum([part.duration for part in parts[:-1]])
+
+    def stacked(field: str) -> np.ndarray:
+        return np.vstack([getattr(first, field), *(getattr(p, field)[1:] for p in rest)])
+
     return JointTrajectory(
-        times=np.concatenate(times),
-        positions=np.vstack([parts[0].positions, *rest]),
-        velocities=np.vstack([parts[0].velocities, *[p.velocities[1:] for p in parts[1:]]]),
-        accelerations=np.vstack(
-            [parts[0].accelerations, *[p.accelerations[1:] for p in parts[1:]]]
+        times=np.concatenate(
+            [first.times, *(p.times[1:] + t for p, t in zip(rest, offsets, strict=True))]
         ),
-        arc=np.concatenate(arcs),
+        positions=stacked("positions"),
+        velocities=stacked("velocities"),
+        accelerations=stacked("accelerations"),
+        arc=np.concatenate(
+            [first.arc + starts[0], *(p.arc[1:] + s for p, s in zip(rest, starts[1:], strict=True))]
+        ),
     )
 
 
