@@ -83,6 +83,18 @@ from foldbot.commands.ros_fold import add_arguments, fold_args_text
             + ["--together-lead", "-0.1"],
             "--together-lead must be seconds in [0, 5], got -0.1",
         ),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--cloth-thickness", "0.003"],
+            "--cloth-thickness is for --cell real (with --cell sim, the simulated cloth's own",
+        ),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--cell", "real", "--cloth-thickness", "0"],
+            "--cloth-thickness must be metres in (0, 0.05], got 0.0",
+        ),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--cell", "real", "--cloth-thickness", "nan"],
+            "--cloth-thickness must be metres in (0, 0.05], got nan",
+        ),
         (["ros-cell", "--camera-rate", "0"], "--camera-rate must be > 0 frames per s, got 0.0"),
         (["ros-cell", "--real-time-factor", "-1"], "--real-time-factor must be > 0, got -1.0"),
         (["ros-cell", "--port", "0"], "--port must be in 1–65535, got 0"),

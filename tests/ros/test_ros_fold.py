@@ -414,6 +414,7 @@ def test_a_fold_on_a_running_cell_as_on_a_real_one(tmp_path):
         proc = foldbot(
             "ros-fold", "--cell", "real", "--resolution", "8", "--video-fps", "2",
             "--recipe", "diagonal", "--seed", "1", "--out", str(out), "--port", str(port),
+            "--cloth-thickness", "0.004",
         )  # fmt: skip
         done.set()
         assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
@@ -431,6 +432,7 @@ def test_a_fold_on_a_running_cell_as_on_a_real_one(tmp_path):
     result = json.loads((out / "result.json").read_text())
     assert set(REQUIRED_RESULT_KEYS) <= result.keys()
     assert result["cell"] == "real" and result["scored"] is False
+    assert result["cloth_thickness_m"] == 0.004 and result["cloth_thickness_given"] is True
     assert result["success"] is None and result["fold_error_mm"] is None
     seen = result["perceived"]
     assert seen["verified"] and 0.4 < seen["coverage_ratio"] < 0.6  # a triangle: half the area

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from ros_helpers import requires_ros
 
-from foldbot.errors import FoldbotError
+from foldbot.errors import ConfigError, FoldbotError
 
 pytestmark = requires_ros
 
@@ -137,3 +137,7 @@ def test_a_real_cell_takes_the_simulated_cloths_layer_thickness():
         cfg = config_from_args(parser.parse_args(["--out", "unused", *words]))
         edge = seeded_garment(cfg)[1].edge_length
         assert real_cell_thickness(cfg) == pytest.approx(2 * edge / cfg.cloth.margin_divisor)
+        # A real towel's own thickness, where the user gives it (`ros-fold --cloth-thickness`).
+        assert real_cell_thickness(cfg, 0.003) == 0.003
+        with pytest.raises(ConfigError, match=r"cloth thickness must be metres in \(0, 0.05\]"):
+            real_cell_thickness(cfg, 0.06)

@@ -23,7 +23,13 @@ from pathlib import Path
 from foldbot import errors
 from foldbot.commands import fold
 from foldbot.errors import ConfigError, FoldbotError, OutputError
-from foldbot.ros.node_args import ARM_INTERFACES, CELLS, GRIPPER_LEAD_S, TOGETHER_LEAD_S
+from foldbot.ros.node_args import (
+    ARM_INTERFACES,
+    CELLS,
+    GRIPPER_LEAD_S,
+    MAX_CLOTH_THICKNESS,
+    TOGETHER_LEAD_S,
+)
 from foldbot.verdict import unscored_outcome
 
 DEFAULT_PORT = 11311
@@ -115,6 +121,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="with --cell real: seconds to wait for the running cell's ROS master to answer "
         f"before giving up (default {MASTER_WAIT_S:g}; a cell just started may still be "
         "bringing its roscore up)",
+    )
+    parser.add_argument(
+        "--cloth-thickness",
+        type=float,
+        default=None,
+        metavar="M",
+        help="with --cell real: the towel's layer thickness in m (e.g. 0.003), the height the "
+        "loop gives a laid layer where depth tells nothing of it (grasps and places on a "
+        "stack); default: the simulated cloth's of the same size (two collision margins, "
+        "about 10 mm on a 30 cm towel)",
     )
     parser.add_argument(
         "--gripper-lead",
@@ -280,6 +296,18 @@ def run(args: argparse.Namespace) -> int:
         )
     if wait is not None and not (math.isfinite(wait) and wait >= 0):
         raise ConfigError(f"--master-wait must be seconds >= 0, got {wait!r}")
+    thickness = args.cloth_thickness
+    if thickness is not None and not real:
+        raise ConfigError(
+            "--cloth-thickness is for --cell real (with --cell sim, the simulated cloth's own "
+            "thickness is used: two collision margins, set by --cloth margin_divisor=N)"
+        )
+    if thickness is not None and not (
+        math.isfinite(thickness) and 0.0 < thickness <= MAX_CLOTH_THICKNESS
+    ):
+        raise ConfigError(
+            f"--cloth-thickness must be metres in (0, {MAX_CLOTH_THICKNESS:g}], got {thickness!r}"
+        )
     together = args.together_lead
     if together is not None and not (cfg.arms == 2 and interface == "actions"):
         raise ConfigError(
@@ -335,6 +363,7 @@ def run(args: argparse.Namespace) -> int:
         f"real_time_factor:={args.real_time_factor or 1.0!r}",
         f"gripper_lead:={-1.0 if args.gripper_lead is None else args.gripper_lead!r}",
         f"together_lead:={TOGETHER_LEAD_S if together is None else together!r}",
+        f"cloth_thickness:={-1.0 if thickness is None else thickness!r}",
     ]
     result_file = out / "result.json"
     before = result_file.stat().st_mtime_ns if result_file.is_file() else None

@@ -35,6 +35,12 @@ drivers before it (a driver starts a goal at its stamp, or on arrival when that 
 TOGETHER_LEAD_S = 0.25
 """The default: a goal's trip to a driver on one machine is milliseconds; a real cell's links
 and its drivers' own latency may need more."""
+CLOTH_THICKNESS_PARAM = "/foldbot/cloth_thickness"
+"""On a real cell: the towel's layer thickness (m) the loop assumes where depth tells nothing of a
+laid layer's height (the grasp and place heights on a stack); negative: the simulated cloth's of
+the same size and options (task_node.real_cell_thickness)."""
+MAX_CLOTH_THICKNESS = 0.05
+"""Largest layer thickness (m) accepted, as for a simulated cloth (sim.cloth.ClothConfig)."""
 REAL_TIME_FACTOR_PARAM = "/foldbot/real_time_factor"
 """With the actions interface: simulated seconds per wall second the sim node runs at."""
 ERROR_FILE_PARAM = "/foldbot/error_file"

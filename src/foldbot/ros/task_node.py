@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import itertools
 import json
+import math
 import sys
 import threading
 import time
@@ -65,10 +66,12 @@ from foldbot.ros.node_args import (
     ARM_INTERFACE_PARAM,
     CELL_PARAM,
     CELLS,
+    CLOTH_THICKNESS_PARAM,
     ERROR_FILE_PARAM,
     FOLD_ARGS_PARAM,
     GRIPPER_LEAD_PARAM,
     GRIPPER_LEAD_S,
+    MAX_CLOTH_THICKNESS,
     TOGETHER_LEAD_PARAM,
     TOGETHER_LEAD_S,
     parse_fold_args,
@@ -877,10 +880,17 @@ class RosCell(FoldCell):
         )
 
 
-def real_cell_thickness(cfg: EpisodeConfig) -> float:
-    """The layer height the loop assumes where depth tells nothing, on a real cell: the
-    simulated cloth's of the same size and options (two collision margins, as the sim node
-    publishes it). Where it can, the loop measures a laid layer's rise in depth instead."""
+def real_cell_thickness(cfg: EpisodeConfig, given: float | None = None) -> float:
+    """The layer height the loop assumes where depth tells nothing, on a real cell: `given` (m,
+    the real towel's: `ros-fold --cloth-thickness`), else the simulated cloth's of the same
+    size and options (two collision margins, as the sim node publishes it). Where it can, the
+    loop measures a laid layer's rise in depth instead."""
+    if given is not None:
+        if not (math.isfinite(given) and 0.0 < given <= MAX_CLOTH_THICKNESS):
+            raise errors.ConfigError(
+                f"cloth thickness must be metres in (0, {MAX_CLOTH_THICKNESS:g}], got {given!r}"
+            )
+        return float(given)
     if cfg.cloth.thickness is not None:
         return float(cfg.cloth.thickness)
     edge = seeded_garment(cfg)[1].edge_length
@@ -942,10 +952,13 @@ def run_real_task(
     log=rospy.loginfo,
     gripper_lead: float | None = GRIPPER_LEAD_S,
     together_lead: float = TOGETHER_LEAD_S,
+    cloth_thickness: float | None = None,
 ) -> dict:
     """Fold on a real cell (whatever serves the drivers' actions and the camera) and write the
-    episode folder, unscored: result.json, video.mp4 and the overlays; no cloth.npz."""
+    episode folder, unscored: result.json, video.mp4 and the overlays; no cloth.npz.
+    `cloth_thickness` (m): the towel's layer thickness (None: real_cell_thickness's default)."""
     args, cfg = parse_fold_args(fold_args)
+    thickness = real_cell_thickness(cfg, cloth_thickness)
     if cfg.perception != "vision":
         raise errors.ConfigError(
             f"a real cell folds with vision perception; got perception {cfg.perception!r}"
@@ -978,7 +991,7 @@ def run_real_task(
                 pulls, cell, (spec.width, spec.height), write_image, log, spread=spreads
             ).perceived_entry(pulls.max_actions)
         fold = run_fold if cfg.garment == "towel" else run_garment_fold
-        loop = loop_config(cfg, real_cell_thickness(cfg))
+        loop = loop_config(cfg, thickness)
         record = fold_and_picture(fold, loop, cell, write_image, log)
         cell.stop_video()
         with cell._lock:
@@ -991,6 +1004,8 @@ def run_real_task(
             if cfg.arms > 1:
                 result["together_lead_s"] = together_lead
             result["cell"] = "real"
+            result["cloth_thickness_m"] = thickness
+            result["cloth_thickness_given"] = cloth_thickness is not None
             writer.write_result(result)
             path = writer.commit(require_cloth=False)
     result["out_dir"] = str(Path(path))
@@ -1107,7 +1122,13 @@ def main(argv: list[str] | None = None) -> int:
     together = float(rospy.get_param(TOGETHER_LEAD_PARAM, TOGETHER_LEAD_S))
     try:
         if rospy.get_param(CELL_PARAM, "sim") == "real":
-            result = run_real_task(fold_args, gripper_lead=lead, together_lead=together)
+            thickness = float(rospy.get_param(CLOTH_THICKNESS_PARAM, -1.0))
+            result = run_real_task(
+                fold_args,
+                gripper_lead=lead,
+                together_lead=together,
+                cloth_thickness=None if thickness < 0 else thickness,
+            )
         else:
             result = run_task(
                 fold_args,
