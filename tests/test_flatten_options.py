@@ -138,6 +138,24 @@ def test_the_configs_get_the_options_and_keep_the_rest():
     assert flatten_option_default("finish_coverage") == FlattenConfig().finish_coverage
 
 
+def test_a_cell_laid_out_elsewhere_moves_the_defaults_placed_in_the_world():
+    """The flattening's region and a spread's laid-towel centre move with the workspace, how far
+    out a spread holds the towel with the arm's base; the options given are set beside them."""
+    from foldbot.sim.layout import CellLayout
+
+    layout = CellLayout(
+        table_height=0.7, robot_base_xyz=(0.02, 0.0, 0.7), workspace_center_xy=(0.5, 0.06)
+    )
+    pulls, spreads = flatten_configs({}, layout)
+    (x0, x1, y0, y1), (dx0, dx1, dy0, dy1) = pulls.workspace, FlattenConfig().workspace
+    assert (x0, x1, y0, y1) == pytest.approx((dx0 + 0.05, dx1 + 0.05, dy0 + 0.06, dy1 + 0.06))
+    assert spreads.center_xy == pytest.approx((0.5, 0.06))
+    assert spreads.hold_far_x == pytest.approx(SpreadConfig().hold_far_x + 0.02)
+    assert dataclasses.replace(pulls, workspace=FlattenConfig().workspace) == FlattenConfig()
+    pulls, _ = flatten_configs({"grasp_layer": "top"}, layout)
+    assert pulls.grasp_layer == "top" and pulls.workspace[0] == pytest.approx(dx0 + 0.05)
+
+
 @pytest.mark.parametrize(
     ("text", "expected"),
     [

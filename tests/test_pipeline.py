@@ -3,6 +3,7 @@ import json
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import imageio.v3 as iio
 import numpy as np
@@ -472,6 +473,34 @@ def test_a_cloth_option_reaches_the_simulated_cloth_and_the_record(tmp_path):
     edge = make_towel(config_from_args(build_parser().parse_args(args)).towel).edge_length
     thickness = float(np.load(tmp_path / "ep" / "cloth.npz")["thickness"])
     assert thickness == pytest.approx(edge / 4)
+
+
+@pytest.mark.slow
+def test_a_cell_laid_out_by_a_file_folds_where_the_file_puts_it(tmp_path):
+    """layouts/pedestal.toml: a lower table that starts ahead of the arms, which stand beside it
+    on pedestals, the workspace further out and to the left. The cloth lies on that table in
+    that workspace, the camera moved with it sees it, the two arms fold it as well as in the
+    default cell, and result.json records the layout."""
+    layout_file = Path(__file__).resolve().parents[1] / "layouts" / "pedestal.toml"
+    out = tmp_path / "ep"
+    args = ["fold", "--arms", "2", "--width", "0.24", "--height", "0.24", "--resolution", "10"]
+    run_cli(*args, "--video-fps", "0", "--layout", str(layout_file), "--out", str(out))
+    result = json.loads((out / "result.json").read_text())
+    assert result["layout"] == {
+        "table_height": 0.70,
+        "table_size": [1.0, 1.2],
+        "table_center_xy": [0.62, 0.0],
+        "robot_base_xyz": [0.0, 0.0, 0.65],
+        "workspace_center_xy": [0.50, 0.06],
+    }
+    initial = np.load(out / "cloth.npz")["initial"]
+    assert np.all(np.abs(initial[:, 2] - 0.70) < 0.01)  # settled on the 0.70 m table
+    centre = initial[:, :2].mean(axis=0)
+    assert np.all(np.abs(centre - [0.50, 0.06]) <= 0.03 + 0.005)  # the seed's jitter: ±3 cm
+    camera = np.array(result["camera"]["T_world_camera"])[:3, 3]
+    assert camera == pytest.approx([1.05 + 0.05, 0.06, 1.75 - 0.05])
+    assert all(a["grasp_success"] for a in result["actions"])
+    assert result["success"] is True and result["fold_error_mm"] <= 10.0
 
 
 def test_the_crossing_guard_watches_the_cloth_from_the_flat_start():

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from foldbot.errors import ConfigError, option_word, options_from_args, split_name_value
 from foldbot.planning.flatten import GRASP_LAYERS, FlattenConfig
 from foldbot.planning.spread import LEAN_MODES, SpreadConfig
+from foldbot.sim.layout import DEFAULT_LAYOUT, CellLayout
 
 FlattenOptionValue = bool | int | float | str | None
 """What a flatten option holds: a switch, a count, a number (SI units), a name, or None."""
@@ -148,13 +149,26 @@ def check_flatten_options(options: Mapping[str, object]) -> dict[str, FlattenOpt
     return {name: checked[name] for name in FLATTEN_OPTIONS if name in checked}
 
 
-def flatten_configs(options: Mapping[str, object]) -> tuple[FlattenConfig, SpreadConfig]:
+def flatten_configs(
+    options: Mapping[str, object], layout: CellLayout = DEFAULT_LAYOUT
+) -> tuple[FlattenConfig, SpreadConfig]:
     """The pull and spread configurations with the (checked) options set, the rest at their
-    defaults."""
+    defaults; in a cell laid out otherwise than the default one, the defaults placed in the
+    world (the flattening's region and where a spread lays the towel: with the workspace; how
+    far out a spread holds it: with the arm's base) moved as the layout moves them."""
     fields: dict[type, dict[str, object]] = {FlattenConfig: {}, SpreadConfig: {}}
     for name, value in options.items():
         option = FLATTEN_OPTION_FIELDS[name]
         fields[option.config][option.field] = value
+    dx, dy, _ = layout.workspace_shift()
+    if dx or dy:
+        x0, x1, y0, y1 = FlattenConfig.workspace
+        fields[FlattenConfig].setdefault("workspace", (x0 + dx, x1 + dx, y0 + dy, y1 + dy))
+        cx, cy = SpreadConfig.center_xy
+        fields[SpreadConfig].setdefault("center_xy", (cx + dx, cy + dy))
+    bx = layout.base_shift()[0]
+    if bx:
+        fields[SpreadConfig].setdefault("hold_far_x", SpreadConfig.hold_far_x + bx)
     return FlattenConfig(**fields[FlattenConfig]), SpreadConfig(**fields[SpreadConfig])
 
 

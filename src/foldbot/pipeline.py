@@ -53,7 +53,7 @@ from foldbot.planning.garment_recipes import GARMENT_RECIPES
 from foldbot.planning.motion import MotionConfig, action_segments
 from foldbot.planning.recipes import RECIPES, folded_as
 from foldbot.planning.spread import SpreadAction, motion_segments
-from foldbot.sim.camera import CameraConfig, RGBDCamera
+from foldbot.sim.camera import CameraConfig, RGBDCamera, camera_for_layout
 from foldbot.sim.cloth import ClothConfig, DivergenceMonitor, SoftCloth, keep_table_grip, settle
 from foldbot.sim.crossing_guard import CrossingGuard
 from foldbot.sim.crumple import crumple
@@ -61,7 +61,7 @@ from foldbot.sim.flatten_oracle import CornerPullOracle
 from foldbot.sim.garment_oracle import GarmentOracleEstimator
 from foldbot.sim.grasp import JAW_CATCHES, ClothGrasp
 from foldbot.sim.oracle import GroundTruthOracle, OracleEstimator
-from foldbot.sim.robots import ROBOT_NAMES, make_robot
+from foldbot.sim.robots import ROBOT_NAMES, check_workspace_reach, make_robot
 from foldbot.sim.world import SimConfig, SimWorld
 from foldbot.simd import late_libraries
 from foldbot.types import Observation
@@ -162,6 +162,12 @@ class EpisodeConfig:
     replicate: int = 0
     """0: the cloth lies exactly where the seed puts it; k > 0: the same cloth laid
     REPLICATE_NUDGE_M from there, in a direction the seed and k draw (seeded_pose)."""
+
+    @property
+    def cell_camera(self) -> CameraConfig:
+        """The simulated camera as placed in this episode's cell: `camera`, moved with a
+        layout whose workspace or table lies elsewhere (sim.camera.camera_for_layout)."""
+        return camera_for_layout(self.camera, self.sim.layout)
 
     def __post_init__(self) -> None:
         require(
@@ -486,7 +492,9 @@ def loop_config(cfg: EpisodeConfig, layer_thickness: float = 0.0) -> LoopConfig:
 
 def fold_fields(cfg: EpisodeConfig, record: FoldRecord) -> dict:
     """result.json's account of the fold itself, scored or not: its lines and stages, what was
-    folded with which recipe, by which robot and arms."""
+    folded with which recipe, by which robot and arms, in a cell laid out how (`layout`: the
+    fields that differ from the default cell's, where any do)."""
+    layout = cfg.sim.layout.changes()
     return {
         "fold_lines": [list(line) for line in record.fold_lines],
         "stages": record.stages,
@@ -495,6 +503,7 @@ def fold_fields(cfg: EpisodeConfig, record: FoldRecord) -> dict:
         "planned_recipe": planned_recipe(cfg),
         "robot": cfg.robot,
         "arms": cfg.arms,
+        **({"layout": layout} if layout else {}),
     }
 
 
@@ -607,7 +616,7 @@ def build_sim_cell(cfg: EpisodeConfig, world: SimWorld) -> SimCellParts:
         guard = CrossingGuard(cloth, every=int(cfg.cloth.crossing_guard))
         world.add_step_hook(guard)  # from the flat start, so it learns every side
     world.add_step_hook(monitor)
-    camera = RGBDCamera(world.client, cfg.camera)
+    camera = RGBDCamera(world.client, cfg.cell_camera)
     oracle = GroundTruthOracle(cloth, camera)
     model_world = SimWorld(dataclasses.replace(cfg.sim, gui=False))
     executors = [
@@ -620,6 +629,8 @@ def build_sim_cell(cfg: EpisodeConfig, world: SimWorld) -> SimCellParts:
         )
         for arm, lay in zip([robot, *others], arm_layouts, strict=True)
     ]
+    for ex in executors:  # on the twins: IK on the simulated arms would change the cloth's run
+        check_workspace_reach(ex.model, cfg.robot)
     return SimCellParts(
         world,
         robot,
@@ -660,7 +671,7 @@ def crumple_and_flatten(
     log("crumpling the towel…")
     crumple_start(cfg, parts.world, parts.cloth)
     oracle = CornerPullOracle.of(parts.oracle, parts.mesh) if cfg.perception == "oracle" else None
-    pulls, spreads = flatten_configs(cfg.flatten_options)
+    pulls, spreads = flatten_configs(cfg.flatten_options, cfg.sim.layout)
     entry, _ = flatten_and_score(
         cell,
         (parts.spec.width, parts.spec.height),
@@ -733,7 +744,7 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
             record,
             world.sim_time,
             time.perf_counter() - wall0,
-            cfg.camera,
+            cfg.cell_camera,
         )
         if flattened is not None:
             result["flatten"] = flattened

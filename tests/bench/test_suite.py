@@ -277,6 +277,31 @@ def test_a_bad_flatten_options_table_is_named(tiny_suite_data, episode, percepti
     assert needle in str(exc.value)
 
 
+def test_a_layout_table_reaches_the_cell_and_is_left_out_of_specs_by_default(tiny_suite_data):
+    from foldbot.sim.layout import DEFAULT_LAYOUT, CellLayout
+
+    data = tiny_suite_data()
+    default = load_one(data)
+    assert default.to_config().sim.layout == DEFAULT_LAYOUT
+    assert "layout" not in default.as_dict()  # older runs keep resuming
+    data["layout"] = {"table_height": 0.7, "robot_base_xyz": [0.0, 0.0, 0.7]}
+    spec = load_one(data)
+    assert spec.to_config().sim.layout == CellLayout(
+        table_height=0.7, robot_base_xyz=(0.0, 0.0, 0.7)
+    )
+    assert spec.as_dict()["layout"] == data["layout"]
+    assert EpisodeSpec.from_dict(spec.as_dict()) == spec
+    data["layout"] = {"robot_base_xyz": [0.0, 0.0, 0.7]}
+    with pytest.raises(ConfigError) as exc:
+        suite_from_dict(data)
+    assert "[layout]: layout robot_base_xyz (0.0, 0.0, 0.7) stands inside the table" in str(
+        exc.value
+    )
+    data["layout"] = {"height": 0.7}
+    with pytest.raises(ConfigError, match=r"unknown key 'layout\.height'; allowed in \[layout\]"):
+        suite_from_dict(data)
+
+
 @pytest.mark.parametrize(
     ("table", "needle"),
     [

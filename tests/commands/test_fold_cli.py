@@ -81,6 +81,8 @@ def test_subcommand_help(cmd, capsys):
             "drop --seed",
         ),
         (["--episode", "towel-half-vision-open-s0000"], "give --suite too"),
+        (["--layout", "nothere.toml"], "layout file 'nothere.toml' does not exist"),
+        (["--suite", "smoke", "--layout", "layouts/pedestal.toml"], "drop --layout"),
     ],
 )
 def test_bad_arguments_get_a_clear_error(tmp_path, capsys, args, needle):
@@ -147,6 +149,22 @@ def test_flatten_options_reach_the_episode():
     assert cfg.flatten_options == {"finish_coverage": None, "grasp_layer": "top"}
     with pytest.raises(ConfigError, match="act on crumpled starts only; this episode starts flat"):
         config_from_args(parser.parse_args(["--out", "x", "--flatten-option", "min_pull=0.03"]))
+
+
+def test_a_layout_file_reaches_the_world(tmp_path):
+    from foldbot.sim.layout import DEFAULT_LAYOUT
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    assert config_from_args(parser.parse_args(["--out", "x"])).sim.layout == DEFAULT_LAYOUT
+    path = tmp_path / "cell.toml"
+    path.write_text("table_height = 0.72\nrobot_base_xyz = [0.0, 0.0, 0.72]\n")
+    cfg = config_from_args(parser.parse_args(["--out", "x", "--layout", str(path)]))
+    assert cfg.sim.layout.changes() == {"table_height": 0.72, "robot_base_xyz": [0.0, 0.0, 0.72]}
+    assert cfg.cell_camera.eye[2] == pytest.approx(cfg.camera.eye[2] - 0.03)
+    path.write_text("robot_base_xyz = [0.0, 0.0, 0.72]\n")  # 3 cm into the 0.75 m table
+    with pytest.raises(ConfigError, match="stands inside the table"):
+        config_from_args(parser.parse_args(["--out", "x", "--layout", str(path)]))
 
 
 def test_time_step_reaches_the_world():

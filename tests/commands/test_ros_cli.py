@@ -125,6 +125,16 @@ def test_fold_options_reach_the_nodes():
     assert "--no-odd-grid" in words
 
 
+def test_a_layout_file_reaches_the_nodes_by_its_absolute_path(tmp_path, monkeypatch):
+    (tmp_path / "cell.toml").write_text("table_height = 0.75\n")
+    monkeypatch.chdir(tmp_path)  # the nodes run in another folder: the path is made absolute
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    words = fold_args_text(parser.parse_args(["--out", "e", "--layout", "cell.toml"])).split()
+    assert words[words.index("--layout") + 1] == str(tmp_path / "cell.toml")
+    assert "--layout" not in fold_args_text(parser.parse_args(["--out", "e"])).split()
+
+
 def test_a_crumpled_start_reaches_the_nodes():
     parser = argparse.ArgumentParser()
     add_arguments(parser)

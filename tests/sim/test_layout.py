@@ -1,8 +1,17 @@
-"""The cell's layout: one arm as it always was, or two side by side."""
+"""The cell's layout: one arm as it always was, or two side by side; a file's fields checked and
+named, the camera and the arm placed by it."""
+
+from pathlib import Path
 
 import pytest
 
-from foldbot.sim.layout import DEFAULT_LAYOUT
+from foldbot.errors import ConfigError
+from foldbot.sim.camera import DEFAULT_EYE, DEFAULT_TARGET, CameraConfig, camera_for_layout
+from foldbot.sim.layout import DEFAULT_LAYOUT, CellLayout, load_layout
+from foldbot.sim.robots import ROBOT_NAMES, check_workspace_reach, make_robot
+from foldbot.sim.world import SimConfig, SimWorld
+
+PEDESTAL = Path(__file__).resolve().parents[2] / "layouts" / "pedestal.toml"
 
 
 def test_one_arm_layout_is_the_cell_itself():
@@ -25,3 +34,107 @@ def test_two_arms_stand_apart_on_the_near_edge_left_arm_first():
 def test_other_arm_counts_are_refused(arms):
     with pytest.raises(ValueError, match="1 or 2 arms"):
         DEFAULT_LAYOUT.arm_layouts(arms)
+
+
+def test_the_shipped_example_layout_loads_and_names_what_it_changes():
+    layout = load_layout(PEDESTAL)
+    assert layout.table_height == 0.70 and layout.robot_base_xyz == (0.0, 0.0, 0.65)
+    assert layout.workspace_center_xy == (0.50, 0.06) and layout.workspace_size == 0.6
+    assert layout.changes() == {
+        "table_height": 0.70,
+        "table_size": [1.0, 1.2],
+        "table_center_xy": [0.62, 0.0],
+        "robot_base_xyz": [0.0, 0.0, 0.65],
+        "workspace_center_xy": [0.50, 0.06],
+    }
+    assert layout.workspace_shift() == pytest.approx((0.05, 0.06, -0.05))
+    assert layout.base_shift() == pytest.approx((0.0, 0.0, -0.10))
+    assert DEFAULT_LAYOUT.changes() == {} and not any(DEFAULT_LAYOUT.workspace_shift())
+
+
+@pytest.mark.parametrize(
+    ("text", "needle"),
+    [
+        ("table_hight = 0.7\n", "unknown layout key 'table_hight'; allowed: table_height,"),
+        ("table_height = -0.7\n", "layout table_height must be a number in (0, 2] m, got -0.7"),
+        ("table_height = true\n", "layout table_height must be a number in (0, 2] m, got True"),
+        ("robot_base_xyz = [0, 0]\n", "layout robot_base_xyz must be 3 finite numbers (m)"),
+        ("table_size = [1.2, 0]\n", "layout table_size must be > 0 m each, got (1.2, 0.0)"),
+        ("home_xy = [0.4, 'a']\n", "layout home_xy must be 2 finite numbers (m)"),
+        (
+            "workspace_center_xy = [0.9, 0.0]\n",
+            "layout workspace (x 0.600–1.200, y -0.300–0.300 m: workspace_center_xy ± "
+            "workspace_size / 2) must lie on the table top (x -0.150–1.050",
+        ),
+        (
+            "robot_base_xyz = [0.0, 0.0, 0.6]\n",
+            "layout robot_base_xyz (0.0, 0.0, 0.6) stands inside the table (its top at 0.75 m",
+        ),
+        (
+            "robot_base_xyz = [0.1, 0.0, 0.75]\n",
+            "layout workspace must lie at least 0.1 m ahead of the robot base along +x (the arm "
+            "faces +x): its near edge is at x = 0.150 m, the base at x = 0.100 m",
+        ),
+        ("table_height = [\n", "is not valid TOML"),
+    ],
+)
+def test_a_bad_layout_file_is_named_with_what_is_allowed(tmp_path, text, needle):
+    path = tmp_path / "cell.toml"
+    path.write_text(text)
+    with pytest.raises(ConfigError) as exc:
+        load_layout(path)
+    assert needle in str(exc.value)
+    assert str(path) in str(exc.value)
+
+
+def test_a_missing_layout_file_is_named(tmp_path):
+    with pytest.raises(ConfigError, match=r"layout file .*nothere\.toml' does not exist"):
+        load_layout(tmp_path / "nothere.toml")
+
+
+def test_the_default_camera_moves_with_the_workspace_and_the_table():
+    layout = load_layout(PEDESTAL)
+    moved = camera_for_layout(CameraConfig(), layout)
+    shift = layout.workspace_shift()
+    assert moved.eye == pytest.approx([a + d for a, d in zip(DEFAULT_EYE, shift, strict=True)])
+    assert moved.target == pytest.approx(
+        [a + d for a, d in zip(DEFAULT_TARGET, shift, strict=True)]
+    )
+    # Same framing: the camera looks along the same ray, shifted; the intrinsics are its own.
+    assert moved.fx == CameraConfig().fx and moved.up == CameraConfig().up
+    # The default cell's camera, and a camera placed by its user, stay where they are.
+    assert camera_for_layout(CameraConfig(), DEFAULT_LAYOUT) == CameraConfig()
+    own = CameraConfig(eye=(1.0, 0.1, 1.8))
+    assert camera_for_layout(own, layout) is own
+
+
+@pytest.mark.parametrize("robot", ROBOT_NAMES)
+def test_every_arm_reaches_the_default_workspace_centre(robot):
+    with SimWorld(SimConfig()) as world:
+        arm = make_robot(robot, world.client, DEFAULT_LAYOUT)  # its home: raises where it cannot
+        check_workspace_reach(arm, robot)  # the centre at the table: raises where it cannot
+
+
+def test_a_layout_out_of_reach_is_refused_before_the_episode_writes_anything(tmp_path, capsys):
+    from foldbot.cli import main
+
+    path = tmp_path / "far.toml"
+    path.write_text("table_size = [2.4, 1.2]\ntable_center_xy = [0.8, 0.0]\n")
+    path.write_text(path.read_text() + "workspace_center_xy = [0.9, 0.0]\ntable_height = 0.4\n")
+    path.write_text(path.read_text() + "robot_base_xyz = [0.0, 0.0, 0.75]\n")
+    out = tmp_path / "ep"
+    assert main(["fold", "--layout", str(path), "--resolution", "5", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "the ur5 mounted at (0, 0, 0.75) m cannot reach the workspace centre (0.9, 0) m" in err
+    assert not out.exists() and not list(tmp_path.glob("ep*"))
+
+
+def test_a_workspace_out_of_the_arms_reach_is_refused_naming_the_layout():
+    far = CellLayout(
+        table_size=(2.0, 1.2), table_center_xy=(0.8, 0.0), workspace_center_xy=(1.3, 0)
+    )
+    with SimWorld(SimConfig(layout=far)) as world, pytest.raises(ConfigError) as exc:
+        make_robot("ur5", world.client, far)
+    text = str(exc.value)
+    assert "the ur5 mounted at (0, 0, 0.75) m cannot reach the workspace centre (1.3, 0) m" in text
+    assert "move the layout's workspace_center_xy, robot_base_xyz or table_height" in text

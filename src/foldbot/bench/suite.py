@@ -52,6 +52,10 @@ margin_divisor = 6.5                    # e.g. a thinner collision margin: edge 
 [flatten_options]                       # how a crumpled towel is flattened (foldbot.flatten_options;
 finish_coverage = "none"                # crumpled starts only), e.g. stop at the 0.9 target
 
+[layout]                                # the cell's layout (foldbot.sim.layout.CellLayout; world m),
+table_height = 0.72                     # as `foldbot fold --layout FILE.toml`; the rest the default
+robot_base_xyz = [0.0, 0.0, 0.72]       # cell's
+
 [reference]
 ravens_speed = true                     # plain-PyBullet speed reference (ravens_reference.py)
 ```
@@ -89,6 +93,7 @@ from foldbot.planning.garment_recipes import GARMENT_RECIPES
 from foldbot.planning.recipes import RECIPES
 from foldbot.sim.cloth import ClothConfig
 from foldbot.sim.grasp import JAW_CATCHES
+from foldbot.sim.layout import DEFAULT_LAYOUT, LAYOUT_FIELDS, CellLayout, layout_from_table
 from foldbot.sim.world import SimConfig
 
 ALL_RECIPES = RECIPES + tuple(r for rs in GARMENT_RECIPES.values() for r in rs)
@@ -109,6 +114,7 @@ _SCHEMA: dict[str, set[str]] = {
         "loop_options",
         "cloth",
         "flatten_options",
+        "layout",
         "reference",
     },
     "axes": {"garment", "recipe", "perception", "loop", "seeds", "replicates"},
@@ -118,6 +124,7 @@ _SCHEMA: dict[str, set[str]] = {
     "loop_options": set(LOOP_OPTIONS),
     "cloth": set(CLOTH_OPTIONS),
     "flatten_options": set(FLATTEN_OPTIONS),
+    "layout": set(LAYOUT_FIELDS),
     "reference": {"ravens_speed"},
 }
 
@@ -197,6 +204,9 @@ class EpisodeSpec:
     (name, value)."""
     replicate: int = 0
     """EpisodeConfig.replicate: 0, the seed's pose; k > 0, the same cloth laid 0.1 mm from it."""
+    layout: tuple[tuple[str, Any], ...] = ()
+    """The cell's layout set by field (sim.layout.CellLayout), as (name, value), lists as
+    tuples; the others at the default cell's."""
 
     @property
     def id(self) -> str:
@@ -243,7 +253,10 @@ class EpisodeSpec:
             cloth=apply_cloth_options(ClothConfig(), dict(self.cloth_options)),
             flatten_options=dict(self.flatten_options),
             replicate=self.replicate,
-            sim=SimConfig() if self.time_step is None else SimConfig(time_step=self.time_step),
+            sim=SimConfig(
+                time_step=SimConfig.time_step if self.time_step is None else self.time_step,
+                layout=CellLayout(**dict(self.layout)) if self.layout else DEFAULT_LAYOUT,
+            ),
         )
 
     def as_dict(self) -> dict[str, Any]:
@@ -275,6 +288,10 @@ class EpisodeSpec:
             del d["flatten_options"]  # likewise
         if d["replicate"] == 0:
             del d["replicate"]  # likewise
+        if d["layout"]:
+            d["layout"] = {k: list(v) if isinstance(v, tuple) else v for k, v in self.layout}
+        else:
+            del d["layout"]  # likewise
         if d["towel_side_range"] is not None:
             d["towel_side_range"] = list(d["towel_side_range"])
         return d
@@ -307,6 +324,8 @@ class EpisodeSpec:
         for key in ("loop_options", "cloth_options", "flatten_options"):
             if key in d:
                 d[key] = tuple(d[key].items())
+        if "layout" in d:
+            d["layout"] = layout_items(d["layout"])
         return cls(**d)
 
 
@@ -429,6 +448,13 @@ def _range(value: Any, key: str, lo: float, hi: float, where: str) -> float:
     ):
         raise ConfigError(f"{where}: {key} = {value!r} must be a number in [{lo:g}, {hi:g}]")
     return float(value)
+
+
+def layout_items(table: dict[str, Any]) -> tuple[tuple[str, Any], ...]:
+    """A `[layout]` table as EpisodeSpec.layout's (name, value) pairs, lists as tuples."""
+    if not isinstance(table, dict):
+        raise ConfigError(f"[layout] must be a table of name = value, got {table!r}")
+    return tuple((k, tuple(v) if isinstance(v, list) else v) for k, v in table.items())
 
 
 def _option_table(
@@ -570,6 +596,8 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
     except ConfigError as exc:
         raise ConfigError(f"{where}: [cloth] {exc}") from None
     flatten_options = _option_table(data, "flatten_options", check_flatten_options, where)
+    layout = layout_items(data.get("layout", {}))
+    layout_from_table(dict(layout), f"{where}: [layout]")  # checked here, named by the file
     ravens = _get(data, "reference", "ravens_speed", bool, True, where)
 
     specs = [
@@ -599,6 +627,7 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
             cloth_options=cloth_options,
             flatten_options=flatten_options,
             replicate=replicate,
+            layout=layout,
         )
         for garment, recipe, perception, loop, seed, replicate in itertools.product(
             garments, recipes, perceptions, loops, seeds, range(replicates)

@@ -27,6 +27,7 @@ from foldbot.pipeline import (
 from foldbot.planning.garment_recipes import GARMENT_RECIPE_HELP, GARMENT_RECIPES
 from foldbot.planning.recipes import RECIPE_HELP, RECIPES
 from foldbot.sim.grasp import JAW_CATCHES
+from foldbot.sim.layout import DEFAULT_LAYOUT, LAYOUT_FIELDS, load_layout
 from foldbot.sim.robots import ROBOT_NAMES
 from foldbot.sim.world import SimConfig
 
@@ -234,6 +235,19 @@ def add_episode_arguments(parser: argparse.ArgumentParser, output: bool = True) 
         "[episode] time_step; smaller steps cost time and blow crumpled heaps up less often)",
     )
     parser.add_argument(
+        "--layout",
+        type=Path,
+        default=None,
+        metavar="FILE.toml",
+        help="the cell's layout (world frame, m): a TOML file setting any of "
+        + ", ".join(LAYOUT_FIELDS)
+        + " (e.g. table_height = 0.72, robot_base_xyz = [0, 0, 0.72], workspace_center_xy = "
+        "[0.5, 0.05]); the rest at the default cell's (a 1.2 m table, its top at 0.75 m, the arm "
+        "on it at the origin, a 0.6 m workspace centred at (0.45, 0)). The simulated cell is "
+        "built so, its camera moved with the workspace; a real cell (ros-fold --cell real) is "
+        "planned for it",
+    )
+    parser.add_argument(
         "--jaw-catch",
         choices=JAW_CATCHES,
         default="vertices",
@@ -291,7 +305,11 @@ def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
         garment_edge_length=args.garment_edge_length,
         garment_yaw=math.radians(args.garment_yaw),
         cloth=cloth,
-        sim=SimConfig(time_step=args.time_step, gui=args.gui),
+        sim=SimConfig(
+            time_step=args.time_step,
+            gui=args.gui,
+            layout=DEFAULT_LAYOUT if args.layout is None else load_layout(args.layout),
+        ),
         video_fps=args.video_fps,
         loop_options=loop_options_from_args(args.loop_option),
         flatten_options=flatten_options_from_args(args.flatten_option),

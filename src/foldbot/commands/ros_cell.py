@@ -85,6 +85,7 @@ def run(args: argparse.Namespace) -> int:
             f"on it with `foldbot ros-fold --cell real --port {port} --out DIR` and the same "
             "cloth options"
             + (" and --arms 2" if cfg.arms == 2 else "")
+            + (f" and --layout {args.layout}" if args.layout is not None else "")
             + (" (with --start crumpled: flatten it first)" if cfg.start == "crumpled" else "")
             + "; Ctrl-C stops it",
             flush=True,

@@ -226,6 +226,8 @@ def fold_args_text(args: argparse.Namespace) -> str:
     words.append("--odd-grid" if args.odd_grid else "--no-odd-grid")
     if args.max_vertices is not None:
         words += ["--max-vertices", str(args.max_vertices)]
+    if args.layout is not None:  # its absolute path: the nodes run elsewhere
+        words += ["--layout", str(Path(args.layout).resolve())]
     if args.overwrite:
         words.append("--overwrite")
     return shlex.join(words)

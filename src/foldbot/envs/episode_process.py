@@ -311,7 +311,7 @@ def _serve(conn: Connection) -> None:
     the settled towel's true corners, recipe_fold_lines)."""
     try:
         _kind, episode, fault, goal = conn.recv()
-        pulls, spreads = flatten_configs(episode.flatten_options)
+        pulls, spreads = flatten_configs(episode.flatten_options, episode.sim.layout)
         with SimWorld(episode.sim) as world:
             parts = build_sim_cell(episode, world)
             try:

@@ -132,7 +132,12 @@ class TowelFoldEnv(TowelTaskEnv):
 
     @property
     def workspace(self) -> tuple[float, float, float, float]:
-        return self.config.workspace
+        """The config's workspace; its default moved with a suite layout's workspace."""
+        ws = self.config.workspace
+        if tuple(ws) != TowelFoldConfig.workspace:
+            return ws
+        dx, dy, _ = self.layout.workspace_shift()
+        return (ws[0] + dx, ws[1] + dx, ws[2] + dy, ws[3] + dy)
 
     def goal(self) -> str | None:
         return self.config.recipe

@@ -118,8 +118,11 @@ class TowelTaskEnv(gym.Env):
         )
         self.render_mode = render_mode
         probe = self.episode_config(0)  # the suite, checked before a reset
-        self.flatten, self.spread = flatten_configs(probe.flatten_options)
+        self.flatten, self.spread = flatten_configs(probe.flatten_options, probe.sim.layout)
         """The suite's pull and spread settings (workspace, grasp heights, hang margins)."""
+        self.layout = probe.sim.layout
+        """The suite's cell layout (sim.layout.CellLayout; the default cell's unless its
+        `[layout]` says otherwise)."""
         h, w = self.config.image_size
         self.observation_space = spaces.Dict(
             {

@@ -38,7 +38,7 @@ from foldbot.planning.spread import action_from_dict, motion_segments
 from foldbot.ros import TOPICS, arm_joint_names, convert
 from foldbot.ros.node_args import FOLD_ARGS_PARAM, parse_fold_args
 from foldbot.ros.publish import publish_when_heard
-from foldbot.sim.robots import make_robot
+from foldbot.sim.robots import check_workspace_reach, make_robot
 from foldbot.sim.world import SimWorld
 
 REQUEST_KINDS = (
@@ -90,6 +90,8 @@ class MotionPlanner:
             make_robot(self.cfg.robot, self.world.client, lay)
             for lay in self.world.layout.arm_layouts(self.cfg.arms)
         ]
+        for robot in self.robots:
+            check_workspace_reach(robot, self.cfg.robot)
         self.executors = [ArmExecutor(self.world, r, grasp=None) for r in self.robots]
         self.robot, self.executor = self.robots[0], self.executors[0]
         self.joint_names = arm_joint_names(self.robot.ARM_JOINT_NAMES, self.cfg.arms)

@@ -986,7 +986,7 @@ def run_real_task(
         flattened = None
         if cfg.start == "crumpled":  # flattened by what the camera sees, judged by it alone
             spec = seeded_garment(cfg)[0]
-            pulls, spreads = flatten_configs(cfg.flatten_options)
+            pulls, spreads = flatten_configs(cfg.flatten_options, cfg.sim.layout)
             flattened = flatten_pictured(
                 pulls, cell, (spec.width, spec.height), write_image, log, spread=spreads
             ).perceived_entry(pulls.max_actions)
@@ -1048,7 +1048,7 @@ def run_task(
         flattened = None
         if cfg.start == "crumpled":
             spec = seeded_garment(cfg)[0]
-            pulls, spreads = flatten_configs(cfg.flatten_options)
+            pulls, spreads = flatten_configs(cfg.flatten_options, cfg.sim.layout)
             flattened, initial = flatten_and_score(
                 cell,
                 (spec.width, spec.height),
@@ -1076,7 +1076,7 @@ def run_task(
                 record,
                 cell.sim_time,
                 time.perf_counter() - wall0,
-                cfg.camera,
+                cfg.cell_camera,
             )
             if flattened is not None:
                 result["flatten"] = flattened

@@ -17,12 +17,13 @@ projects onto the near edge of the workspace rather than onto its middle.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pybullet as p
 
 from foldbot.errors import ConfigError, require
+from foldbot.sim.layout import CellLayout
 from foldbot.types import CameraIntrinsics, Observation
 
 _OPENCV_FROM_GL = np.diag([1.0, -1.0, -1.0, 1.0])
@@ -346,3 +347,20 @@ class RGBDCamera:
         cfg = self.config
         seg = self._render(with_segmentation=True)[4]
         return np.asarray(seg, dtype=np.int64).reshape(cfg.height, cfg.width)
+
+
+def camera_for_layout(camera: CameraConfig, layout: CellLayout) -> CameraConfig:
+    """The camera as placed in a cell laid out as `layout`: one at the default pose (DEFAULT_EYE,
+    DEFAULT_TARGET: over the default cell's workspace) moved with the workspace centre and the
+    table top (CellLayout.workspace_shift), so it frames that workspace as it frames the
+    default one; a camera given its own pose (eye, target or `pose`) is left where it is."""
+    if camera.pose is not None or (camera.eye, camera.target) != (DEFAULT_EYE, DEFAULT_TARGET):
+        return camera
+    shift = layout.workspace_shift()
+    if not any(shift):
+        return camera
+    return replace(
+        camera,
+        eye=tuple(a + d for a, d in zip(DEFAULT_EYE, shift, strict=True)),
+        target=tuple(a + d for a, d in zip(DEFAULT_TARGET, shift, strict=True)),
+    )

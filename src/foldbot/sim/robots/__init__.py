@@ -5,7 +5,7 @@
 
 from __future__ import annotations
 
-from foldbot.errors import ConfigError
+from foldbot.errors import ConfigError, UnreachableTargetError
 from foldbot.sim.layout import CellLayout
 from foldbot.sim.robots.base import HOME_HEIGHT_ABOVE_TABLE, Robot, gripper_down_quaternion
 from foldbot.sim.robots.panda import Panda
@@ -25,9 +25,41 @@ def robot_class(name: str) -> type[Robot]:
     return cls
 
 
+REACH_CHECK_HEIGHT = 0.01
+"""Height (m) over the table at which the workspace centre must be reachable gripper-down."""
+
+
+def _unreachable(name: str, layout: CellLayout, exc: Exception) -> ConfigError:
+    bx, by, bz = layout.robot_base_xyz
+    cx, cy = layout.workspace_center_xy
+    return ConfigError(
+        f"the {name} mounted at ({bx:g}, {by:g}, {bz:g}) m cannot reach the workspace centre "
+        f"({cx:g}, {cy:g}) m on the table at {layout.table_height:g} m gripper down ({exc}); "
+        "move the layout's workspace_center_xy, robot_base_xyz or table_height"
+    )
+
+
 def make_robot(name: str, client: int, layout: CellLayout) -> Robot:
-    """Load robot `name` into PyBullet client `client`, mounted as `layout` says."""
-    return robot_class(name)(client, layout)
+    """Load robot `name` into PyBullet client `client`, mounted as `layout` says; ConfigError
+    naming the layout where the arm cannot reach its home over the workspace."""
+    try:
+        return robot_class(name)(client, layout)
+    except UnreachableTargetError as exc:
+        raise _unreachable(name, layout, exc) from None
+
+
+def check_workspace_reach(robot: Robot, name: str) -> None:
+    """ConfigError naming the layout where `robot` cannot reach its workspace centre at the
+    table gripper down (a layout file that puts the cloth out of reach is refused before
+    anything moves). Run on a planning twin: IK on the simulated arm itself, even one that
+    leaves its joints as they were, changes the order Bullet meets contacts in, and with it
+    every episode's cloth."""
+    layout = robot.layout
+    cx, cy = layout.workspace_center_xy
+    try:
+        robot.solve_ik([cx, cy, layout.table_height + REACH_CHECK_HEIGHT], q_seed=robot.home_q)
+    except UnreachableTargetError as exc:
+        raise _unreachable(name, layout, exc) from None
 
 
 __all__ = [
@@ -36,6 +68,7 @@ __all__ = [
     "UR5",
     "Panda",
     "Robot",
+    "check_workspace_reach",
     "gripper_down_quaternion",
     "make_robot",
     "robot_class",
