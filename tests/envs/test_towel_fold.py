@@ -135,6 +135,32 @@ def test_the_workspace_reaches_every_corner_of_the_suites_towels(env):
     assert x0 < 0.45 - half and x1 > 0.45 + half and y0 < -half and y1 > half
 
 
+def test_a_suite_laid_out_elsewhere_moves_the_workspace_and_still_folds(tmp_path):
+    """towel_loop with layouts/pedestal.toml's cell as its [layout]: the action's workspace
+    moves with the cell's (5 cm out, 6 cm left), and the recipe's carries, planned from the
+    camera moved with it, fold seed 1's towel as in the default cell."""
+    from pathlib import Path
+
+    from foldbot.bench.suite import SUITES_DIR
+
+    repo = Path(__file__).resolve().parents[2]
+    suite = tmp_path / "towel_loop_pedestal.toml"
+    layout = (repo / "layouts" / "pedestal.toml").read_text()
+    suite.write_text((SUITES_DIR / "towel_loop.toml").read_text() + "\n[layout]\n" + layout)
+    moved = TowelFoldEnv(suite=str(suite), **SMALL)
+    try:
+        default = TowelFoldConfig().workspace
+        shift = (0.05, 0.05, 0.06, 0.06)
+        assert moved.workspace == pytest.approx(
+            [a + d for a, d in zip(default, shift, strict=True)]
+        )
+        first, rewards, last = run_recipe(moved, seed=1)
+        assert len(rewards) == 2 and last["grasp_success"]
+        assert last["fold_error_mm"] < 0.4 * first["fold_error_mm"]
+    finally:
+        moved.close()
+
+
 def test_the_random_policy_drives_it(env):
     action = RandomPolicy(env, seed=2)({})
     assert env.action_space.contains(action)
