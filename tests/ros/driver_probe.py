@@ -69,11 +69,25 @@ for name, position in (("close", 0.0), ("open", 0.085), ("bad", -1.0)):
     out[name] = [gripper.get_state(), r.stalled, r.reached_goal, gripper.get_goal_status_text()]
 # A gripper goal sent while the arm moves waits for the motion's end (one goal at a time).
 fingers = list(robot_class("ur5").FINGER_JOINT_NAMES)
+# The jaws at rest first: the open goal ends after its settling time, the fingers a few
+# millimetres short of their open gap and still opening.
+deadline = time.monotonic() + 60
+while True:
+    f_then = [joints[n] for n in fingers]
+    time.sleep(0.2)
+    if np.abs(np.array([joints[n] for n in fingers]) - f_then).max() < 1e-5:
+        break
+    assert time.monotonic() < deadline, "the jaws never came to rest"
 q1 = np.array([joints[n] for n in names])
 away = q1 + np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.2])
 arm.send_goal(msg.FollowJointTrajectoryGoal(trajectory=JointTrajectory(
     joint_names=names, points=[point(q1, 0.0), point(away, 1.0)])))  # fmt: skip
-time.sleep(0.2)
+# The close leaves once the arm is seen moving (a fixed wait raced the goal's arrival on a
+# loaded machine: the close then came first and ran at once, as it should).
+deadline = time.monotonic() + 60
+while abs(joints[names[-1]] - q1[-1]) < 1e-3:
+    assert time.monotonic() < deadline, "the arm never moved"
+    time.sleep(0.005)
 sent = cell.clock
 close = msg.GripperCommandGoal()
 close.command.position = 0.0
