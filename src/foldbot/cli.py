@@ -14,10 +14,12 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every subcommand."""
     from foldbot.commands import (
         bench,
+        calibrate,
         compare,
         eval_perception,
         export_bag,
         fold,
+        ros_calibrate,
         ros_cell,
         ros_fold,
         ros_replay,
@@ -38,7 +40,15 @@ def build_parser() -> argparse.ArgumentParser:
         "score": (score, "recompute an episode's metrics from cloth.npz and result.json"),
         "ros-fold": (ros_fold, "fold over ROS 1 topics (roslaunch) and write the episode folder"),
         "ros-cell": (ros_cell, "the simulated cell alone, served as a real one (drivers, camera)"),
+        "ros-calibrate": (
+            ros_calibrate,
+            "find the camera's pose on a running cell from a board the arm holds (ROS)",
+        ),
         "ros-replay": (ros_replay, "replay a recorded bag through perception; compare keypoints"),
+        "calibrate": (
+            calibrate,
+            "find the camera's pose from a board the arm holds (simulated cell)",
+        ),
         "export-bag": (export_bag, "write an episode folder as a ROS 1 bag (no ROS needed)"),
     }
     for name, (module, help_text) in commands.items():

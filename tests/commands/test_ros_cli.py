@@ -98,6 +98,16 @@ from foldbot.commands.ros_fold import add_arguments, fold_args_text
         (["ros-cell", "--camera-rate", "0"], "--camera-rate must be > 0 frames per s, got 0.0"),
         (["ros-cell", "--real-time-factor", "-1"], "--real-time-factor must be > 0, got -1.0"),
         (["ros-cell", "--port", "0"], "--port must be in 1–65535, got 0"),
+        (
+            ["ros-cell", "--calibration-board", "--arms", "2"],
+            "--calibration-board is for a one-arm cell (ros-calibrate moves one arm), got --arms 2",
+        ),
+        (
+            ["ros-calibrate", "--out", "{tmp}/e", "--views", "2"],
+            "views must be an integer in [4, 12]",
+        ),
+        (["ros-calibrate", "--out", "{tmp}/e", "--board", "9x5"], "odd in all"),
+        (["ros-calibrate", "--out", "{tmp}/e", "--port", "70000"], "--port must be in 1–65535"),
         (["ros-replay", "{tmp}/missing.bag", "--rate", "0"], "--rate"),
         (["export-bag", "{tmp}", "--out", "{tmp}/x.txt"], "must end in .bag"),
     ],

@@ -1,6 +1,10 @@
 """ROS 1 availability for the tests under tests/ros (they skip, with the reason, without it)."""
 
+import os
+import signal
 import socket
+import subprocess
+import sys
 
 import pytest
 
@@ -30,6 +34,22 @@ def wait_for_master(port: int, timeout_s: float = 60.0) -> None:
     while not master.is_online():
         assert time.monotonic() < deadline, f"no ROS master on port {port} within {timeout_s} s"
         time.sleep(0.2)
+
+
+def start_cell(*options: str) -> tuple[subprocess.Popen, int]:
+    """`foldbot ros-cell` with `options` on a free port, in its own session; and the port."""
+    port = free_port()
+    cell = subprocess.Popen(
+        [sys.executable, "-m", "foldbot.cli", "ros-cell", *options, "--port", str(port)],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
+    )  # fmt: skip
+    return cell, port
+
+
+def stop_cell(cell: subprocess.Popen) -> str:
+    """Interrupt a cell start_cell started, as Ctrl-C does; its output."""
+    os.killpg(cell.pid, signal.SIGINT)
+    return cell.communicate(timeout=60)[0]
 
 
 DRIVERS_LAUNCH = """<launch>

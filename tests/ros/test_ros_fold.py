@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from ros_helpers import free_port, requires_ros, wait_for_master
+from ros_helpers import free_port, requires_ros, start_cell, stop_cell, wait_for_master
 
 from foldbot.garments import GARMENT_KEYPOINTS
 from foldbot.io.episode import REQUIRED_RESULT_KEYS, rescore
@@ -272,22 +272,6 @@ def test_a_fold_through_a_real_arms_driver_interface(tmp_path):
 
 SCORE_SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "score_on_sim_cell.py"
 SIM_NODES_OWN = ("sim/", "arm/", "gripper/command", "gripper/grasp", "ground_truth/")
-
-
-def start_cell(*options: str) -> tuple[subprocess.Popen, int]:
-    """`foldbot ros-cell` with `options` on a free port, in its own session; and the port."""
-    port = free_port()
-    cell = subprocess.Popen(
-        [sys.executable, "-m", "foldbot.cli", "ros-cell", *options, "--port", str(port)],
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
-    )  # fmt: skip
-    return cell, port
-
-
-def stop_cell(cell: subprocess.Popen) -> str:
-    """Interrupt a cell start_cell started, as Ctrl-C does; its output."""
-    os.killpg(cell.pid, signal.SIGINT)
-    return cell.communicate(timeout=60)[0]
 
 
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT], ids=["kill", "interrupt"])

@@ -54,10 +54,8 @@ import dataclasses
 import heapq
 import json
 import math
-import os
 import shutil
 import sys
-import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
@@ -67,12 +65,13 @@ from typing import Any
 import imageio.v3 as iio
 import numpy as np
 
-from foldbot.errors import ConfigError, FoldbotError, OutputError, SimulationDivergedError
+from foldbot.errors import ConfigError, FoldbotError, SimulationDivergedError
 from foldbot.garments import GARMENT_KEYPOINTS, make_garment, sample_garment
 from foldbot.garments.mesh import ClothMesh
 from foldbot.garments.pants import PantsSpec
 from foldbot.garments.towel import TowelSpec, make_towel
 from foldbot.garments.tshirt import TShirtSpec
+from foldbot.io.staging import commit_output, prepare_output
 from foldbot.metrics import keypoint_errors_mm
 from foldbot.perception.estimator import VisionEstimator
 from foldbot.perception.garment_keypoints import GarmentEstimator
@@ -653,36 +652,6 @@ def _group(rows: list[dict[str, Any]]) -> dict[str, Any]:
     }
 
 
-def _prepare_output(out: Path) -> Path:
-    """Check `out` can be written; return a fresh staging folder beside it (OutputError if not)."""
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise OutputError(f"--out {out} exists and is not a folder")
-    parent = out.parent if str(out.parent) else Path(".")
-    try:
-        parent.mkdir(parents=True, exist_ok=True)
-        stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=parent))
-    except OSError as exc:
-        raise OutputError(f"cannot write to --out {out}: {exc.strerror or exc}") from None
-    if out.exists() and not os.access(out, os.W_OK | os.X_OK):
-        shutil.rmtree(stage, ignore_errors=True)
-        raise OutputError(f"cannot write to --out {out}: permission denied")
-    return stage
-
-
-def _commit_output(stage: Path, out: Path) -> None:
-    """Move the staged results into `out` (atomic rename when `out` does not exist yet)."""
-    if not out.exists():
-        os.replace(stage, out)
-        return
-    for item in stage.iterdir():
-        dest = out / item.name
-        if dest.is_dir() and not dest.is_symlink():
-            shutil.rmtree(dest)
-        os.replace(item, dest)
-    stage.rmdir()
-
-
 def _print_table(summary: dict[str, Any], worst: list[dict[str, Any]]) -> None:
     def fmt(v: Any, spec: str) -> str:
         if v is None:
@@ -816,13 +785,13 @@ def run(args: argparse.Namespace) -> int:
         args = _with_defaults(args)
         _validate(args)
         out = Path(args.out)
-        stage = _prepare_output(out)
+        stage = prepare_output(out)
     except FoldbotError as exc:
         print(f"foldbot eval-perception: error: {exc}", file=sys.stderr)
         return 2
     try:
         _evaluate(args, stage)
-        _commit_output(stage, out)
+        commit_output(stage, out)
     except OSError as exc:
         shutil.rmtree(stage, ignore_errors=True)
         print(f"foldbot eval-perception: error: cannot write {out}: {exc}", file=sys.stderr)

@@ -55,6 +55,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     add_master_port(parser, "roscore is started if none runs there")
     add_real_time_factor(parser, "")
+    parser.add_argument(
+        "--calibration-board",
+        action="store_true",
+        help="the arm holds the calibration chessboard (8 × 5 squares of 24 mm on a bracket "
+        "beside the jaws), for `foldbot ros-calibrate`",
+    )
+    parser.add_argument(
+        "--hide-camera-pose",
+        action="store_true",
+        help="publish no world → camera transform on /tf_static, as a cell whose camera is not "
+        "calibrated yet (fold on it with `ros-fold --cell real --camera-pose CALIBRATION.json`)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -62,6 +74,11 @@ def run(args: argparse.Namespace) -> int:
     cfg = fold.config_from_args(args)
     check_real_time_factor(args.real_time_factor)
     check_port(args.port)
+    if args.calibration_board and cfg.arms != 1:
+        raise ConfigError(
+            "--calibration-board is for a one-arm cell (ros-calibrate moves one arm), got "
+            f"--arms {cfg.arms}"
+        )
     if not args.camera_rate > 0:
         raise ConfigError(f"--camera-rate must be > 0 frames per s, got {args.camera_rate!r}")
     missing = ros_missing()
@@ -79,6 +96,8 @@ def run(args: argparse.Namespace) -> int:
             f"fold_args:={fold_args_text(args)}",
             f"camera_rate:={args.camera_rate!r}",
             f"real_time_factor:={args.real_time_factor or 1.0!r}",
+            f"calibration_board:={'true' if args.calibration_board else 'false'}",
+            f"camera_pose:={'false' if args.hide_camera_pose else 'true'}",
         ]
         print(
             f"the simulated cell comes up on the ROS master at http://localhost:{port}; fold "
@@ -87,6 +106,11 @@ def run(args: argparse.Namespace) -> int:
             + (" and --arms 2" if cfg.arms == 2 else "")
             + (f" and --layout {args.layout}" if args.layout is not None else "")
             + (" (with --start crumpled: flatten it first)" if cfg.start == "crumpled" else "")
+            + (
+                f"; find its camera with `foldbot ros-calibrate --port {port} --out DIR`"
+                if args.calibration_board
+                else ""
+            )
             + "; Ctrl-C stops it",
             flush=True,
         )

@@ -21,6 +21,7 @@ import time
 from pathlib import Path
 
 from foldbot import errors
+from foldbot.calibration.capture import calibration_pose_words
 from foldbot.commands import fold
 from foldbot.errors import ConfigError, FoldbotError, OutputError
 from foldbot.ros.node_args import (
@@ -131,6 +132,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "loop gives a laid layer where depth tells nothing of it (grasps and places on a "
         "stack); default: the simulated cloth's of the same size (two collision margins, "
         "about 10 mm on a 30 cm towel)",
+    )
+    parser.add_argument(
+        "--camera-pose",
+        type=Path,
+        default=None,
+        metavar="CALIBRATION.json",
+        help="with --cell real: publish the camera's pose from this calibration (`foldbot "
+        "ros-calibrate`'s calibration.json) as world → camera_color_optical_frame on /tf_static, "
+        "for a cell that publishes none of its own",
     )
     parser.add_argument(
         "--gripper-lead",
@@ -304,6 +314,13 @@ def run(args: argparse.Namespace) -> int:
             "--cloth-thickness is for --cell real (with --cell sim, the simulated cloth's own "
             "thickness is used: two collision margins, set by --cloth margin_divisor=N)"
         )
+    camera_pose = ""
+    if args.camera_pose is not None:
+        if not real:
+            raise ConfigError(
+                "--camera-pose is for --cell real (the simulated cell publishes its camera's pose)"
+            )
+        camera_pose = " ".join(calibration_pose_words(args.camera_pose))
     if thickness is not None and not (
         math.isfinite(thickness) and 0.0 < thickness <= MAX_CLOTH_THICKNESS
     ):
@@ -366,6 +383,7 @@ def run(args: argparse.Namespace) -> int:
         f"gripper_lead:={-1.0 if args.gripper_lead is None else args.gripper_lead!r}",
         f"together_lead:={TOGETHER_LEAD_S if together is None else together!r}",
         f"cloth_thickness:={-1.0 if thickness is None else thickness!r}",
+        f"camera_pose:={camera_pose}",
     ]
     result_file = out / "result.json"
     before = result_file.stat().st_mtime_ns if result_file.is_file() else None

@@ -44,8 +44,10 @@ from foldbot.ros import (
 from foldbot.ros.node_args import (
     ARM_INTERFACE_PARAM,
     ARM_INTERFACES,
+    CALIBRATION_BOARD_PARAM,
     CAMERA_RATE_PARAM,
     FOLD_ARGS_PARAM,
+    PUBLISH_CAMERA_POSE_PARAM,
     REAL_TIME_FACTOR_PARAM,
     parse_fold_args,
 )
@@ -100,6 +102,8 @@ class SimNode:
         camera_rate: float,
         arm_interface: str = "topics",
         real_time_factor: float = 1.0,
+        calibration_board: bool = False,
+        publish_camera_pose: bool = True,
     ) -> None:
         _args, self.cfg = parse_fold_args(fold_args)
         if arm_interface not in ARM_INTERFACES:
@@ -118,6 +122,19 @@ class SimNode:
         """One per arm, arm 0 first; each has its kinematic twin (`model`, in a world of its own:
         FK there gives the commanded TCP without touching the simulated arm) and its grasp."""
         self.robot = self.parts.robot
+        if calibration_board:  # arm 0 holds the chessboard (`foldbot ros-calibrate`)
+            from foldbot.calibration.board import Chessboard
+            from foldbot.calibration.views import BoardMount
+            from foldbot.sim.calibration_board import attach_board
+
+            attach_board(self.robot, Chessboard(), BoardMount())
+        self.publish_camera_pose = publish_camera_pose
+        """Whether world → the camera goes on /tf_static (False: a cell not yet calibrated)."""
+        self.first_frame_topics = (
+            ("color", "color_info") if calibration_board else ("color", "depth", "color_info")
+        )
+        """What the first camera frame waits to have a subscriber on: the perception node takes
+        all three; a calibration, the colour image and its camera_info only."""
         arms = len(self.executors)
         self.prefixes = arm_prefixes(arms)
         self.arm_joints = arm_joint_names(self.robot.ARM_JOINT_NAMES, arms)
@@ -226,18 +243,22 @@ class SimNode:
             base = np.eye(4)  # arms are mounted unrotated (sim.robots.base)
             base[:3, 3] = ex.robot.layout.robot_base_xyz
             tfs.append(convert.transform_msg(base, WORLD_FRAME, prefix + BASE_FRAME, 0.0))
-        tfs.append(
-            convert.transform_msg(self.parts.camera.T_world_camera, WORLD_FRAME, CAMERA_FRAME, 0.0)
-        )
+        if self.publish_camera_pose:
+            tfs.append(
+                convert.transform_msg(
+                    self.parts.camera.T_world_camera, WORLD_FRAME, CAMERA_FRAME, 0.0
+                )
+            )
         self.pub["tf"].publish(TFMessage(transforms=tfs))
 
     def wait_for_camera_subscribers(self, timeout_s: float = SUBSCRIBER_WAIT_S) -> None:
         """Hold the first frame until something subscribes to the camera's images and info (the
         perception node): frames are not latched, and the task waits for that one's perception."""
         deadline = time.monotonic() + timeout_s
-        topics = ("color", "depth", "color_info")
         while not rospy.is_shutdown():
-            missing = [TOPICS[t] for t in topics if self.pub[t].get_num_connections() == 0]
+            missing = [
+                TOPICS[t] for t in self.first_frame_topics if self.pub[t].get_num_connections() == 0
+            ]
             if not missing:
                 return
             if time.monotonic() > deadline:
@@ -431,6 +452,8 @@ def main(argv: list[str] | None = None) -> int:
         float(rospy.get_param(CAMERA_RATE_PARAM, 10.0)),
         rospy.get_param(ARM_INTERFACE_PARAM, "topics"),
         float(rospy.get_param(REAL_TIME_FACTOR_PARAM, 1.0)),
+        bool(rospy.get_param(CALIBRATION_BOARD_PARAM, False)),
+        bool(rospy.get_param(PUBLISH_CAMERA_POSE_PARAM, True)),
     )
     try:
         node.spin()

@@ -1,0 +1,312 @@
+"""A calibration run on any cell: hold the board at each view, read the tool's pose from the
+joints and the board's corners from the image, solve, and write what came of it.
+
+`CalibrationCell` is what a cell gives the run (the simulated cell in process,
+`calibration.sim_cell`; a running cell over ROS, `foldbot.ros.calibrate_node`); the run itself
+never sees where the camera is.
+"""
+
+from __future__ import annotations
+
+import abc
+import json
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+import imageio.v3 as iio
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from foldbot.calibration.board import Chessboard, board_pose, detect_corners
+from foldbot.calibration.hand_eye import MIN_VIEWS, HandEyeSolution, solve_eye_to_hand
+from foldbot.calibration.views import CalibrationView
+from foldbot.errors import ConfigError, OutputError, PerceptionError, UnreachableTargetError
+
+CAMERA_FRAME = "camera_color_optical_frame"
+WORLD_FRAME = "world"
+OUTLIER_PX = 1.0
+"""A solve whose corners reproject worse than this (px RMS; a sound one reprojects within a few
+tenths) looks for a view to drop: a board seen mid-swing, a joint reading off, a corner found on
+the wrong edge."""
+
+
+class CalibrationCell(abc.ABC):
+    """What a calibration needs from a cell: the camera's intrinsics, an arm that goes where it
+    is told, and a frame with the tool's pose at it."""
+
+    @abc.abstractmethod
+    def intrinsics(self) -> tuple[np.ndarray, np.ndarray, int, int]:
+        """K (3 × 3), distortion coefficients, image width and height (px)."""
+
+    @abc.abstractmethod
+    def move_to(self, view: CalibrationView) -> None:
+        """Move the tool to the view's pose and let it come to rest; UnreachableTargetError,
+        before moving, where the arm cannot go there."""
+
+    @abc.abstractmethod
+    def frame(self) -> tuple[np.ndarray, np.ndarray]:
+        """A colour image (H × W × 3 uint8) and the tool's pose at it (4 × 4 T_world_tcp, from
+        the joints read back)."""
+
+    def finish(self) -> None:  # noqa: B027 - optional
+        """Take the arm back out of the way (its home)."""
+
+
+@dataclass
+class Capture:
+    """What one view gave."""
+
+    view: CalibrationView
+    T_world_tcp: np.ndarray | None = None
+    rgb: np.ndarray | None = None
+    corners: np.ndarray | None = None
+    T_camera_board: np.ndarray | None = None
+    dropped: str = ""
+    """Why the view is not in the solve ("" if it is)."""
+
+
+def pose_matrix(position: np.ndarray, quaternion: np.ndarray) -> np.ndarray:
+    """4 × 4 from a position and an (x, y, z, w) quaternion."""
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_quat(quaternion).as_matrix()
+    T[:3, 3] = position
+    return T
+
+
+def capture_views(
+    cell: CalibrationCell,
+    views: list[CalibrationView],
+    board: Chessboard,
+    progress: Callable[[str], None] = lambda line: None,
+) -> list[Capture]:
+    """Hold the board at every view in turn; each view's image, tool pose and corners, or why
+    it was dropped (out of reach, the board not seen)."""
+    K, dist, _, _ = cell.intrinsics()
+    captures = []
+    for view in views:
+        cap = Capture(view)
+        try:
+            cell.move_to(view)
+        except UnreachableTargetError as exc:
+            cap.dropped = f"out of reach: {exc}"
+            captures.append(cap)
+            progress(f"{view.name}: {cap.dropped}")
+            continue
+        cap.rgb, cap.T_world_tcp = cell.frame()
+        cap.corners = detect_corners(cap.rgb, board)
+        if cap.corners is None:
+            cap.dropped = "the board was not seen whole"
+        else:
+            cap.T_camera_board = board_pose(cap.corners, board, K, dist)
+        progress(f"{view.name}: {cap.dropped or 'board seen'}")
+        captures.append(cap)
+    cell.finish()
+    return captures
+
+
+def solve_captures(
+    captures: list[Capture], board: Chessboard, K: np.ndarray, dist: np.ndarray
+) -> HandEyeSolution:
+    """The solve over every view that saw the board. While its corners reproject worse than
+    OUTLIER_PX, the view without which the rest agree best is dropped (marked so) if that at
+    least halves the error: one bad view spreads its error over all the others."""
+    used = [c for c in captures if not c.dropped]
+    if len(used) < MIN_VIEWS:
+        reasons = "; ".join(f"{c.view.name}: {c.dropped}" for c in captures if c.dropped)
+        raise PerceptionError(
+            f"only {len(used)} of {len(captures)} views saw the board (at least {MIN_VIEWS} "
+            f"needed){': ' + reasons if reasons else ''}"
+        )
+
+    def solve(views: list[Capture]) -> HandEyeSolution:
+        return solve_eye_to_hand(
+            [c.T_world_tcp for c in views],
+            [c.T_camera_board for c in views],
+            [c.corners for c in views],
+            board,
+            K,
+            dist,
+        )
+
+    solution = solve(used)
+    while solution.reprojection_rms_px > OUTLIER_PX and len(used) > MIN_VIEWS:
+        trials = [(solve(used[:k] + used[k + 1 :]), k) for k in range(len(used))]
+        best, k = min(trials, key=lambda trial: trial[0].reprojection_rms_px)
+        if best.reprojection_rms_px > 0.5 * solution.reprojection_rms_px:
+            break
+        used[k].dropped = (
+            f"disagreed with the rest: {solution.reprojection_rms_px:.2f} px RMS with it, "
+            f"{best.reprojection_rms_px:.2f} without"
+        )
+        used = used[:k] + used[k + 1 :]
+        solution = best
+    return solution
+
+
+def _quat(T: np.ndarray) -> list[float]:
+    return Rotation.from_matrix(T[:3, :3]).as_quat().tolist()
+
+
+def launch_text(T_world_camera: np.ndarray) -> str:
+    """A roslaunch file that publishes the calibrated camera pose on /tf_static (foldbot's own
+    static publisher; tf2_ros's static_transform_publisher takes the same arguments)."""
+    args = " ".join(pose_words(T_world_camera, WORLD_FRAME, CAMERA_FRAME))
+    return (
+        "<launch>\n"
+        "  <!-- The camera's pose from foldbot's calibration: world → the colour camera's optical\n"
+        "       frame (x right, y down, z forward), as foldbot's perception node reads it. With\n"
+        '       tf2_ros installed, pkg="tf2_ros" type="static_transform_publisher" takes the\n'
+        "       same args. -->\n"
+        '  <node pkg="foldbot_ros" type="camera_pose" name="foldbot_camera_pose"\n'
+        f'        args="{args}"/>\n'
+        "</launch>\n"
+    )
+
+
+def pose_words(T: np.ndarray, parent: str, child: str) -> list[str]:
+    """A transform as static_transform_publisher's words."""
+    x, y, z = (float(v) for v in T[:3, 3])
+    qx, qy, qz, qw = Rotation.from_matrix(T[:3, :3]).as_quat()
+    return [
+        f"{x:.6f}",
+        f"{y:.6f}",
+        f"{z:.6f}",
+        f"{qx:.8f}",
+        f"{qy:.8f}",
+        f"{qz:.8f}",
+        f"{qw:.8f}",
+        parent,
+        child,
+    ]
+
+
+def calibration_pose_words(path: str | Path) -> list[str]:
+    """The camera pose a calibration.json (`foldbot calibrate`, `foldbot ros-calibrate`) holds,
+    as static_transform_publisher's words; ConfigError naming what is wrong with the file."""
+    path = Path(path)
+    try:
+        record = json.loads(path.read_text())
+        T = np.asarray(record["T_world_camera"], dtype=float)
+        parent, child = str(record["parent_frame"]), str(record["child_frame"])
+    except FileNotFoundError:
+        raise ConfigError(f"{str(path)!r}: no such file") from None
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise ConfigError(
+            f"{str(path)!r} is not a calibration.json of `foldbot calibrate` or "
+            f"`foldbot ros-calibrate` (T_world_camera, parent_frame, child_frame): {exc}"
+        ) from None
+    R = T[:3, :3] if T.shape == (4, 4) else np.zeros((3, 3))
+    if not (
+        T.shape == (4, 4)
+        and np.isfinite(T).all()
+        and np.allclose(R @ R.T, np.eye(3), atol=1e-6)
+        and abs(np.linalg.det(R) - 1.0) < 1e-6
+        and np.allclose(T[3], [0, 0, 0, 1])
+    ):
+        raise ConfigError(
+            f"{str(path)!r}: T_world_camera must be a rigid 4 × 4 transform, got {T.tolist()}"
+        )
+    return pose_words(T, parent, child)
+
+
+def contact_sheet(
+    captures: list[Capture],
+    solution: HandEyeSolution | None,
+    board: Chessboard,
+    K: np.ndarray,
+    dist: np.ndarray,
+    columns: int = 4,
+    width: int = 320,
+) -> np.ndarray:
+    """Every view's image, small: the corners found (green), where the solution puts them (red
+    crosses), and why a view was dropped."""
+    tiles = []
+    obj = board.object_points()
+    for cap in captures:
+        if cap.rgb is None:
+            tile = np.full((240, 320, 3), 40, np.uint8)
+        else:
+            tile = np.ascontiguousarray(cap.rgb[..., :3].copy())
+            if cap.corners is not None:
+                cv2.drawChessboardCorners(
+                    tile, board.pattern_size, cap.corners.reshape(-1, 1, 2).astype(np.float32), True
+                )
+            if solution is not None and cap.T_world_tcp is not None and not cap.dropped:
+                T = np.linalg.inv(solution.T_world_camera) @ cap.T_world_tcp @ solution.T_tcp_board
+                rvec = cv2.Rodrigues(T[:3, :3])[0]
+                pts = cv2.projectPoints(obj, rvec, T[:3, 3], K, dist)[0].reshape(-1, 2)
+                for u, v in pts:
+                    cv2.drawMarker(tile, (round(u), round(v)), (255, 0, 0), cv2.MARKER_CROSS, 8, 1)
+        scale = width / tile.shape[1]
+        tile = cv2.resize(tile, (width, round(tile.shape[0] * scale)), interpolation=cv2.INTER_AREA)
+        label = f"{cap.view.name}: {cap.dropped[:40] if cap.dropped else 'used'}"
+        cv2.putText(
+            tile, label, (6, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 0), 1, cv2.LINE_AA
+        )
+        tiles.append(tile)
+    h = max(t.shape[0] for t in tiles)
+    tiles = [np.pad(t, ((0, h - t.shape[0]), (0, 0), (0, 0))) for t in tiles]
+    while len(tiles) % columns:
+        tiles.append(np.zeros_like(tiles[0]))
+    rows = [np.hstack(tiles[i : i + columns]) for i in range(0, len(tiles), columns)]
+    return np.vstack(rows)
+
+
+def calibration_record(
+    captures: list[Capture], solution: HandEyeSolution, board: Chessboard
+) -> dict[str, Any]:
+    """calibration.json's content: the camera's pose, the board's on the tool, the residuals
+    and every view's fate."""
+    X = solution.T_world_camera
+    used = [c for c in captures if not c.dropped]
+    return {
+        "parent_frame": WORLD_FRAME,
+        "child_frame": CAMERA_FRAME,
+        "T_world_camera": X.tolist(),
+        "translation_m": X[:3, 3].tolist(),
+        "quaternion_xyzw": _quat(X),
+        "T_tcp_board": solution.T_tcp_board.tolist(),
+        "board": {
+            "squares": [board.squares_x, board.squares_y],
+            "square_m": board.square_m,
+        },
+        "views_used": len(used),
+        "views": [
+            {"name": c.view.name, "used": not c.dropped, "dropped": c.dropped or None}
+            for c in captures
+        ],
+        "reprojection_rms_px": solution.reprojection_rms_px,
+        "view_rms_px": list(solution.view_rms_px),
+        "board_disagreement_mm": {
+            "median": 1000.0 * float(np.median(solution.board_disagreement_m)),
+            "max": 1000.0 * float(np.max(solution.board_disagreement_m)),
+        },
+        "board_disagreement_deg": {
+            "median": float(np.rad2deg(np.median(solution.board_disagreement_rad))),
+            "max": float(np.rad2deg(np.max(solution.board_disagreement_rad))),
+        },
+    }
+
+
+def write_calibration(
+    stage: Path,
+    captures: list[Capture],
+    solution: HandEyeSolution,
+    board: Chessboard,
+    K: np.ndarray,
+    dist: np.ndarray,
+    extra: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """calibration.json, camera_pose.launch and views.png into `stage`; the record written."""
+    record = calibration_record(captures, solution, board)
+    record.update(extra or {})
+    try:
+        (stage / "calibration.json").write_text(json.dumps(record, indent=2) + "\n")
+        (stage / "camera_pose.launch").write_text(launch_text(solution.T_world_camera))
+        iio.imwrite(stage / "views.png", contact_sheet(captures, solution, board, K, dist))
+    except OSError as exc:
+        raise OutputError(f"cannot write the calibration into {stage}: {exc}") from exc
+    return record

@@ -1,0 +1,77 @@
+"""The simulated cell as a calibration sees it: the arm with a board on its tool, the camera
+wherever it was put. The run reads only the camera's intrinsics, its images and the joints; the
+camera's true pose is kept for the comparison alone (`true_T_world_camera`)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from foldbot.calibration.board import Chessboard
+from foldbot.calibration.capture import CalibrationCell, pose_matrix
+from foldbot.calibration.views import BoardMount, CalibrationView
+from foldbot.control.executor import ArmExecutor, move_joints_together
+from foldbot.sim.calibration_board import attach_board
+from foldbot.sim.camera import CameraConfig, RGBDCamera
+from foldbot.sim.robots import make_robot
+from foldbot.sim.world import SimConfig, SimWorld
+
+SETTLE_S = 0.5
+"""Rest after each move before the frame is taken (s): the board's bracket stops swinging."""
+CLEARANCE_SAMPLES = 12
+"""Joint-space moves are checked against the table at this many points along the way."""
+
+
+class SimCalibrationCell(CalibrationCell):
+    """A cell with no cloth: the arm, a board on its tool and the camera `camera` describes."""
+
+    def __init__(
+        self,
+        robot: str,
+        camera: CameraConfig,
+        board: Chessboard,
+        mount: BoardMount,
+        sim: SimConfig,
+    ) -> None:
+        self.world = SimWorld(sim)
+        self.model_world = SimWorld(SimConfig(time_step=sim.time_step, layout=sim.layout))
+        self.robot = make_robot(robot, self.world.client, sim.layout)
+        self.model = make_robot(robot, self.model_world.client, sim.layout)
+        self.executor = ArmExecutor(
+            self.world,
+            self.robot,
+            None,  # type: ignore[arg-type]  # no cloth to grasp: joint moves only
+            model=self.model,
+            model_table_id=self.model_world.table_id,
+        )
+        self.board_id = attach_board(self.robot, board, mount)
+        self.camera = RGBDCamera(self.world.client, camera)
+        self.world.step(int(SETTLE_S / self.world.time_step))
+
+    @property
+    def true_T_world_camera(self) -> np.ndarray:
+        """Ground truth, for measuring the calibration only."""
+        return self.camera.T_world_camera
+
+    def intrinsics(self) -> tuple[np.ndarray, np.ndarray, int, int]:
+        intr = self.camera.intrinsics
+        return intr.K, np.zeros(5), intr.width, intr.height
+
+    def move_to(self, view: CalibrationView) -> None:
+        q0 = self.robot.joint_positions()
+        q = self.model.solve_ik(view.position, view.quaternion, q_seed=q0)
+        path = q0 + np.linspace(0.0, 1.0, CLEARANCE_SAMPLES)[:, None] * (q - q0)
+        self.executor.check_table_clearance(path)
+        move_joints_together([(self.executor, q)], view.name)
+        self.world.step(int(SETTLE_S / self.world.time_step))
+
+    def frame(self) -> tuple[np.ndarray, np.ndarray]:
+        obs = self.camera.observe()
+        q = self.robot.joint_positions()
+        return obs.rgb, pose_matrix(*self.model.fk_tcp(q))
+
+    def finish(self) -> None:
+        move_joints_together([(self.executor, self.robot.home_q)], "home")
+
+    def close(self) -> None:
+        self.world.close()
+        self.model_world.close()

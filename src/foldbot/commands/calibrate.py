@@ -1,0 +1,237 @@
+"""`foldbot calibrate`: find the camera's pose in the cell from a chessboard the arm holds
+(eye-to-hand calibration), on the simulated cell, and measure it against the camera's true pose.
+
+The arm holds the board (by default 8 × 5 squares of 24 mm, on a bracket beside the jaws) at up to
+12 poses over the workspace, turned towards where the camera roughly is (`--look-from`); each
+pose's image gives the board's corners, the joints give the tool's pose, and the two are solved
+for the camera's pose in the world and the board's on the tool (calibration.hand_eye). Nothing
+in the solve reads the simulated camera's pose; it is compared with the answer afterwards.
+
+Writes, into --out:
+  calibration.json    the camera's pose (world → camera_color_optical_frame), the board's on
+                      the tool, the reprojection error, every view's fate, and the error against
+                      the simulated camera's true pose (`truth`)
+  camera_pose.launch  a static_transform_publisher for that pose, as a real cell publishes it
+  views.png           every view: the corners found and where the solution puts them
+
+`foldbot ros-calibrate` runs the same on a running cell (a real one, or `foldbot ros-cell
+--calibration-board`) over ROS.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+
+from foldbot.calibration.board import Chessboard
+from foldbot.calibration.capture import capture_views, solve_captures, write_calibration
+from foldbot.calibration.hand_eye import pose_error
+from foldbot.calibration.views import MAX_VIEWS, BoardMount, calibration_views
+from foldbot.errors import ConfigError
+from foldbot.io.staging import commit_output, prepare_output
+from foldbot.sim.camera import CameraConfig, camera_for_layout
+from foldbot.sim.layout import DEFAULT_LAYOUT, CellLayout, load_layout
+from foldbot.sim.robots import ROBOT_NAMES
+from foldbot.sim.world import SimConfig
+
+TABLE_GRID = 5
+"""The table-top error is measured on this many × this many points over the workspace."""
+
+
+def board_from_args(args: argparse.Namespace) -> Chessboard:
+    """The board the options name (`--board COLSxROWS`, `--square M`)."""
+    text = str(args.board).lower()
+    try:
+        cols, rows = (int(v) for v in text.split("x"))
+    except ValueError:
+        raise ConfigError(
+            f"--board must be COLUMNSxROWS of squares (e.g. 8x5), got {args.board!r}"
+        ) from None
+    return Chessboard(squares_x=cols, squares_y=rows, square_m=args.square)
+
+
+def add_board_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options every calibration command shares: the board, the views, the rough camera."""
+    parser.add_argument("--robot", default="ur5", choices=ROBOT_NAMES, help="arm to use")
+    parser.add_argument(
+        "--layout",
+        type=Path,
+        default=None,
+        metavar="FILE.toml",
+        help="the cell's layout (as for foldbot fold); the views are placed over its workspace",
+    )
+    parser.add_argument(
+        "--board",
+        default="8x5",
+        help="the chessboard's squares, COLUMNSxROWS, more columns than rows and odd in all "
+        "(default 8x5: 7 × 4 inner corners)",
+    )
+    parser.add_argument(
+        "--square", type=float, default=0.024, help="a square's side in m (default 0.024)"
+    )
+    parser.add_argument(
+        "--views",
+        type=int,
+        default=MAX_VIEWS,
+        help=f"poses to hold the board at, 4–{MAX_VIEWS} (default {MAX_VIEWS})",
+    )
+    parser.add_argument(
+        "--look-from",
+        type=float,
+        nargs=3,
+        default=None,
+        metavar=("X", "Y", "Z"),
+        help="roughly where the camera is (world, m; tens of cm off is fine): the board is "
+        "turned towards it. Default: the default camera's place in the layout",
+    )
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    add_board_arguments(parser)
+    parser.add_argument(
+        "--camera-eye",
+        type=float,
+        nargs=3,
+        default=None,
+        metavar=("X", "Y", "Z"),
+        help="put the simulated camera here (world, m) instead of the layout's default place; "
+        "the calibration is not told (give --look-from for a far move)",
+    )
+    parser.add_argument(
+        "--camera-target",
+        type=float,
+        nargs=3,
+        default=None,
+        metavar=("X", "Y", "Z"),
+        help="the point the moved camera looks at (default: the workspace centre on the table)",
+    )
+    parser.add_argument(
+        "--camera-noise",
+        type=float,
+        default=0.0,
+        metavar="SIGMA",
+        help="Gaussian noise on the simulated camera's colour image, σ in intensity levels "
+        "0–255 (default 0), as a real sensor's",
+    )
+
+
+def layout_from_args(args: argparse.Namespace) -> CellLayout:
+    return DEFAULT_LAYOUT if args.layout is None else load_layout(args.layout)
+
+
+def default_look_from(args: argparse.Namespace, layout: CellLayout) -> tuple[float, float, float]:
+    """Where the board is turned towards: --look-from, else the default camera's place in the
+    layout (the simulated cell's camera, moved with its workspace)."""
+    if args.look_from is not None:
+        return tuple(float(v) for v in args.look_from)  # type: ignore[return-value]
+    return tuple(float(v) for v in camera_for_layout(CameraConfig(), layout).T_world_camera[:3, 3])  # type: ignore[return-value]
+
+
+def sim_camera(args: argparse.Namespace, layout: CellLayout) -> CameraConfig:
+    """The simulated camera: the layout's, or where --camera-eye/--camera-target put it."""
+    noise = float(args.camera_noise)
+    if not (np.isfinite(noise) and 0.0 <= noise <= 64.0):
+        raise ConfigError(f"--camera-noise must be in [0, 64] intensity levels, got {noise!r}")
+    camera = dataclasses.replace(camera_for_layout(CameraConfig(), layout), rgb_noise=noise)
+    if args.camera_eye is None and args.camera_target is None:
+        return camera
+    if args.camera_eye is None:
+        raise ConfigError("--camera-target needs --camera-eye (where the camera stands)")
+    cx, cy = layout.workspace_center_xy
+    target = args.camera_target or (cx, cy, layout.table_height)
+    up = (-1.0, 0.0, 0.0)
+    if abs(np.dot(np.subtract(target, args.camera_eye), up)) > 0.99 * np.linalg.norm(
+        np.subtract(target, args.camera_eye)
+    ):
+        up = (0.0, 1.0, 0.0)
+    return CameraConfig(eye=tuple(args.camera_eye), target=tuple(target), up=up, rgb_noise=noise)
+
+
+def table_error_m(
+    T_estimated: np.ndarray, T_true: np.ndarray, K: np.ndarray, layout: CellLayout
+) -> float:
+    """The largest distance on the table top, over the workspace, between a point and where the
+    calibrated camera puts the pixel the true camera sees it at: the error a fold would meet."""
+    cx, cy = layout.workspace_center_xy
+    half = layout.workspace_size / 2.0
+    g = np.linspace(-half, half, TABLE_GRID)
+    xs, ys = np.meshgrid(cx + g, cy + g)
+    pts = np.stack([xs.ravel(), ys.ravel(), np.full(xs.size, layout.table_height)], axis=1)
+    cam = (np.linalg.inv(T_true) @ np.c_[pts, np.ones(len(pts))].T)[:3]
+    pix = K @ (cam / cam[2])
+    rays = np.linalg.inv(K) @ pix
+    R, t = T_estimated[:3, :3], T_estimated[:3, 3]
+    dirs = (R @ rays).T
+    s = (layout.table_height - t[2]) / dirs[:, 2]
+    seen = t + dirs * s[:, None]
+    return float(np.max(np.linalg.norm(seen - pts, axis=1)))
+
+
+def run(args: argparse.Namespace) -> int:
+    from foldbot.calibration.sim_cell import SimCalibrationCell
+
+    board = board_from_args(args)
+    layout = layout_from_args(args)
+    camera = sim_camera(args, layout)
+    look_from = tuple(args.look_from) if args.look_from is not None else None
+    if look_from is None:
+        look_from = (
+            tuple(camera.T_world_camera[:3, 3])
+            if args.camera_eye
+            else tuple(camera_for_layout(CameraConfig(), layout).T_world_camera[:3, 3])
+        )
+    mount = BoardMount()
+    views = calibration_views(layout, look_from, board, mount, args.views)
+    stage = prepare_output(args.out)
+    try:
+        t0 = time.monotonic()
+        cell = SimCalibrationCell(args.robot, camera, board, mount, SimConfig(layout=layout))
+        try:
+            captures = capture_views(
+                cell, views, board, lambda line: print(f"calibrate: {line}", flush=True)
+            )
+            K, dist, _, _ = cell.intrinsics()
+            solution = solve_captures(captures, board, K, dist)
+            truth = cell.true_T_world_camera
+        finally:
+            cell.close()
+        dt, dr = pose_error(solution.T_world_camera, truth)
+        table = table_error_m(solution.T_world_camera, truth, K, layout)
+        record = write_calibration(
+            stage,
+            captures,
+            solution,
+            board,
+            K,
+            dist,
+            {
+                "cell": "sim",
+                "robot": args.robot,
+                "look_from_m": list(look_from),
+                "truth": {
+                    "T_world_camera": truth.tolist(),
+                    "translation_error_mm": 1000.0 * dt,
+                    "rotation_error_deg": float(np.rad2deg(dr)),
+                    "table_error_mm": 1000.0 * table,
+                },
+                "wall_s": time.monotonic() - t0,
+            },
+        )
+    except BaseException:
+        shutil.rmtree(stage, ignore_errors=True)
+        raise
+    commit_output(stage, args.out)
+    print(
+        f"calibrate: {record['views_used']} of {len(views)} views, reprojection "
+        f"{record['reprojection_rms_px']:.2f} px RMS; the camera at "
+        f"{np.round(record['translation_m'], 4).tolist()} m; against the simulated camera "
+        f"{1000 * dt:.2f} mm, {np.rad2deg(dr):.3f}°, on the table ≤ {1000 * table:.2f} mm"
+    )
+    print(f"calibrate: wrote {args.out}/calibration.json, camera_pose.launch, views.png")
+    return 0

@@ -1,0 +1,104 @@
+"""`foldbot ros-calibrate`: find the camera's pose on a running cell, a real one or `foldbot
+ros-cell --calibration-board`, from a chessboard the arm holds (eye-to-hand calibration).
+
+Fix a printed chessboard to the tool (by default 8 × 5 squares of 24 mm, on a bracket beside the
+jaws, its printed face up with the gripper pointing down: see calibration.views.BoardMount; the
+calibration solves the board's real place on the tool, the nominal one only aims the views).
+The arm, through its driver's FollowJointTrajectory action, holds the board at up to 12 poses
+over the workspace turned towards where the camera roughly is (`--look-from`), comes back to
+where it started, and the views' corners (the colour camera's image and camera_info) and joints
+(/joint_states) give world → camera.
+
+Writes, into --out: calibration.json (the pose, the residuals, every view's fate),
+camera_pose.launch (a static_transform_publisher of world → camera_color_optical_frame: include
+it in the cell's launch file, and `foldbot ros-fold --cell real` reads it from /tf_static),
+views.png (what each view saw). The cell's layout (--layout) is the world frame. Needs ROS 1
+(scripts/install_ros.sh); the master at ROS_MASTER_URI, or --port.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+from foldbot.calibration.board import Chessboard
+from foldbot.calibration.views import BoardMount, calibration_views
+from foldbot.commands.calibrate import (
+    add_board_arguments,
+    board_from_args,
+    default_look_from,
+    layout_from_args,
+)
+from foldbot.commands.ros_fold import (
+    MASTER_WAIT_S,
+    add_master_port,
+    check_port,
+    master_running,
+    ros_env,
+    ros_missing,
+)
+from foldbot.errors import ConfigError, FoldbotError
+from foldbot.io.staging import commit_output, prepare_output
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    add_board_arguments(parser)
+    add_master_port(parser, "a cell must be running there")
+    parser.add_argument(
+        "--master-wait",
+        type=float,
+        default=None,
+        metavar="S",
+        help=f"how long to wait for the master to answer (default {MASTER_WAIT_S:g} s)",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    check_port(args.port)
+    board: Chessboard = board_from_args(args)
+    layout = layout_from_args(args)
+    look_from = default_look_from(args, layout)
+    calibration_views(layout, look_from, board, BoardMount(), args.views)  # checked before anything
+    wait_s = MASTER_WAIT_S if args.master_wait is None else args.master_wait
+    if not (wait_s >= 0):
+        raise ConfigError(f"--master-wait must be ≥ 0 s, got {args.master_wait!r}")
+    missing = ros_missing()
+    if missing:
+        raise FoldbotError(missing)
+    env = ros_env(args.port)
+    if not master_running(env, wait_s):
+        raise FoldbotError(
+            f"no ROS master answers at {env['ROS_MASTER_URI']} within {wait_s:g} s: start the "
+            "cell first (a real one, or `foldbot ros-cell --calibration-board`)"
+        )
+    stage = prepare_output(args.out)
+    try:
+        cmd = [sys.executable, "-m", "foldbot.ros.calibrate_node", "--stage", str(stage)]
+        cmd += ["--robot", args.robot, "--board", args.board, "--square", repr(args.square)]
+        cmd += ["--views", str(args.views), "--look-from", *(repr(v) for v in look_from)]
+        if args.layout is not None:
+            cmd += ["--layout", str(Path(args.layout).resolve())]
+        proc = subprocess.run(cmd, env=env, stderr=subprocess.PIPE, text=True, check=False)
+        if proc.returncode != 0:
+            lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+            raise FoldbotError(
+                "the calibration failed: " + (lines[-1] if lines else f"exit {proc.returncode}")
+            )
+    except BaseException:
+        shutil.rmtree(stage, ignore_errors=True)
+        raise
+    commit_output(stage, args.out)
+    record = json.loads((args.out / "calibration.json").read_text())
+    print(
+        f"ros-calibrate: {record['views_used']} of {len(record['views'])} views, reprojection "
+        f"{record['reprojection_rms_px']:.2f} px RMS; the board as the camera and the arm "
+        f"place it {record['board_disagreement_mm']['median']:.2f} mm apart (median); the camera "
+        f"at {[round(v, 4) for v in record['translation_m']]} m"
+    )
+    print(f"ros-calibrate: wrote {args.out}/calibration.json, camera_pose.launch, views.png")
+    return 0

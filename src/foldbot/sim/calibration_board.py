@@ -1,0 +1,93 @@
+"""A chessboard fixed to the simulated arm's tool, for hand–eye calibration: a white plate and
+its black squares as one rigid body (visual shapes only: it touches nothing), held on the TCP
+link by a fixed constraint as a bracket holds a printed board."""
+
+from __future__ import annotations
+
+import numpy as np
+import pybullet as p
+from scipy.spatial.transform import Rotation
+
+from foldbot.calibration.board import Chessboard
+from foldbot.calibration.views import BoardMount
+
+PLATE_THICKNESS = 0.004
+"""The plate's thickness (m), behind its printed face."""
+PRINT_THICKNESS = 0.0004
+"""The black squares stand this proud of the plate's face (m)."""
+BOARD_MASS = 0.05
+"""The board and its bracket (kg)."""
+
+
+def attach_board(robot, board: Chessboard, mount: BoardMount) -> int:
+    """Build `board` in the robot's PyBullet client and fix it to the robot's TCP as `mount`
+    says; returns the board's body id. Its base frame is the board frame (calibration.board)."""
+    client = robot.client
+    x0, x1, y0, y1 = board.plate_bounds()
+    plate = p.createVisualShape(
+        p.GEOM_BOX,
+        halfExtents=[(x1 - x0) / 2.0, (y1 - y0) / 2.0, PLATE_THICKNESS / 2.0],
+        visualFramePosition=[(x0 + x1) / 2.0, (y0 + y1) / 2.0, PLATE_THICKNESS / 2.0],
+        rgbaColor=[1.0, 1.0, 1.0, 1.0],
+        specularColor=[0.0, 0.0, 0.0],
+        physicsClientId=client,
+    )
+    # The plate's box as its collision shape gives the body its inertia (none would leave it
+    # without, and the constraint's solve would divide by it); it is then kept from touching
+    # anything.
+    plate_shape = p.createCollisionShape(
+        p.GEOM_BOX,
+        halfExtents=[(x1 - x0) / 2.0, (y1 - y0) / 2.0, PLATE_THICKNESS / 2.0],
+        collisionFramePosition=[(x0 + x1) / 2.0, (y0 + y1) / 2.0, PLATE_THICKNESS / 2.0],
+        physicsClientId=client,
+    )
+    half = board.square_m / 2.0
+    square = p.createVisualShape(
+        p.GEOM_BOX,
+        halfExtents=[half, half, PRINT_THICKNESS / 2.0],
+        rgbaColor=[0.02, 0.02, 0.02, 1.0],
+        specularColor=[0.0, 0.0, 0.0],
+        physicsClientId=client,
+    )
+    black = [(x, y) for x, y, is_black in board.squares() if is_black]
+    n = len(black)
+    T_tcp_board = mount.T_tcp_board()
+    tcp_pos, tcp_quat = robot.tcp_pose()
+    R_tcp = Rotation.from_quat(tcp_quat)
+    pos = np.asarray(tcp_pos) + R_tcp.apply(T_tcp_board[:3, 3])
+    quat = (R_tcp * Rotation.from_matrix(T_tcp_board[:3, :3])).as_quat()
+    body = p.createMultiBody(
+        baseMass=BOARD_MASS,
+        baseCollisionShapeIndex=plate_shape,
+        baseVisualShapeIndex=plate,
+        basePosition=pos.tolist(),
+        baseOrientation=quat.tolist(),
+        linkMasses=[0.0] * n,
+        linkCollisionShapeIndices=[-1] * n,
+        linkVisualShapeIndices=[square] * n,
+        linkPositions=[[x, y, -PRINT_THICKNESS / 2.0] for x, y in black],
+        linkOrientations=[[0.0, 0.0, 0.0, 1.0]] * n,
+        linkInertialFramePositions=[[0.0, 0.0, 0.0]] * n,
+        linkInertialFrameOrientations=[[0.0, 0.0, 0.0, 1.0]] * n,
+        linkParentIndices=[0] * n,
+        linkJointTypes=[p.JOINT_FIXED] * n,
+        linkJointAxis=[[0.0, 0.0, 1.0]] * n,
+        physicsClientId=client,
+    )
+    for link in range(-1, n):
+        p.setCollisionFilterGroupMask(body, link, 0, 0, physicsClientId=client)
+    mount_quat = Rotation.from_matrix(T_tcp_board[:3, :3]).as_quat()
+    constraint = p.createConstraint(
+        robot.body_id,
+        robot.tcp_link_index,
+        body,
+        -1,
+        p.JOINT_FIXED,
+        [0.0, 0.0, 0.0],
+        parentFramePosition=T_tcp_board[:3, 3].tolist(),
+        childFramePosition=[0.0, 0.0, 0.0],
+        parentFrameOrientation=mount_quat.tolist(),
+        physicsClientId=client,
+    )
+    p.changeConstraint(constraint, maxForce=500.0, physicsClientId=client)
+    return body

@@ -1,0 +1,97 @@
+"""The chessboard: its checks, and corners and pose found in an image of a known board pose
+(drawn through the board's homography, the way a pinhole camera sees a plane)."""
+
+import cv2
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from foldbot.calibration.board import Chessboard, board_pose, detect_corners
+from foldbot.errors import ConfigError
+
+K = np.array([[880.0, 0.0, 319.5], [0.0, 880.0, 239.5], [0.0, 0.0, 1.0]])
+PX_PER_M = 4000.0
+
+
+def board_picture(board: Chessboard) -> tuple[np.ndarray, np.ndarray]:
+    """The printed board as an image, and the board-frame → picture-pixel map (3 × 3)."""
+    x0, x1, y0, y1 = board.plate_bounds()
+    w, h = round((x1 - x0) * PX_PER_M), round((y1 - y0) * PX_PER_M)
+    img = np.full((h, w), 255, np.uint8)
+    s = board.square_m
+    for x, y, black in board.squares():
+        if black:
+            u0, v0 = round((x - s / 2 - x0) * PX_PER_M), round((y - s / 2 - y0) * PX_PER_M)
+            img[v0 : v0 + round(s * PX_PER_M), u0 : u0 + round(s * PX_PER_M)] = 0
+    # Pixel centres at integers: a square's edge at column u0 lies at u0 − 0.5.
+    to_px = np.array(
+        [[PX_PER_M, 0, -x0 * PX_PER_M - 0.5], [0, PX_PER_M, -y0 * PX_PER_M - 0.5], [0, 0, 1]]
+    )
+    return img, to_px
+
+
+def seen(board: Chessboard, T_camera_board: np.ndarray) -> np.ndarray:
+    """The camera's RGB image of the board at T_camera_board, on a grey background."""
+    img, to_px = board_picture(board)
+    R, t = T_camera_board[:3, :3], T_camera_board[:3, 3]
+    H = K @ np.column_stack([R[:, 0], R[:, 1], t]) @ np.linalg.inv(to_px)
+    out = cv2.warpPerspective(img, H, (640, 480), flags=cv2.INTER_AREA, borderValue=120)
+    return np.repeat(out[..., None], 3, axis=2)
+
+
+@pytest.mark.parametrize(
+    ("turn", "tilt"),
+    [
+        (0.0, (0.0, 0.0)),
+        (180.0, (0.0, 0.0)),  # turned about its normal by 180°: the same corner order
+        (180.0, (20.0, -10.0)),
+        (30.0, (15.0, 10.0)),
+        (150.0, (-15.0, 20.0)),
+        (-90.0, (12.0, 12.0)),
+    ],
+)
+def test_corners_and_pose_of_a_board_seen_at_a_known_pose(turn, tilt):
+    board = Chessboard()
+    T = np.eye(4)
+    R = Rotation.from_euler("xyz", [*tilt, turn], degrees=True)
+    T[:3, :3], T[:3, 3] = R.as_matrix(), [-0.07, -0.03, 0.9]
+    corners = detect_corners(seen(board, T), board)
+    assert corners is not None
+    obj = board.object_points()
+    expected = (K @ (T[:3, :3] @ obj.T + T[:3, 3:4])).T
+    expected = expected[:, :2] / expected[:, 2:]
+    assert np.abs(corners - expected).max() < 0.5
+    if tilt != (0.0, 0.0):  # PnP on a board square to the camera trades tilt for depth
+        T_found = board_pose(corners, board, K)
+        assert np.linalg.norm(T_found[:3, 3] - T[:3, 3]) < 1e-3
+        # A small board's tilt from one view is good to a degree or so; the hand–eye solve
+        # refines on every corner of every view, not on these poses.
+        assert Rotation.from_matrix(T_found[:3, :3].T @ T[:3, :3]).magnitude() < np.deg2rad(1.5)
+
+
+def test_no_board_no_corners():
+    assert detect_corners(np.full((480, 640, 3), 120, np.uint8), Chessboard()) is None
+
+
+def test_object_points_follow_the_detectors_order():
+    board = Chessboard(squares_x=6, squares_y=5, square_m=0.03)
+    pts = board.object_points()
+    assert board.pattern_size == (5, 4) and pts.shape == (20, 3)
+    assert pts[1].tolist() == pytest.approx([0.03, 0.0, 0.0])
+    assert pts[5].tolist() == pytest.approx([0.0, 0.03, 0.0])
+
+
+@pytest.mark.parametrize(
+    ("fields", "needle"),
+    [
+        ({"squares_x": 8, "squares_y": 6}, "odd in all"),
+        ({"squares_x": 5, "squares_y": 8}, "more along x"),
+        ({"squares_x": 2, "squares_y": 1}, "squares_x must be an integer in [3, 30]"),
+        ({"square_m": 0.0}, "square_m must be in"),
+        ({"square_m": float("nan")}, "square_m must be in"),
+        ({"margin_m": -0.01}, "margin_m must be in"),
+    ],
+)
+def test_a_board_with_an_ambiguous_or_impossible_shape_is_refused(fields, needle):
+    with pytest.raises(ConfigError, match=needle.replace("[", r"\[").replace("]", r"\]")):
+        Chessboard(**fields)

@@ -1,0 +1,53 @@
+"""`foldbot calibrate`: the simulated camera's pose found from the board the arm holds, written
+as a real cell publishes it; bad options refused by name with no folder left."""
+
+import json
+import re
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from foldbot.cli import main
+
+
+def test_a_moved_camera_is_found_from_the_held_board(tmp_path, capsys):
+    out = tmp_path / "cal"
+    # The camera off to the side and lower than the default: the calibration is not told where.
+    args = ["calibrate", "--out", str(out), "--views", "6", "--camera-eye", "0.95", "0.4", "1.6"]
+    assert main(args) == 0
+    record = json.loads((out / "calibration.json").read_text())
+    assert record["views_used"] >= 5 and record["reprojection_rms_px"] < 0.5
+    truth = record["truth"]
+    assert truth["translation_error_mm"] < 1.0 and truth["rotation_error_deg"] < 0.05
+    assert truth["table_error_mm"] < 1.0
+    assert np.allclose(record["translation_m"], [0.95, 0.4, 1.6], atol=2e-3)
+    # The launch file publishes that pose, world → the colour camera's optical frame.
+    launch = (out / "camera_pose.launch").read_text()
+    args_text = re.search(r'args="([^"]+)"', launch).group(1).split()
+    assert args_text[7:] == ["world", "camera_color_optical_frame"]
+    xyz, quat = np.array(args_text[:3], float), np.array(args_text[3:7], float)
+    T = np.array(record["T_world_camera"])
+    assert np.allclose(xyz, T[:3, 3], atol=1e-6)
+    assert np.allclose(Rotation.from_quat(quat).as_matrix(), T[:3, :3], atol=1e-6)
+    assert (out / "views.png").stat().st_size > 10_000
+    assert "against the simulated camera" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    ("extra", "needle"),
+    [
+        (["--board", "8x6"], "odd in all"),
+        (["--board", "eight"], "--board must be COLUMNSxROWS"),
+        (["--views", "3"], "views must be an integer in [4, 12]"),
+        (["--camera-target", "0.4", "0", "0.75"], "--camera-target needs --camera-eye"),
+        (["--look-from", "1", "0", "0.9"], "must be above the held board"),
+        (["--square", "0"], "square_m must be in"),
+        (["--camera-noise", "-1"], "--camera-noise must be in [0, 64] intensity levels"),
+    ],
+)
+def test_bad_options_are_refused_by_name_and_leave_no_folder(tmp_path, capsys, extra, needle):
+    out = tmp_path / "cal"
+    assert main(["calibrate", "--out", str(out), *extra]) == 2
+    assert needle in capsys.readouterr().err
+    assert not out.exists() and list(tmp_path.iterdir()) == []

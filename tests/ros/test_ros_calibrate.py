@@ -1,0 +1,80 @@
+"""`foldbot ros-calibrate` on a running cell (`foldbot ros-cell --calibration-board`), through
+the arm's driver action, /joint_states and the colour camera's topics only: the camera's pose it
+finds is the simulated camera's, and the arm is back where it started."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+from ros_helpers import free_port, requires_ros, start_cell, stop_cell, wait_for_master
+
+from foldbot.calibration.hand_eye import pose_error
+from foldbot.sim.camera import CameraConfig
+
+pytestmark = requires_ros
+
+
+def foldbot(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "foldbot.cli", *args], capture_output=True, text=True, timeout=600
+    )
+
+
+def test_the_camera_of_a_running_cell_is_found_through_its_topics(tmp_path):
+    cell, port = start_cell(
+        "--calibration-board", "--resolution", "5", "--camera-rate", "5",
+        "--real-time-factor", "3",
+    )  # fmt: skip
+    out = tmp_path / "calibration"
+    try:
+        wait_for_master(port)
+        proc = foldbot("ros-calibrate", "--out", str(out), "--views", "6", "--port", str(port))
+    finally:
+        log = stop_cell(cell)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:] + log[-3000:]
+    assert "find its camera with `foldbot ros-calibrate" in log
+    record = json.loads((out / "calibration.json").read_text())
+    assert record["cell"] == "ros" and record["views_used"] >= 5
+    # The simulated camera's pose (the default cell's), which the run was never told.
+    dt, dr = pose_error(np.array(record["T_world_camera"]), CameraConfig().T_world_camera)
+    assert dt < 2e-3 and np.rad2deg(dr) < 0.1, (dt, np.rad2deg(dr))
+    assert record["board_disagreement_mm"]["median"] < 2.0
+    assert {p.name for p in out.iterdir()} == {
+        "calibration.json",
+        "camera_pose.launch",
+        "views.png",
+    }
+    assert "of 6 views" in proc.stdout
+
+
+def test_no_master_no_calibration_and_no_folder(tmp_path):
+    out = tmp_path / "calibration"
+    port = free_port()
+    proc = foldbot("ros-calibrate", "--out", str(out), "--port", str(port), "--master-wait", "0.5")
+    assert proc.returncode == 2
+    assert f"no ROS master answers at http://localhost:{port}" in proc.stderr
+    assert "ros-cell --calibration-board" in proc.stderr
+    assert not out.exists()
+
+
+def test_a_calibrated_pose_stands_in_for_a_cell_that_publishes_none(tmp_path):
+    # A cell whose camera is not calibrated publishes no world → camera; `ros-fold --cell real
+    # --camera-pose` publishes the calibration's (here `foldbot calibrate`'s of the same
+    # simulated camera) and folds on it.
+    calibration = tmp_path / "calibration"
+    assert foldbot("calibrate", "--out", str(calibration), "--views", "5").returncode == 0
+    cell, port = start_cell("--hide-camera-pose", "--resolution", "5", "--camera-rate", "2")
+    out = tmp_path / "episode"
+    try:
+        wait_for_master(port)
+        proc = foldbot(
+            "ros-fold", "--cell", "real", "--camera-pose", str(calibration / "calibration.json"),
+            "--resolution", "5", "--video-fps", "2", "--recipe", "diagonal", "--out", str(out),
+            "--port", str(port),
+        )  # fmt: skip
+    finally:
+        log = stop_cell(cell)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:] + log[-3000:]
+    result = json.loads((out / "result.json").read_text())
+    assert result["cell"] == "real" and result["perceived"]["verified"]
