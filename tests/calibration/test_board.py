@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from foldbot.calibration.board import Chessboard, board_pose, detect_corners
+from foldbot.calibration.board import Chessboard, board_image, board_pose, detect_corners
 from foldbot.errors import ConfigError
 
 K = np.array([[880.0, 0.0, 319.5], [0.0, 880.0, 239.5], [0.0, 0.0, 1.0]])
@@ -15,19 +15,12 @@ PX_PER_M = 4000.0
 
 def board_picture(board: Chessboard) -> tuple[np.ndarray, np.ndarray]:
     """The printed board as an image, and the board-frame → picture-pixel map (3 × 3)."""
-    x0, x1, y0, y1 = board.plate_bounds()
-    w, h = round((x1 - x0) * PX_PER_M), round((y1 - y0) * PX_PER_M)
-    img = np.full((h, w), 255, np.uint8)
-    s = board.square_m
-    for x, y, black in board.squares():
-        if black:
-            u0, v0 = round((x - s / 2 - x0) * PX_PER_M), round((y - s / 2 - y0) * PX_PER_M)
-            img[v0 : v0 + round(s * PX_PER_M), u0 : u0 + round(s * PX_PER_M)] = 0
+    x0, _, y0, _ = board.plate_bounds()
     # Pixel centres at integers: a square's edge at column u0 lies at u0 − 0.5.
     to_px = np.array(
         [[PX_PER_M, 0, -x0 * PX_PER_M - 0.5], [0, PX_PER_M, -y0 * PX_PER_M - 0.5], [0, 0, 1]]
     )
-    return img, to_px
+    return board_image(board, PX_PER_M), to_px
 
 
 def seen(board: Chessboard, T_camera_board: np.ndarray) -> np.ndarray:
@@ -95,3 +88,14 @@ def test_object_points_follow_the_detectors_order():
 def test_a_board_with_an_ambiguous_or_impossible_shape_is_refused(fields, needle):
     with pytest.raises(ConfigError, match=needle.replace("[", r"\[").replace("]", r"\]")):
         Chessboard(**fields)
+
+
+def test_the_printed_board_has_its_squares_where_the_board_frame_says():
+    board = Chessboard(square_m=0.02, margin_m=0.01)
+    img = board_image(board, 1000.0)  # a pixel a millimetre
+    assert img.shape == (5 * 20 + 20, 8 * 20 + 20)
+    # Square (0, 0), around the origin's upper left, is black; (1, 0) beside it white.
+    assert img[10 + 10, 10 + 10] == 0 and img[10 + 10, 10 + 30] == 255
+    assert img[0, 0] == 255  # the margin
+    with pytest.raises(ConfigError, match="resolution must be in"):
+        board_image(board, 10.0)

@@ -51,3 +51,16 @@ def test_bad_options_are_refused_by_name_and_leave_no_folder(tmp_path, capsys, e
     assert main(["calibrate", "--out", str(out), *extra]) == 2
     assert needle in capsys.readouterr().err
     assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_the_board_to_print_is_written_at_its_resolution(tmp_path, capsys):
+    from PIL import Image
+
+    out = tmp_path / "board.png"
+    assert main(["print-board", str(out), "--dpi", "254"]) == 0
+    with Image.open(out) as img:
+        assert img.size == (2320, 1600)  # 232 × 160 mm at 10 px/mm
+        assert tuple(round(v) for v in img.info["dpi"]) == (254, 254)
+    assert "232 × 160 mm at 254 dpi" in capsys.readouterr().out
+    assert main(["print-board", str(tmp_path / "b.jpg")]) == 2
+    assert "written as a .png" in capsys.readouterr().err

@@ -131,3 +131,22 @@ def board_pose(
     T[:3, :3] = cv2.Rodrigues(rvec)[0]
     T[:3, 3] = tvec.ravel()
     return T
+
+
+def board_image(board: Chessboard, px_per_m: float) -> np.ndarray:
+    """The board as printed: its plate white, its black squares, `px_per_m` pixels a metre
+    (H × W uint8; the first inner corner where the board frame's origin is)."""
+    require(
+        math.isfinite(px_per_m) and 1000.0 <= px_per_m <= 100000.0,
+        f"the board's resolution must be in [1000, 100000] px/m, got {px_per_m!r}",
+    )
+    x0, x1, y0, y1 = board.plate_bounds()
+    width, height = round((x1 - x0) * px_per_m), round((y1 - y0) * px_per_m)
+    img = np.full((height, width), 255, np.uint8)
+    s = board.square_m
+    for x, y, black in board.squares():
+        if black:
+            u0, u1 = round((x - s / 2 - x0) * px_per_m), round((x + s / 2 - x0) * px_per_m)
+            v0, v1 = round((y - s / 2 - y0) * px_per_m), round((y + s / 2 - y0) * px_per_m)
+            img[v0:v1, u0:u1] = 0
+    return img
