@@ -50,7 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
             calibrate,
             "find the camera's pose from a board the arm holds (simulated cell)",
         ),
-        "print-board": (print_board, "the calibration chessboard as a PNG to print at 100 %"),
+        "print-board": (print_board, "the calibration chessboard as a PNG to print at full size"),
         "export-bag": (export_bag, "write an episode folder as a ROS 1 bag (no ROS needed)"),
     }
     for name, (module, help_text) in commands.items():

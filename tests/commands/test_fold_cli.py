@@ -25,7 +25,9 @@ def test_help_lists_subcommands(capsys):
         assert cmd in out
 
 
-@pytest.mark.parametrize("cmd", ["fold", "eval-perception", "score"])
+@pytest.mark.parametrize(
+    "cmd", ["fold", "eval-perception", "score", "calibrate", "ros-calibrate", "print-board"]
+)
 def test_subcommand_help(cmd, capsys):
     with pytest.raises(SystemExit) as exc:
         main([cmd, "--help"])
