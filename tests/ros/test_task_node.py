@@ -31,7 +31,9 @@ def test_a_camera_transform_that_never_comes_is_named():
 
     cell = SimpleNamespace(T_world_camera=None)
     with pytest.raises(
-        FoldbotError, match=r"no world → camera transform on /tf_static within 0\.1 s"
+        FoldbotError,
+        match=r"no world → camera transform on /tf_static within 0\.1 s: .*ros-calibrate.*"
+        r"--camera-pose",
     ):
         RosCell.camera_transform(cell, timeout_s=0.1)
 

@@ -448,7 +448,10 @@ class RosCell(FoldCell):
         while self.T_world_camera is None:
             if time.monotonic() > deadline or rospy.is_shutdown():
                 raise errors.FoldbotError(
-                    f"no world → camera transform on /tf_static within {timeout_s:g} s"
+                    f"no world → camera transform on /tf_static within {timeout_s:g} s: a "
+                    "cell's camera needs its pose (find it with `foldbot ros-calibrate`, then "
+                    "publish its camera_pose.launch or give ros-fold --camera-pose "
+                    "CALIBRATION.json)"
                 )
             time.sleep(0.05)
         return self.T_world_camera
