@@ -44,6 +44,7 @@ def test_a_moved_camera_is_found_from_the_held_board(tmp_path, capsys):
         (["--look-from", "1", "0", "0.9"], "must be above the held board"),
         (["--square", "0"], "square_m must be in"),
         (["--camera-noise", "-1"], "--camera-noise must be in [0, 64] intensity levels"),
+        (["--arm", "right"], "--arm right is for a two-arm cell (--arms 2)"),
     ],
 )
 def test_bad_options_are_refused_by_name_and_leave_no_folder(tmp_path, capsys, extra, needle):
@@ -64,3 +65,13 @@ def test_the_board_to_print_is_written_at_its_resolution(tmp_path, capsys):
     assert "232 × 160 mm at 254 dpi" in capsys.readouterr().out
     assert main(["print-board", str(tmp_path / "b.jpg")]) == 2
     assert "written as a .png" in capsys.readouterr().err
+
+
+def test_either_arm_of_two_holds_the_board(tmp_path):
+    out = tmp_path / "cal"
+    assert (
+        main(["calibrate", "--out", str(out), "--arms", "2", "--arm", "right", "--views", "5"]) == 0
+    )
+    record = json.loads((out / "calibration.json").read_text())
+    assert (record["arms"], record["arm"]) == (2, 1) and record["views_used"] >= 4
+    assert record["truth"]["translation_error_mm"] < 1.0

@@ -99,8 +99,12 @@ from foldbot.commands.ros_fold import add_arguments, fold_args_text
         (["ros-cell", "--real-time-factor", "-1"], "--real-time-factor must be > 0, got -1.0"),
         (["ros-cell", "--port", "0"], "--port must be in 1–65535, got 0"),
         (
-            ["ros-cell", "--calibration-board", "--arms", "2"],
-            "--calibration-board is for a one-arm cell (ros-calibrate moves one arm), got --arms 2",
+            ["ros-cell", "--calibration-board", "right"],
+            "--calibration-board right is for a two-arm cell (--arms 2)",
+        ),
+        (
+            ["ros-calibrate", "--out", "{tmp}/e", "--arm", "right"],
+            "--arm right is for a two-arm cell",
         ),
         (
             ["ros-calibrate", "--out", "{tmp}/e", "--views", "2"],

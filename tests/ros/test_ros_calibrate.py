@@ -7,6 +7,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 from ros_helpers import free_port, requires_ros, start_cell, stop_cell, wait_for_master
 
 from foldbot.calibration.hand_eye import pose_error
@@ -21,19 +22,32 @@ def foldbot(*args: str) -> subprocess.CompletedProcess:
     )
 
 
-def test_the_camera_of_a_running_cell_is_found_through_its_topics(tmp_path):
+@pytest.mark.parametrize(
+    ("cell_arms", "calibrate_arms"),
+    [
+        ((), ()),
+        (("--arms", "2", "--calibration-board", "right"), ("--arms", "2", "--arm", "right")),
+    ],
+    ids=["one arm", "the right of two"],
+)
+def test_the_camera_of_a_running_cell_is_found_through_its_topics(
+    tmp_path, cell_arms, calibrate_arms
+):
+    board = () if cell_arms else ("--calibration-board",)
     cell, port = start_cell(
-        "--calibration-board", "--resolution", "5", "--camera-rate", "5",
-        "--real-time-factor", "3",
-    )  # fmt: skip
+        *board, *cell_arms, "--resolution", "5", "--camera-rate", "5", "--real-time-factor", "3"
+    )
     out = tmp_path / "calibration"
     try:
         wait_for_master(port)
-        proc = foldbot("ros-calibrate", "--out", str(out), "--views", "6", "--port", str(port))
+        proc = foldbot(
+            "ros-calibrate", "--out", str(out), "--views", "6", "--port", str(port),
+            *calibrate_arms,
+        )  # fmt: skip
     finally:
         log = stop_cell(cell)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:] + log[-3000:]
-    assert "find its camera with `foldbot ros-calibrate" in log
+    assert f"find its camera with `foldbot ros-calibrate --port {port} --out DIR" in log
     record = json.loads((out / "calibration.json").read_text())
     assert record["cell"] == "ros" and record["views_used"] >= 5
     # The simulated camera's pose (the default cell's), which the run was never told.

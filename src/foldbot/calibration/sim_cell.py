@@ -22,7 +22,8 @@ CLEARANCE_SAMPLES = 12
 
 
 class SimCalibrationCell(CalibrationCell):
-    """A cell with no cloth: the arm, a board on its tool and the camera `camera` describes."""
+    """A cell with no cloth: the arm (or two, `arms`), a board on the tool of arm `arm` and the
+    camera `camera` describes. Another arm stands at its home, where it may hide a view."""
 
     def __init__(
         self,
@@ -31,11 +32,15 @@ class SimCalibrationCell(CalibrationCell):
         board: Chessboard,
         mount: BoardMount,
         sim: SimConfig,
+        arms: int = 1,
+        arm: int = 0,
     ) -> None:
+        layouts = sim.layout.arm_layouts(arms)
         self.world = SimWorld(sim)
         self.model_world = SimWorld(SimConfig(time_step=sim.time_step, layout=sim.layout))
-        self.robot = make_robot(robot, self.world.client, sim.layout)
-        self.model = make_robot(robot, self.model_world.client, sim.layout)
+        robots = [make_robot(robot, self.world.client, lay) for lay in layouts]
+        self.robot = robots[arm]
+        self.model = make_robot(robot, self.model_world.client, layouts[arm])
         self.executor = ArmExecutor(
             self.world,
             self.robot,

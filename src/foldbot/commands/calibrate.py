@@ -39,6 +39,8 @@ from foldbot.sim.layout import DEFAULT_LAYOUT, CellLayout, load_layout
 from foldbot.sim.robots import ROBOT_NAMES
 from foldbot.sim.world import SimConfig
 
+ARM_NAMES = ("left", "right")
+"""A two-arm cell's arms, arm 0 first (foldbot.ros.ARM_PREFIXES' order)."""
 TABLE_GRID = 5
 """The table-top error is measured on this many × this many points over the workspace."""
 
@@ -64,6 +66,15 @@ def add_board_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         metavar="FILE.toml",
         help="the cell's layout (as for foldbot fold); the views are placed over its workspace",
+    )
+    parser.add_argument(
+        "--arms", type=int, default=1, choices=(1, 2), help="arms in the cell (default 1)"
+    )
+    parser.add_argument(
+        "--arm",
+        default="left",
+        choices=ARM_NAMES,
+        help="with --arms 2: the arm that holds the board (default left, +y)",
     )
     parser.add_argument(
         "--board",
@@ -119,6 +130,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="Gaussian noise on the simulated camera's colour image, σ in intensity levels "
         "0–255 (default 0), as a real sensor's",
     )
+
+
+def arm_index(args: argparse.Namespace) -> int:
+    """The arm that holds the board: 0 in a one-arm cell, else --arm's."""
+    if args.arms == 1:
+        if args.arm != "left":
+            raise ConfigError(f"--arm {args.arm} is for a two-arm cell (--arms 2)")
+        return 0
+    return ARM_NAMES.index(args.arm)
 
 
 def layout_from_args(args: argparse.Namespace) -> CellLayout:
@@ -191,7 +211,9 @@ def run(args: argparse.Namespace) -> int:
     stage = prepare_output(args.out)
     try:
         t0 = time.monotonic()
-        cell = SimCalibrationCell(args.robot, camera, board, mount, SimConfig(layout=layout))
+        cell = SimCalibrationCell(
+            args.robot, camera, board, mount, SimConfig(layout=layout), args.arms, arm_index(args)
+        )
         try:
             captures = capture_views(
                 cell, views, board, lambda line: print(f"calibrate: {line}", flush=True)
@@ -213,6 +235,8 @@ def run(args: argparse.Namespace) -> int:
             {
                 "cell": "sim",
                 "robot": args.robot,
+                "arms": args.arms,
+                "arm": arm_index(args),
                 "look_from_m": list(look_from),
                 "truth": {
                     "T_world_camera": truth.tolist(),

@@ -29,6 +29,7 @@ from foldbot.calibration.board import Chessboard
 from foldbot.calibration.views import BoardMount, calibration_views
 from foldbot.commands.calibrate import (
     add_board_arguments,
+    arm_index,
     board_from_args,
     default_look_from,
     layout_from_args,
@@ -62,6 +63,7 @@ def run(args: argparse.Namespace) -> int:
     check_port(args.port)
     board: Chessboard = board_from_args(args)
     layout = layout_from_args(args)
+    arm_index(args)  # --arm only with --arms 2
     look_from = default_look_from(args, layout)
     calibration_views(layout, look_from, board, BoardMount(), args.views)  # checked before anything
     wait_s = MASTER_WAIT_S if args.master_wait is None else args.master_wait
@@ -80,6 +82,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         cmd = [sys.executable, "-m", "foldbot.ros.calibrate_node", "--stage", str(stage)]
         cmd += ["--robot", args.robot, "--board", args.board, "--square", repr(args.square)]
+        cmd += ["--arms", str(args.arms), "--arm", args.arm]
         cmd += ["--views", str(args.views), "--look-from", *(repr(v) for v in look_from)]
         if args.layout is not None:
             cmd += ["--layout", str(Path(args.layout).resolve())]

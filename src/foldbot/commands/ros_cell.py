@@ -19,6 +19,7 @@ import subprocess
 import tempfile
 
 from foldbot.commands import fold
+from foldbot.commands.calibrate import ARM_NAMES
 from foldbot.commands.ros_fold import (
     DEFAULT_PORT,
     add_master_port,
@@ -57,9 +58,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_real_time_factor(parser, "")
     parser.add_argument(
         "--calibration-board",
-        action="store_true",
+        nargs="?",
+        const="left",
+        default=None,
+        choices=ARM_NAMES,
+        metavar="ARM",
         help="the arm holds the calibration chessboard (8 × 5 squares of 24 mm on a bracket "
-        "beside the jaws), for `foldbot ros-calibrate`",
+        "beside the jaws), for `foldbot ros-calibrate`; with --arms 2, the left arm's (the "
+        "default) or the right's",
     )
     parser.add_argument(
         "--hide-camera-pose",
@@ -74,10 +80,11 @@ def run(args: argparse.Namespace) -> int:
     cfg = fold.config_from_args(args)
     check_real_time_factor(args.real_time_factor)
     check_port(args.port)
-    if args.calibration_board and cfg.arms != 1:
+    board_arm = -1 if args.calibration_board is None else ARM_NAMES.index(args.calibration_board)
+    if board_arm >= cfg.arms:
         raise ConfigError(
-            "--calibration-board is for a one-arm cell (ros-calibrate moves one arm), got "
-            f"--arms {cfg.arms}"
+            f"--calibration-board {args.calibration_board} is for a two-arm cell (--arms 2); "
+            "a one-arm cell's arm holds it with --calibration-board alone"
         )
     if not args.camera_rate > 0:
         raise ConfigError(f"--camera-rate must be > 0 frames per s, got {args.camera_rate!r}")
@@ -96,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
             f"fold_args:={fold_args_text(args)}",
             f"camera_rate:={args.camera_rate!r}",
             f"real_time_factor:={args.real_time_factor or 1.0!r}",
-            f"calibration_board:={'true' if args.calibration_board else 'false'}",
+            f"calibration_board:={board_arm}",
             f"camera_pose:={'false' if args.hide_camera_pose else 'true'}",
         ]
         print(
@@ -107,7 +114,9 @@ def run(args: argparse.Namespace) -> int:
             + (f" and --layout {args.layout}" if args.layout is not None else "")
             + (" (with --start crumpled: flatten it first)" if cfg.start == "crumpled" else "")
             + (
-                f"; find its camera with `foldbot ros-calibrate --port {port} --out DIR`"
+                f"; find its camera with `foldbot ros-calibrate --port {port} --out DIR"
+                + (f" --arms 2 --arm {args.calibration_board}" if cfg.arms == 2 else "")
+                + "`"
                 if args.calibration_board
                 else ""
             )

@@ -29,7 +29,7 @@ from foldbot.calibration.capture import (
 from foldbot.calibration.views import BoardMount, CalibrationView, calibration_views
 from foldbot.control.executor import ArmExecutor
 from foldbot.errors import FoldbotError
-from foldbot.ros import TOPICS, convert
+from foldbot.ros import TOPICS, arm_joint_names, convert, driver_actions
 from foldbot.ros.drivers import ActionArm
 from foldbot.sim.robots import make_robot
 from foldbot.sim.world import SimConfig, SimWorld
@@ -45,17 +45,20 @@ CLEARANCE_SAMPLES = 12
 
 
 class RosCalibrationCell(CalibrationCell):
-    """A running cell over ROS: the arm through its driver's action, the camera's topics."""
+    """A running cell over ROS: the arm through its driver's action (arm `arm` of `arms`: its
+    prefixed joints and namespaced action), the camera's topics."""
 
-    def __init__(self, robot: str, layout) -> None:
+    def __init__(self, robot: str, layout, arms: int = 1, arm: int = 0) -> None:
         self.model_world = SimWorld(SimConfig(layout=layout))
-        self.model = make_robot(robot, self.model_world.client, layout)
+        self.model = make_robot(robot, self.model_world.client, layout.arm_layouts(arms)[arm])
         self.planner = ArmExecutor(
             self.model_world, self.model, None,  # type: ignore[arg-type]  # no grasps: moves only
             model_table_id=self.model_world.table_id,
         )  # fmt: skip
-        self.joint_names = list(self.model.ARM_JOINT_NAMES)
-        self.arm = ActionArm(self.joint_names, failure=lambda: None)
+        self.joint_names = arm_joint_names(self.model.ARM_JOINT_NAMES, arms)[arm]
+        self.arm = ActionArm(
+            self.joint_names, failure=lambda: None, actions=driver_actions(arms)[arm]
+        )
         self._lock = threading.Lock()
         self._image: Image | None = None
         self._info: CameraInfo | None = None
@@ -136,6 +139,7 @@ class RosCalibrationCell(CalibrationCell):
 def main(argv: list[str] | None = None) -> int:
     from foldbot.commands.calibrate import (
         add_board_arguments,
+        arm_index,
         board_from_args,
         default_look_from,
         layout_from_args,
@@ -152,7 +156,7 @@ def main(argv: list[str] | None = None) -> int:
         look_from = default_look_from(args, layout)
         mount = BoardMount()
         views = calibration_views(layout, look_from, board, mount, args.views)
-        cell = RosCalibrationCell(args.robot, layout)
+        cell = RosCalibrationCell(args.robot, layout, args.arms, arm_index(args))
         try:
             captures = capture_views(
                 cell, views, board, lambda line: print(f"ros-calibrate: {line}", flush=True)
@@ -163,7 +167,13 @@ def main(argv: list[str] | None = None) -> int:
             cell.close()
         write_calibration(
             args.stage, captures, solution, board, K, dist,
-            {"cell": "ros", "robot": args.robot, "look_from_m": list(look_from)},
+            {
+                "cell": "ros",
+                "robot": args.robot,
+                "arms": args.arms,
+                "arm": arm_index(args),
+                "look_from_m": list(look_from),
+            },
         )  # fmt: skip
     except FoldbotError as exc:
         print(f"{type(exc).__name__}: {exc}", file=sys.stderr, flush=True)

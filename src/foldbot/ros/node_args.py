@@ -44,8 +44,9 @@ MAX_CLOTH_THICKNESS = 0.05
 REAL_TIME_FACTOR_PARAM = "/foldbot/real_time_factor"
 """With the actions interface: simulated seconds per wall second the sim node runs at."""
 CALIBRATION_BOARD_PARAM = "/foldbot/calibration_board"
-"""The sim node: fix the calibration chessboard (calibration.board.Chessboard's default, on
-calibration.views.BoardMount's default bracket) to the arm's tool, for `foldbot ros-calibrate`."""
+"""The sim node: the arm (0, or 1 of two) whose tool holds the calibration chessboard
+(calibration.board.Chessboard's default, on calibration.views.BoardMount's default bracket), for
+`foldbot ros-calibrate`; negative: none."""
 PUBLISH_CAMERA_POSE_PARAM = "/foldbot/publish_camera_pose"
 """The sim node: whether it publishes world → the camera on /tf_static (False: a cell whose camera
 is not calibrated yet; `foldbot ros-fold --cell real --camera-pose` then publishes one)."""

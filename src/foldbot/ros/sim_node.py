@@ -102,7 +102,7 @@ class SimNode:
         camera_rate: float,
         arm_interface: str = "topics",
         real_time_factor: float = 1.0,
-        calibration_board: bool = False,
+        calibration_board: int | None = None,
         publish_camera_pose: bool = True,
     ) -> None:
         _args, self.cfg = parse_fold_args(fold_args)
@@ -122,16 +122,23 @@ class SimNode:
         """One per arm, arm 0 first; each has its kinematic twin (`model`, in a world of its own:
         FK there gives the commanded TCP without touching the simulated arm) and its grasp."""
         self.robot = self.parts.robot
-        if calibration_board:  # arm 0 holds the chessboard (`foldbot ros-calibrate`)
+        if calibration_board is not None:  # that arm holds the chessboard (`ros-calibrate`)
             from foldbot.calibration.board import Chessboard
             from foldbot.calibration.views import BoardMount
             from foldbot.sim.calibration_board import attach_board
 
-            attach_board(self.robot, Chessboard(), BoardMount())
+            if not 0 <= calibration_board < len(self.executors):
+                raise FoldbotError(
+                    f"calibration_board must name an arm, 0 to {len(self.executors) - 1}, got "
+                    f"{calibration_board}"
+                )
+            attach_board(self.executors[calibration_board].robot, Chessboard(), BoardMount())
         self.publish_camera_pose = publish_camera_pose
         """Whether world → the camera goes on /tf_static (False: a cell not yet calibrated)."""
         self.first_frame_topics = (
-            ("color", "color_info") if calibration_board else ("color", "depth", "color_info")
+            ("color", "color_info")
+            if calibration_board is not None
+            else ("color", "depth", "color_info")
         )
         """What the first camera frame waits to have a subscriber on: the perception node takes
         all three; a calibration, the colour image and its camera_info only."""
@@ -452,7 +459,9 @@ def main(argv: list[str] | None = None) -> int:
         float(rospy.get_param(CAMERA_RATE_PARAM, 10.0)),
         rospy.get_param(ARM_INTERFACE_PARAM, "topics"),
         float(rospy.get_param(REAL_TIME_FACTOR_PARAM, 1.0)),
-        bool(rospy.get_param(CALIBRATION_BOARD_PARAM, False)),
+        board_arm
+        if (board_arm := int(rospy.get_param(CALIBRATION_BOARD_PARAM, -1))) >= 0
+        else None,
         bool(rospy.get_param(PUBLISH_CAMERA_POSE_PARAM, True)),
     )
     try:
