@@ -57,6 +57,19 @@ def board_from_args(args: argparse.Namespace) -> Chessboard:
     return Chessboard(squares_x=cols, squares_y=rows, square_m=args.square)
 
 
+def add_board_shape_arguments(parser: argparse.ArgumentParser) -> None:
+    """The board's squares and their size (`--board COLSxROWS`, `--square M`)."""
+    parser.add_argument(
+        "--board",
+        default="8x5",
+        help="the chessboard's squares, COLUMNSxROWS, more columns than rows and odd in all "
+        "(default 8x5: 7 × 4 inner corners)",
+    )
+    parser.add_argument(
+        "--square", type=float, default=0.024, help="a square's side in m (default 0.024)"
+    )
+
+
 def add_board_arguments(parser: argparse.ArgumentParser) -> None:
     """The options every calibration command shares: the board, the views, the rough camera."""
     parser.add_argument("--robot", default="ur5", choices=ROBOT_NAMES, help="arm to use")
@@ -76,15 +89,7 @@ def add_board_arguments(parser: argparse.ArgumentParser) -> None:
         choices=ARM_NAMES,
         help="with --arms 2: the arm that holds the board (default left, +y)",
     )
-    parser.add_argument(
-        "--board",
-        default="8x5",
-        help="the chessboard's squares, COLUMNSxROWS, more columns than rows and odd in all "
-        "(default 8x5: 7 × 4 inner corners)",
-    )
-    parser.add_argument(
-        "--square", type=float, default=0.024, help="a square's side in m (default 0.024)"
-    )
+    add_board_shape_arguments(parser)
     parser.add_argument(
         "--views",
         type=int,

@@ -13,7 +13,7 @@ import argparse
 from pathlib import Path
 
 from foldbot.calibration.board import board_image
-from foldbot.commands.calibrate import board_from_args
+from foldbot.commands.calibrate import add_board_shape_arguments, board_from_args
 from foldbot.errors import ConfigError, OutputError
 
 INCH_M = 0.0254
@@ -21,15 +21,7 @@ INCH_M = 0.0254
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("file", type=Path, metavar="FILE.png", help="the picture to write")
-    parser.add_argument(
-        "--board",
-        default="8x5",
-        help="the chessboard's squares, COLUMNSxROWS, more columns than rows and odd in all "
-        "(default 8x5)",
-    )
-    parser.add_argument(
-        "--square", type=float, default=0.024, help="a square's side in m (default 0.024)"
-    )
+    add_board_shape_arguments(parser)
     parser.add_argument("--dpi", type=int, default=300, help="print resolution (default 300)")
 
 
