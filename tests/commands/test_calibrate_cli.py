@@ -45,6 +45,11 @@ def test_a_moved_camera_is_found_from_the_held_board(tmp_path, capsys):
         (["--square", "0"], "square_m must be in"),
         (["--camera-noise", "-1"], "--camera-noise must be in [0, 64] intensity levels"),
         (["--arm", "right"], "--arm right is for a two-arm cell (--arms 2)"),
+        (
+            ["--board-turn", "0", "0", "200"],
+            "--board-turn must be a rotation vector of at most 180°",
+        ),
+        (["--board-offset", "0.6", "0", "0"], "--board-offset must put the board within 0.5 m"),
     ],
 )
 def test_bad_options_are_refused_by_name_and_leave_no_folder(tmp_path, capsys, extra, needle):
@@ -74,4 +79,27 @@ def test_either_arm_of_two_holds_the_board(tmp_path):
     )
     record = json.loads((out / "calibration.json").read_text())
     assert (record["arms"], record["arm"]) == (2, 1) and record["views_used"] >= 4
+    assert record["truth"]["translation_error_mm"] < 1.0
+
+
+def test_a_board_mounted_elsewhere_is_found_where_it_is(tmp_path):
+    # The board a quarter turn about the tool's axis on a shorter bracket: the views aim it
+    # so, and the solve finds it there (and the camera) from the images alone.
+    out = tmp_path / "cal"
+    args = [
+        "calibrate",
+        "--out",
+        str(out),
+        "--views",
+        "6",
+        "--board-offset",
+        "-0.2",
+        "0.03",
+        "-0.08",
+    ]
+    assert main([*args, "--board-turn", "0", "0", "90"]) == 0
+    record = json.loads((out / "calibration.json").read_text())
+    Y = np.array(record["T_tcp_board"])
+    assert np.allclose(Y[:3, 3], [-0.2, 0.03, -0.08], atol=2e-3)
+    assert np.allclose(Y[:3, :3], Rotation.from_euler("z", 90, degrees=True).as_matrix(), atol=5e-3)
     assert record["truth"]["translation_error_mm"] < 1.0

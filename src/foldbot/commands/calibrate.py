@@ -90,6 +90,26 @@ def add_board_arguments(parser: argparse.ArgumentParser) -> None:
         help="with --arms 2: the arm that holds the board (default left, +y)",
     )
     add_board_shape_arguments(parser)
+    default = BoardMount()
+    parser.add_argument(
+        "--board-offset",
+        type=float,
+        nargs=3,
+        default=default.offset_m,
+        metavar=("X", "Y", "Z"),
+        help="where the board's first inner corner sits in the tool (TCP) frame, m (default "
+        f"{' '.join(f'{v:g}' for v in default.offset_m)}: beside the jaws, 6 cm up towards the "
+        "flange, out along the tool's −x); only aims the views, the calibration solves the real one",
+    )
+    parser.add_argument(
+        "--board-turn",
+        type=float,
+        nargs=3,
+        default=(0.0, 0.0, 0.0),
+        metavar=("RX", "RY", "RZ"),
+        help="the board's axes in the tool frame as a rotation vector, degrees (default 0 0 0: "
+        "the tool's own, the printed face up with the gripper down)",
+    )
     parser.add_argument(
         "--views",
         type=int,
@@ -135,6 +155,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="Gaussian noise on the simulated camera's colour image, σ in intensity levels "
         "0–255 (default 0), as a real sensor's",
     )
+
+
+def mount_from_args(args: argparse.Namespace) -> BoardMount:
+    """The board's nominal place on the tool (`--board-offset`, `--board-turn`)."""
+    turn = [float(v) for v in args.board_turn]
+    if not all(np.isfinite(turn)) or np.linalg.norm(turn) > 180.0:
+        raise ConfigError(
+            f"--board-turn must be a rotation vector of at most 180° (degrees), got {turn}"
+        )
+    mount = BoardMount(tuple(args.board_offset), tuple(np.deg2rad(turn)))
+    if np.linalg.norm(mount.offset_m) > 0.5:
+        raise ConfigError(
+            f"--board-offset must put the board within 0.5 m of the tool, got "
+            f"{list(mount.offset_m)} m"
+        )
+    return mount
 
 
 def arm_index(args: argparse.Namespace) -> int:
@@ -211,7 +247,7 @@ def run(args: argparse.Namespace) -> int:
             if args.camera_eye
             else tuple(camera_for_layout(CameraConfig(), layout).T_world_camera[:3, 3])
         )
-    mount = BoardMount()
+    mount = mount_from_args(args)
     views = calibration_views(layout, look_from, board, mount, args.views)
     stage = prepare_output(args.out)
     try:
@@ -243,6 +279,10 @@ def run(args: argparse.Namespace) -> int:
                 "arms": args.arms,
                 "arm": arm_index(args),
                 "look_from_m": list(look_from),
+                "board_mount_given": {
+                    "offset_m": list(mount.offset_m),
+                    "rotvec_rad": list(mount.rotvec_rad),
+                },
                 "truth": {
                     "T_world_camera": truth.tolist(),
                     "translation_error_mm": 1000.0 * dt,

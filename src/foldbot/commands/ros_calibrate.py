@@ -26,13 +26,14 @@ import sys
 from pathlib import Path
 
 from foldbot.calibration.board import Chessboard
-from foldbot.calibration.views import BoardMount, calibration_views
+from foldbot.calibration.views import calibration_views
 from foldbot.commands.calibrate import (
     add_board_arguments,
     arm_index,
     board_from_args,
     default_look_from,
     layout_from_args,
+    mount_from_args,
 )
 from foldbot.commands.ros_fold import (
     MASTER_WAIT_S,
@@ -65,7 +66,8 @@ def run(args: argparse.Namespace) -> int:
     layout = layout_from_args(args)
     arm_index(args)  # --arm only with --arms 2
     look_from = default_look_from(args, layout)
-    calibration_views(layout, look_from, board, BoardMount(), args.views)  # checked before anything
+    mount = mount_from_args(args)
+    calibration_views(layout, look_from, board, mount, args.views)  # checked before anything
     wait_s = MASTER_WAIT_S if args.master_wait is None else args.master_wait
     if not (wait_s >= 0):
         raise ConfigError(f"--master-wait must be ≥ 0 s, got {args.master_wait!r}")
@@ -83,6 +85,8 @@ def run(args: argparse.Namespace) -> int:
         cmd = [sys.executable, "-m", "foldbot.ros.calibrate_node", "--stage", str(stage)]
         cmd += ["--robot", args.robot, "--board", args.board, "--square", repr(args.square)]
         cmd += ["--arms", str(args.arms), "--arm", args.arm]
+        cmd += ["--board-offset", *(repr(v) for v in mount.offset_m)]
+        cmd += ["--board-turn", *(repr(v) for v in args.board_turn)]
         cmd += ["--views", str(args.views), "--look-from", *(repr(v) for v in look_from)]
         if args.layout is not None:
             cmd += ["--layout", str(Path(args.layout).resolve())]

@@ -26,7 +26,7 @@ from foldbot.calibration.capture import (
     solve_captures,
     write_calibration,
 )
-from foldbot.calibration.views import BoardMount, CalibrationView, calibration_views
+from foldbot.calibration.views import CalibrationView, calibration_views
 from foldbot.control.executor import ArmExecutor
 from foldbot.errors import FoldbotError
 from foldbot.ros import TOPICS, arm_joint_names, convert, driver_actions
@@ -143,6 +143,7 @@ def main(argv: list[str] | None = None) -> int:
         board_from_args,
         default_look_from,
         layout_from_args,
+        mount_from_args,
     )
 
     parser = argparse.ArgumentParser(prog="foldbot_calibrate")
@@ -154,7 +155,7 @@ def main(argv: list[str] | None = None) -> int:
         board = board_from_args(args)
         layout = layout_from_args(args)
         look_from = default_look_from(args, layout)
-        mount = BoardMount()
+        mount = mount_from_args(args)
         views = calibration_views(layout, look_from, board, mount, args.views)
         cell = RosCalibrationCell(args.robot, layout, args.arms, arm_index(args))
         try:
