@@ -194,3 +194,16 @@ def test_a_tilted_tool_is_lifted_as_it_is_held_in_a_second(executor):
     assert robot.tcp_pose()[0] == pytest.approx(lift.points[-1], abs=2e-3)
     # Upright (within KEEP_TURN_RAD of gripper down): lifted gripper down, the executor's own.
     assert executor.lift_segment(here, down, 0.08, 0.5).orientations is None
+
+
+def test_a_joint_move_into_the_table_is_refused_before_it_moves():
+    from foldbot.sim.layout import DEFAULT_LAYOUT
+
+    with SimWorld() as world:
+        robot = make_robot("ur5", world.client, DEFAULT_LAYOUT)
+        ex = ArmExecutor(world, robot, None)
+        q0 = robot.home_q
+        ex.check_joint_move(q0, q0 + [0.0, -0.6, 0.0, 0.0, 0.0, 0.0])  # up, away from it
+        with pytest.raises(UnreachableTargetError, match="would touch the table"):
+            ex.check_joint_move(q0, q0 + [0.0, 1.0, 0.0, 0.0, 0.0, 0.0])  # the shoulder down
+        assert np.allclose(robot.joint_positions(), q0)  # nothing moved

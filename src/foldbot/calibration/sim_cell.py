@@ -17,8 +17,6 @@ from foldbot.sim.world import SimConfig, SimWorld
 
 SETTLE_S = 0.5
 """Rest after each move before the frame is taken (s): the board's bracket stops swinging."""
-CLEARANCE_SAMPLES = 12
-"""Joint-space moves are checked against the table at this many points along the way."""
 
 
 class SimCalibrationCell(CalibrationCell):
@@ -64,8 +62,7 @@ class SimCalibrationCell(CalibrationCell):
     def move_to(self, view: CalibrationView) -> None:
         q0 = self.robot.joint_positions()
         q = self.model.solve_ik(view.position, view.quaternion, q_seed=q0)
-        path = q0 + np.linspace(0.0, 1.0, CLEARANCE_SAMPLES)[:, None] * (q - q0)
-        self.executor.check_table_clearance(path)
+        self.executor.check_joint_move(q0, q)
         move_joints_together([(self.executor, q)], view.name)
         self.world.step(int(SETTLE_S / self.world.time_step))
 

@@ -125,12 +125,12 @@ def calibration_views(
     # The gripper down at yaw 0 (Ry(π)) holds the board's z down; turn it so z points away
     # from the camera, the least turn that does.
     down = Rotation.from_quat([0.0, 1.0, 0.0, 0.0]) * Rotation.from_matrix(T_mount[:3, :3])
+    z_now = down.apply([0.0, 0.0, 1.0])
     views = []
     for k, (dx, dy, dz, turn, tilt_x, tilt_y) in enumerate(_PATTERN[:count]):
         centre = middle + dx * up + dy * across + dz * ray
         away = centre - eye
         away /= np.linalg.norm(away)
-        z_now = down.apply([0.0, 0.0, 1.0])
         axis = np.cross(z_now, away)
         angle = math.atan2(np.linalg.norm(axis), float(np.dot(z_now, away)))
         aim = Rotation.from_rotvec(axis / max(np.linalg.norm(axis), 1e-12) * angle)

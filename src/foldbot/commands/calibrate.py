@@ -24,14 +24,16 @@ import argparse
 import dataclasses
 import shutil
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from foldbot.calibration.board import Chessboard
 from foldbot.calibration.capture import capture_views, solve_captures, write_calibration
 from foldbot.calibration.hand_eye import pose_error
-from foldbot.calibration.views import MAX_VIEWS, BoardMount, calibration_views
+from foldbot.calibration.views import MAX_VIEWS, BoardMount, CalibrationView, calibration_views
 from foldbot.errors import ConfigError
 from foldbot.io.staging import commit_output, prepare_output
 from foldbot.sim.camera import CameraConfig, camera_for_layout
@@ -186,12 +188,52 @@ def layout_from_args(args: argparse.Namespace) -> CellLayout:
     return DEFAULT_LAYOUT if args.layout is None else load_layout(args.layout)
 
 
-def default_look_from(args: argparse.Namespace, layout: CellLayout) -> tuple[float, float, float]:
-    """Where the board is turned towards: --look-from, else the default camera's place in the
-    layout (the simulated cell's camera, moved with its workspace)."""
-    if args.look_from is not None:
-        return tuple(float(v) for v in args.look_from)  # type: ignore[return-value]
-    return tuple(float(v) for v in camera_for_layout(CameraConfig(), layout).T_world_camera[:3, 3])  # type: ignore[return-value]
+@dataclass(frozen=True)
+class CalibrationPlan:
+    """The calibration the options ask for, checked before anything moves: the board and its
+    nominal place on the tool, the cell, the arm that holds it, where it is turned towards and
+    the views."""
+
+    board: Chessboard
+    mount: BoardMount
+    layout: CellLayout
+    robot: str
+    arms: int
+    arm: int
+    look_from: tuple[float, float, float]
+    views: list[CalibrationView]
+
+    def record(self) -> dict[str, Any]:
+        """What calibration.json says of the run's set-up."""
+        return {
+            "robot": self.robot,
+            "arms": self.arms,
+            "arm": self.arm,
+            "look_from_m": list(self.look_from),
+            "board_mount_given": {
+                "offset_m": list(self.mount.offset_m),
+                "rotvec_rad": list(self.mount.rotvec_rad),
+            },
+        }
+
+
+def plan_from_args(
+    args: argparse.Namespace, rough_camera: tuple[float, float, float] | None = None
+) -> CalibrationPlan:
+    """The options' calibration. The board is turned towards --look-from, else `rough_camera`
+    (where a caller knows it), else the default camera's place in the layout (the simulated
+    cell's camera, moved with its workspace)."""
+    board = board_from_args(args)
+    layout = layout_from_args(args)
+    arm = arm_index(args)
+    mount = mount_from_args(args)
+    given = args.look_from if args.look_from is not None else rough_camera
+    if given is None:
+        given = camera_for_layout(CameraConfig(), layout).T_world_camera[:3, 3]
+    x, y, z = (float(v) for v in given)
+    look_from = (x, y, z)
+    views = calibration_views(layout, look_from, board, mount, args.views)
+    return CalibrationPlan(board, mount, layout, args.robot, args.arms, arm, look_from, views)
 
 
 def sim_camera(args: argparse.Namespace, layout: CellLayout) -> CameraConfig:
@@ -237,23 +279,16 @@ def table_error_m(
 def run(args: argparse.Namespace) -> int:
     from foldbot.calibration.sim_cell import SimCalibrationCell
 
-    board = board_from_args(args)
     layout = layout_from_args(args)
     camera = sim_camera(args, layout)
-    look_from = tuple(args.look_from) if args.look_from is not None else None
-    if look_from is None:
-        look_from = (
-            tuple(camera.T_world_camera[:3, 3])
-            if args.camera_eye
-            else tuple(camera_for_layout(CameraConfig(), layout).T_world_camera[:3, 3])
-        )
-    mount = mount_from_args(args)
-    views = calibration_views(layout, look_from, board, mount, args.views)
+    # Who moved the simulated camera knows roughly where it stands.
+    plan = plan_from_args(args, tuple(args.camera_eye) if args.camera_eye else None)
+    board, mount, views = plan.board, plan.mount, plan.views
     stage = prepare_output(args.out)
     try:
         t0 = time.monotonic()
         cell = SimCalibrationCell(
-            args.robot, camera, board, mount, SimConfig(layout=layout), args.arms, arm_index(args)
+            args.robot, camera, board, mount, SimConfig(layout=layout), args.arms, plan.arm
         )
         try:
             captures = capture_views(
@@ -275,14 +310,7 @@ def run(args: argparse.Namespace) -> int:
             dist,
             {
                 "cell": "sim",
-                "robot": args.robot,
-                "arms": args.arms,
-                "arm": arm_index(args),
-                "look_from_m": list(look_from),
-                "board_mount_given": {
-                    "offset_m": list(mount.offset_m),
-                    "rotvec_rad": list(mount.rotvec_rad),
-                },
+                **plan.record(),
                 "truth": {
                     "T_world_camera": truth.tolist(),
                     "translation_error_mm": 1000.0 * dt,

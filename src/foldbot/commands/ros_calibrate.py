@@ -25,16 +25,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from foldbot.calibration.board import Chessboard
-from foldbot.calibration.views import calibration_views
-from foldbot.commands.calibrate import (
-    add_board_arguments,
-    arm_index,
-    board_from_args,
-    default_look_from,
-    layout_from_args,
-    mount_from_args,
-)
+from foldbot.commands.calibrate import add_board_arguments, plan_from_args
 from foldbot.commands.ros_fold import (
     MASTER_WAIT_S,
     add_master_port,
@@ -62,12 +53,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     check_port(args.port)
-    board: Chessboard = board_from_args(args)
-    layout = layout_from_args(args)
-    arm_index(args)  # --arm only with --arms 2
-    look_from = default_look_from(args, layout)
-    mount = mount_from_args(args)
-    calibration_views(layout, look_from, board, mount, args.views)  # checked before anything
+    plan = plan_from_args(args)  # every option checked before the cell is asked anything
     wait_s = MASTER_WAIT_S if args.master_wait is None else args.master_wait
     if not (wait_s >= 0):
         raise ConfigError(f"--master-wait must be ≥ 0 s, got {args.master_wait!r}")
@@ -85,9 +71,9 @@ def run(args: argparse.Namespace) -> int:
         cmd = [sys.executable, "-m", "foldbot.ros.calibrate_node", "--stage", str(stage)]
         cmd += ["--robot", args.robot, "--board", args.board, "--square", repr(args.square)]
         cmd += ["--arms", str(args.arms), "--arm", args.arm]
-        cmd += ["--board-offset", *(repr(v) for v in mount.offset_m)]
+        cmd += ["--board-offset", *(repr(v) for v in plan.mount.offset_m)]
         cmd += ["--board-turn", *(repr(v) for v in args.board_turn)]
-        cmd += ["--views", str(args.views), "--look-from", *(repr(v) for v in look_from)]
+        cmd += ["--views", str(args.views), "--look-from", *(repr(v) for v in plan.look_from)]
         if args.layout is not None:
             cmd += ["--layout", str(Path(args.layout).resolve())]
         proc = subprocess.run(cmd, env=env, stderr=subprocess.PIPE, text=True, check=False)

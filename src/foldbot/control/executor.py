@@ -19,6 +19,8 @@ from foldbot.types import GraspResult
 
 TABLE_CLEARANCE = 0.0
 """An arm link closer to the table than this (m; 0 = touching) makes a waypoint infeasible."""
+JOINT_MOVE_SAMPLES = 12
+"""A joint-space move is checked against the table at this many points along its path."""
 KEEP_TURN_RAD = 0.05
 """A tool turned further than this from gripper down (a tilted spread grasp) is lifted as it is
 held (ArmExecutor.lift_segment)."""
@@ -126,6 +128,13 @@ class ArmExecutor:
                     f"({dist * 1000:.1f} mm from it; at least {TABLE_CLEARANCE * 1000:.0f} mm "
                     f"needed) at joints {np.round(q, 3).tolist()} rad"
                 )
+
+    def check_joint_move(self, q0: np.ndarray, q_target: np.ndarray) -> None:
+        """UnreachableTargetError where a straight joint-space move from `q0` to `q_target`
+        would bring an arm link to the table (checked at JOINT_MOVE_SAMPLES points)."""
+        q0, q_target = np.asarray(q0, dtype=float), np.asarray(q_target, dtype=float)
+        s = np.linspace(0.0, 1.0, JOINT_MOVE_SAMPLES)[:, None]
+        self.check_table_clearance(q0 + s * (q_target - q0))
 
     def trajectory_for(self, path: np.ndarray, points: np.ndarray, speed: float) -> JointTrajectory:
         """Time-optimal trajectory along the joint path within the robot's joint velocity,

@@ -26,7 +26,7 @@ from foldbot.calibration.capture import (
     solve_captures,
     write_calibration,
 )
-from foldbot.calibration.views import CalibrationView, calibration_views
+from foldbot.calibration.views import CalibrationView
 from foldbot.control.executor import ArmExecutor
 from foldbot.errors import FoldbotError
 from foldbot.ros import TOPICS, arm_joint_names, convert, driver_actions
@@ -40,8 +40,6 @@ CAMERA_WAIT_S = 30.0
 """How long (wall s) the node waits for the camera's first image and camera_info, or a frame."""
 MOVE_TIMEOUT_S = 60.0
 """How long (wall s) one move may take to be answered."""
-CLEARANCE_SAMPLES = 12
-"""A move is checked against the table at this many points along its joint path."""
 
 
 class RosCalibrationCell(CalibrationCell):
@@ -96,8 +94,7 @@ class RosCalibrationCell(CalibrationCell):
 
     def _move(self, q: np.ndarray, name: str) -> None:
         q0 = self.arm.joint_positions()
-        path = q0 + np.linspace(0.0, 1.0, CLEARANCE_SAMPLES)[:, None] * (q - q0)
-        self.planner.check_table_clearance(path)
+        self.planner.check_joint_move(q0, q)
         traj = self.planner.joint_move_trajectory(q0, q)
         self.arm.follow(
             self.joint_names, traj.times, traj.positions, traj.velocities, name, MOVE_TIMEOUT_S
@@ -137,14 +134,7 @@ class RosCalibrationCell(CalibrationCell):
 
 
 def main(argv: list[str] | None = None) -> int:
-    from foldbot.commands.calibrate import (
-        add_board_arguments,
-        arm_index,
-        board_from_args,
-        default_look_from,
-        layout_from_args,
-        mount_from_args,
-    )
+    from foldbot.commands.calibrate import add_board_arguments, plan_from_args
 
     parser = argparse.ArgumentParser(prog="foldbot_calibrate")
     parser.add_argument("--stage", type=Path, required=True)
@@ -152,30 +142,20 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(rospy.myargv(argv if argv is not None else sys.argv)[1:])
     rospy.init_node("foldbot_calibrate", disable_signals=True)
     try:
-        board = board_from_args(args)
-        layout = layout_from_args(args)
-        look_from = default_look_from(args, layout)
-        mount = mount_from_args(args)
-        views = calibration_views(layout, look_from, board, mount, args.views)
-        cell = RosCalibrationCell(args.robot, layout, args.arms, arm_index(args))
+        plan = plan_from_args(args)
+        board = plan.board
+        cell = RosCalibrationCell(args.robot, plan.layout, args.arms, plan.arm)
         try:
             captures = capture_views(
-                cell, views, board, lambda line: print(f"ros-calibrate: {line}", flush=True)
+                cell, plan.views, board, lambda line: print(f"ros-calibrate: {line}", flush=True)
             )
             K, dist, _, _ = cell.intrinsics()
             solution = solve_captures(captures, board, K, dist)
         finally:
             cell.close()
         write_calibration(
-            args.stage, captures, solution, board, K, dist,
-            {
-                "cell": "ros",
-                "robot": args.robot,
-                "arms": args.arms,
-                "arm": arm_index(args),
-                "look_from_m": list(look_from),
-            },
-        )  # fmt: skip
+            args.stage, captures, solution, board, K, dist, {"cell": "ros", **plan.record()}
+        )
     except FoldbotError as exc:
         print(f"{type(exc).__name__}: {exc}", file=sys.stderr, flush=True)
         return 2
