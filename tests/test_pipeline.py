@@ -488,8 +488,8 @@ def test_a_cell_laid_out_by_a_file_folds_where_the_file_puts_it(tmp_path):
     result = json.loads((out / "result.json").read_text())
     assert result["layout"] == {
         "table_height": 0.70,
-        "table_size": [1.0, 1.2],
-        "table_center_xy": [0.62, 0.0],
+        "table_size": [0.97, 1.2],
+        "table_center_xy": [0.635, 0.0],
         "robot_base_xyz": [0.0, 0.0, 0.65],
         "workspace_center_xy": [0.50, 0.06],
     }

@@ -15,6 +15,7 @@ def build_parser() -> argparse.ArgumentParser:
     from foldbot.commands import (
         bench,
         calibrate,
+        check_layout,
         compare,
         eval_perception,
         export_bag,
@@ -49,6 +50,10 @@ def build_parser() -> argparse.ArgumentParser:
         "calibrate": (
             calibrate,
             "find the camera's pose from a board the arm holds (simulated cell)",
+        ),
+        "check-layout": (
+            check_layout,
+            "can the arm reach, and the camera see, every point of a layout's workspace?",
         ),
         "print-board": (print_board, "the calibration chessboard as a PNG to print at full size"),
         "export-bag": (export_bag, "write an episode folder as a ROS 1 bag (no ROS needed)"),

@@ -32,6 +32,15 @@ def test_a_moved_camera_is_found_from_the_held_board(tmp_path, capsys):
     assert np.allclose(Rotation.from_quat(quat).as_matrix(), T[:3, :3], atol=1e-6)
     assert (out / "views.png").stat().st_size > 10_000
     assert "against the simulated camera" in capsys.readouterr().out
+    # The intrinsics the pose was solved with, which check-layout reads back with the pose.
+    info = record["camera_info"]
+    assert (info["width"], info["height"]) == (640, 480) and info["distortion"] == [0.0] * 5
+    assert info["K"][0][0] == pytest.approx(880.0)
+    check = ["check-layout", "--grid", "3", "--camera-pose", str(out / "calibration.json")]
+    assert main(check) == 1  # from there the image misses corners of the workspace
+    text = capsys.readouterr().out
+    assert f"camera ({out / 'calibration.json'}): sees 6 of 9" in text
+    assert "not seen: (0.750, -0.300), (0.750, 0.000), (0.150, 0.300)" in text
 
 
 @pytest.mark.parametrize(

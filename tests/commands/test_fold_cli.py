@@ -26,7 +26,16 @@ def test_help_lists_subcommands(capsys):
 
 
 @pytest.mark.parametrize(
-    "cmd", ["fold", "eval-perception", "score", "calibrate", "ros-calibrate", "print-board"]
+    "cmd",
+    [
+        "fold",
+        "eval-perception",
+        "score",
+        "calibrate",
+        "ros-calibrate",
+        "print-board",
+        "check-layout",
+    ],
 )
 def test_subcommand_help(cmd, capsys):
     with pytest.raises(SystemExit) as exc:

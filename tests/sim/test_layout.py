@@ -42,8 +42,8 @@ def test_the_shipped_example_layout_loads_and_names_what_it_changes():
     assert layout.workspace_center_xy == (0.50, 0.06) and layout.workspace_size == 0.6
     assert layout.changes() == {
         "table_height": 0.70,
-        "table_size": [1.0, 1.2],
-        "table_center_xy": [0.62, 0.0],
+        "table_size": [0.97, 1.2],
+        "table_center_xy": [0.635, 0.0],
         "robot_base_xyz": [0.0, 0.0, 0.65],
         "workspace_center_xy": [0.50, 0.06],
     }

@@ -183,14 +183,13 @@ def pose_words(T: np.ndarray, parent: str, child: str) -> list[str]:
     ]
 
 
-def calibration_pose_words(path: str | Path) -> list[str]:
-    """The camera pose a calibration.json (`foldbot calibrate`, `foldbot ros-calibrate`) holds,
-    as static_transform_publisher's words; ConfigError naming what is wrong with the file."""
-    path = Path(path)
+def _read_calibration(path: Path) -> tuple[dict[str, Any], np.ndarray]:
+    """A calibration.json's record and its checked T_world_camera; ConfigError naming what is
+    wrong with the file."""
     try:
         record = json.loads(path.read_text())
         T = np.asarray(record["T_world_camera"], dtype=float)
-        parent, child = str(record["parent_frame"]), str(record["child_frame"])
+        str(record["parent_frame"]), str(record["child_frame"])
     except FileNotFoundError:
         raise ConfigError(f"{str(path)!r}: no such file") from None
     except (OSError, ValueError, KeyError, TypeError) as exc:
@@ -209,7 +208,41 @@ def calibration_pose_words(path: str | Path) -> list[str]:
         raise ConfigError(
             f"{str(path)!r}: T_world_camera must be a rigid 4 × 4 transform, got {T.tolist()}"
         )
-    return pose_words(T, parent, child)
+    return record, T
+
+
+def calibration_pose_words(path: str | Path) -> list[str]:
+    """The camera pose a calibration.json (`foldbot calibrate`, `foldbot ros-calibrate`) holds,
+    as static_transform_publisher's words; ConfigError naming what is wrong with the file."""
+    record, T = _read_calibration(Path(path))
+    return pose_words(T, str(record["parent_frame"]), str(record["child_frame"]))
+
+
+def calibration_camera(
+    path: str | Path,
+) -> tuple[np.ndarray, tuple[np.ndarray, int, int] | None]:
+    """The camera a calibration.json found: T_world_camera, and (K, width, height) where the
+    file records the intrinsics it was solved with (`camera_info`; files written before
+    2026-12 have none: None)."""
+    path = Path(path)
+    record, T = _read_calibration(path)
+    info = record.get("camera_info")
+    if info is None:
+        return T, None
+    try:
+        K = np.asarray(info["K"], dtype=float)
+        width, height = int(info["width"]), int(info["height"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ConfigError(
+            f"{str(path)!r}: camera_info must hold K (3 × 3), width and height: {exc}"
+        ) from None
+    if K.shape != (3, 3) or not np.isfinite(K).all() or K[0, 0] <= 0 or K[1, 1] <= 0:
+        raise ConfigError(f"{str(path)!r}: camera_info K must be a 3 × 3 camera matrix, got {K}")
+    if width <= 0 or height <= 0:
+        raise ConfigError(
+            f"{str(path)!r}: camera_info's image size must be positive, got {width} × {height}"
+        )
+    return T, (K, width, height)
 
 
 def contact_sheet(
@@ -302,6 +335,14 @@ def write_calibration(
 ) -> dict[str, Any]:
     """calibration.json, camera_pose.launch and views.png into `stage`; the record written."""
     record = calibration_record(captures, solution, board)
+    sizes = [c.rgb.shape[1::-1] for c in captures if c.rgb is not None]
+    if sizes:  # the intrinsics the pose holds for (check-layout reads them back)
+        record["camera_info"] = {
+            "width": int(sizes[0][0]),
+            "height": int(sizes[0][1]),
+            "K": np.asarray(K, dtype=float).tolist(),
+            "distortion": np.asarray(dist, dtype=float).ravel().tolist(),
+        }
     record.update(extra or {})
     try:
         (stage / "calibration.json").write_text(json.dumps(record, indent=2) + "\n")

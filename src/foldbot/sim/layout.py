@@ -34,7 +34,8 @@ class CellLayout:
     workspace_center_xy: tuple[float, float] = (0.45, 0.0)
     """Centre of the square cloth workspace on the table (m)."""
     workspace_size: float = 0.6
-    """Side of the square cloth workspace (m); every point in it is reachable gripper-down."""
+    """Side of the square cloth workspace (m); every point in it should be reachable gripper
+    down (`foldbot check-layout` checks it over a grid; a fold checks the centre)."""
     home_xy: tuple[float, float] | None = None
     """Where the arm's home posture holds the TCP (table plane, m); None: over the workspace
     centre."""

@@ -35,7 +35,8 @@ def _unreachable(name: str, layout: CellLayout, exc: Exception) -> ConfigError:
     return ConfigError(
         f"the {name} mounted at ({bx:g}, {by:g}, {bz:g}) m cannot reach the workspace centre "
         f"({cx:g}, {cy:g}) m on the table at {layout.table_height:g} m gripper down ({exc}); "
-        "move the layout's workspace_center_xy, robot_base_xyz or table_height"
+        "move the layout's workspace_center_xy, robot_base_xyz or table_height (`foldbot "
+        "check-layout FILE.toml` maps what the arm reaches over the whole workspace)"
     )
 
 

@@ -1,0 +1,141 @@
+"""The layout check: the arm's reach over a workspace (IK gripper down, the arm clear of the
+table) and the camera's view of it, on the default cell, cells that fail, and a moved camera."""
+
+import numpy as np
+import pytest
+
+from foldbot.errors import ConfigError
+from foldbot.layout_check import (
+    CHECK_HEIGHTS,
+    REQUIRED_HEIGHTS,
+    CameraPlacement,
+    check_layout,
+    check_picture,
+)
+from foldbot.sim.camera import CameraConfig, camera_for_layout, look_at
+from foldbot.sim.layout import DEFAULT_LAYOUT, CellLayout
+
+
+def sim_camera(layout: CellLayout = DEFAULT_LAYOUT) -> CameraPlacement:
+    cam = camera_for_layout(CameraConfig(), layout)
+    return CameraPlacement(cam.T_world_camera, cam.K, cam.width, cam.height, "simulated")
+
+
+def test_the_default_cell_reaches_and_sees_its_whole_workspace():
+    check = check_layout(DEFAULT_LAYOUT, sim_camera(), grid=5)
+    assert check.ok and check.points == 25
+    assert check.failures == ({},) and check.covered.all() and check.in_view.all()
+    assert np.allclose(check.xs, [0.15, 0.3, 0.45, 0.6, 0.75])
+    # 880 px focal length, the table ~1.16 m from the camera along its axis.
+    assert 1.0 < check.mm_per_px < 1.6
+    lines = check.lines()
+    assert "grasps and places at 25 of 25 points, of those 25 also 250 mm up" in lines[1]
+    assert lines[-1].startswith("the layout can fold")
+    record = check.record()
+    assert record["ok"] and record["reached"]["arm"]["points"] == 25
+    assert record["required_heights"] == ["grasp", "approach"]
+
+
+def test_a_workspace_beyond_the_arms_reach_is_refused_point_by_point():
+    # The cloth's far edge 1.05 m out: past a UR5's 0.85 m reach.
+    far = CellLayout(
+        table_size=(1.6, 1.2), table_center_xy=(0.7, 0.0), workspace_center_xy=(0.75, 0.0)
+    )
+    check = check_layout(far, sim_camera(far), grid=5)
+    assert not check.ok
+    reached = check.reached(0)
+    assert reached[:, 0].all() and not reached[:, -1].any()  # near edge yes, far edge no
+    whys = check.unreached(0).values()
+    assert all("height" in w and "no IK solution, best residual" in w for w in whys)
+    assert "cannot fold everywhere" in check.lines()[-1]
+    short = check.record()["reached"]["arm"]["short"]
+    nowhere = [s["x_m"] for s in short if not s["heights_reached"]]
+    assert min(nowhere) >= 0.9 and sum(np.isclose(nowhere, 1.05)) == 5
+
+
+def test_the_arm_touching_the_table_counts_as_not_reached():
+    # The pedestal example: the arm 5 cm below a table starting 12 cm ahead of it. Turned to
+    # the right, the UR5's shoulder (a cylinder 14 cm out from its axis) meets the table's edge.
+    layout = CellLayout(
+        table_height=0.70,
+        table_size=(1.0, 1.2),
+        table_center_xy=(0.62, 0.0),
+        robot_base_xyz=(0.0, 0.0, 0.65),
+        workspace_center_xy=(0.50, 0.06),
+    )
+    check = check_layout(layout, sim_camera(layout), grid=7)
+    whys = list(check.unreached(0).values())
+    assert any("shoulder_link would touch the table" in w for w in whys)
+    # Two arms, each on its own side, between them reach every point.
+    two = check_layout(layout, sim_camera(layout), arms=2, grid=7)
+    assert two.ok and len(two.failures) == 2
+    assert not two.reached(0).all() and two.covered.all()
+    assert two.arm_names == ("left arm", "right arm")
+
+
+def test_a_point_reached_low_but_not_at_a_carrys_top_is_reported_not_refused():
+    check = check_layout(DEFAULT_LAYOUT, sim_camera(), robot="panda", grid=7)
+    low = check.low_only(0)
+    assert low, "the Panda does not reach 250 mm over its near edge 10 cm off the middle"
+    assert all(f"carry height ({1000 * CHECK_HEIGHTS[-1][1]:.0f} mm)" in w for w in low.values())
+    levels = check.heights_reached(0)
+    for ix, iy in low:
+        assert levels[iy, ix] >= REQUIRED_HEIGHTS and check.reached(0)[iy, ix]
+
+
+def test_a_camera_turned_away_misses_part_of_the_workspace():
+    cam = CameraConfig(eye=(0.45, 0.0, 1.6), target=(0.45, 0.5, 0.75))
+    placement = CameraPlacement(
+        look_at(cam.eye, cam.target, cam.up), cam.K, cam.width, cam.height, "moved"
+    )
+    check = check_layout(DEFAULT_LAYOUT, placement, grid=5)
+    assert not check.ok and check.covered.all()
+    assert check.in_view[-1].any() and not check.in_view[:3].any()  # far +y seen, −y not
+    assert "not seen: (0.150, -0.300)" in "\n".join(check.lines())
+
+
+def test_the_cameras_footprint_projects_back_onto_the_image_corners():
+    cam = sim_camera()
+    foot = cam.footprint(DEFAULT_LAYOUT.table_height)
+    pts = np.column_stack([foot, np.full(4, DEFAULT_LAYOUT.table_height)])
+    uv, z = cam.project(pts)
+    assert np.allclose(uv, [[0, 0], [639, 0], [639, 479], [0, 479]], atol=1e-6)
+    assert (z > 0).all()
+    up = CameraPlacement(np.eye(4), cam.K, cam.width, cam.height, "looking up")
+    up.T_world_camera[:3, :3] = np.diag([1.0, -1.0, -1.0])  # optical axis +z world
+    assert up.footprint(0.75) is None
+
+
+def test_the_picture_shows_the_cell_from_above():
+    check = check_layout(DEFAULT_LAYOUT, sim_camera(), grid=3, arms=2)
+    img = check_picture(check)
+    assert img.dtype == np.uint8 and img.shape[1] == 720 and img.shape[0] > 500
+    green = np.all(img == (60, 180, 75), axis=-1).sum()
+    blue = np.all(img == (40, 110, 230), axis=-1).sum()
+    assert green > 9 * 50 and blue > 500
+
+
+@pytest.mark.parametrize("grid", [1, 42, 5.0, True])
+def test_a_grid_outside_its_range_is_refused(grid):
+    with pytest.raises(ConfigError, match=r"the grid must be 2–41 points a side"):
+        check_layout(DEFAULT_LAYOUT, sim_camera(), grid=grid)
+
+
+def test_three_arms_are_refused():
+    with pytest.raises(ConfigError, match="a cell has 1 or 2 arms, got 3"):
+        check_layout(DEFAULT_LAYOUT, sim_camera(), arms=3)
+
+
+@pytest.mark.parametrize("arms", [1, 2])
+def test_the_example_layouts_can_fold_everywhere(arms):
+    """Every layout file this repository ships is reached and seen over its whole workspace."""
+    from pathlib import Path
+
+    from foldbot.sim.layout import load_layout
+
+    files = sorted((Path(__file__).resolve().parents[1] / "layouts").glob("*.toml"))
+    assert files
+    for path in files:
+        layout = load_layout(path)
+        check = check_layout(layout, sim_camera(layout), arms=arms)
+        assert check.ok, f"{path.name}: " + "\n".join(check.lines())
