@@ -238,3 +238,91 @@ def test_a_worst_scene_says_what_was_not_found() -> None:
     assert verdict({"score": 4.25, "detected": True, "missing": []}) == "4.2 mm"
     assert verdict({"score": None, "detected": False, "missing": ["neck"]}) == "not recognised"
     assert verdict({"score": None, "detected": True, "missing": ["neck"]}) == "missing: neck"
+
+
+def test_a_layout_moves_the_scenes_and_the_camera_with_its_workspace(tmp_path: Path) -> None:
+    """`--layout FILE`: the same draws as the default cell's, the towel and the camera moved
+    with the workspace, the cloth on the layout's table; the summary names the layout."""
+    from foldbot.sim.layout import load_layout
+
+    layout_file = Path(__file__).resolve().parents[2] / "layouts" / "pedestal.toml"
+    layout = load_layout(layout_file)
+    shift = np.array(layout.workspace_shift())
+    for i in range(10):
+        a = sample_scene(np.random.default_rng([5, i]), i, 0.3, 0.4)
+        b = sample_scene(np.random.default_rng([5, i]), i, 0.3, 0.4, layout=layout)
+        assert (b.x - a.x, b.y - a.y) == pytest.approx(tuple(shift[:2]))
+        np.testing.assert_allclose(np.subtract(b.eye, a.eye), shift, atol=1e-12)
+        np.testing.assert_allclose(np.subtract(b.target, a.target), shift, atol=1e-12)
+        assert b.towel_width == a.towel_width and b.yaw == a.yaw
+    out = tmp_path / "eval"
+    args = _args(
+        "--scenes", "2", "--seed", "0", "--out", str(out), "--folded-fraction", "0",
+        "--resolution", "10", "--layout", str(layout_file),
+    )  # fmt: skip
+    assert eval_perception.run(args) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["layout"]["table_height"] == 0.70
+    assert summary["layout_file"] == str(layout_file)
+    assert summary["camera"]["source"].startswith("the default camera, jittered")
+    assert summary["detection_rate"] == 1.0
+    assert summary["corner_error_mm"]["max"] < 3.0  # the corners found on the 0.70 m table
+
+
+def test_a_calibrations_camera_renders_every_scene(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """`--camera-pose CALIBRATION.json`: every scene seen from that camera, at its image size
+    and intrinsics, none of the default camera's jitter; the summary keeps the camera."""
+    from foldbot.sim.camera import DEFAULT_UP, look_at
+
+    T = look_at((0.95, 0.4, 1.6), (0.45, 0.0, 0.75), DEFAULT_UP)
+    K = CameraConfig(width=320, height=240).K
+    cal = tmp_path / "calibration.json"
+    cal.write_text(
+        json.dumps(
+            {
+                "T_world_camera": T.tolist(),
+                "parent_frame": "world",
+                "child_frame": "camera_color_optical_frame",
+                "camera_info": {"width": 320, "height": 240, "K": K.tolist()},
+            }
+        )
+    )
+    out = tmp_path / "eval"
+    args = _args(
+        "--scenes", "2", "--seed", "0", "--out", str(out), "--folded-fraction", "0",
+        "--resolution", "10", "--arm-fraction", "0", "--camera-pose", str(cal),
+    )  # fmt: skip
+    assert eval_perception.run(args) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert (summary["width"], summary["height"]) == (320, 240)
+    assert summary["camera"]["source"] == str(cal)
+    np.testing.assert_allclose(summary["camera"]["T_world_camera"], T)
+    assert all("eye" not in row["scene"] for row in summary["rows"])
+    assert summary["detection_rate"] == 1.0 and summary["corner_error_mm"]["max"] < 5.0
+    assert f"camera: {cal}" in capsys.readouterr().out
+    # The image size is the calibration's: --width beside it is refused, nothing written.
+    again = tmp_path / "again"
+    assert (
+        eval_perception.run(_args("--out", str(again), "--camera-pose", str(cal), "--width", "320"))
+        == 2
+    )
+    assert "--width and --height are the calibration's" in capsys.readouterr().err
+    assert not again.exists()
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--layout", "missing.toml"], "layout file 'missing.toml' does not exist"),
+        (["--camera-pose", "missing.json"], "'missing.json': no such file"),
+    ],
+)
+def test_a_missing_layout_or_calibration_is_named(
+    tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch, argv: list[str], message: str
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    assert eval_perception.run(_args("--out", str(tmp_path / "eval"), *argv)) == 2
+    assert message in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []

@@ -41,6 +41,13 @@ Renders N randomised scenes and compares `VisionEstimator` with the `GroundTruth
   recognised, pants max 4.8 mm; T-shirts max 1.9 mm, the neck left out on the 2 whose neckline
   the gripper hides (a keypoint the arm hides that no other outline gives is not guessed).
 
+`--layout FILE.toml` (either kind): the scenes in that cell, as `foldbot fold --layout` builds
+it (the towel on its table in its workspace, its arm, the camera moved with the workspace).
+`--camera-pose CALIBRATION.json`: every scene seen from the camera a calibration found
+(`foldbot ros-calibrate`: its pose, and its image size and intrinsics where the file keeps
+them), without the ±3 cm jitter: perception's accuracy from where a real camera stands. The
+pose is taken as exact; the calibration's own error (0.1–0.7 mm in the simulated cell) adds to it.
+
 `--depth-sensor M` (either kind): the depth comes from a sensor M m beside the colour camera, as
 on a real RGB-D camera (`depth_sensor_config`), registered onto the colour image
 (`perception.register`) before the estimator sees it. Measured at 25 mm: flat towels median
@@ -60,7 +67,7 @@ import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import imageio.v3 as iio
 import numpy as np
@@ -88,12 +95,15 @@ from foldbot.sim.camera import (
     RGBDCamera,
 )
 from foldbot.sim.cloth import ClothConfig, SoftCloth, settle
-from foldbot.sim.layout import DEFAULT_LAYOUT
+from foldbot.sim.layout import DEFAULT_LAYOUT, CellLayout, load_layout
 from foldbot.sim.oracle import GroundTruthOracle
 from foldbot.sim.robots import make_robot
 from foldbot.sim.robots.base import HOME_HEIGHT_ABOVE_TABLE
 from foldbot.sim.world import SimConfig, SimWorld
 from foldbot.types import Observation
+
+if TYPE_CHECKING:
+    from foldbot.layout_check import CameraPlacement
 
 GARMENTS = ("towel", "tshirt", "pants")
 """Garments eval-perception can render."""
@@ -131,8 +141,25 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="write overlays of the K worst scenes to OUT/overlays (default 0)",
     )
     parser.add_argument("--garment", choices=GARMENTS, default="towel", help="garment kind")
-    parser.add_argument("--width", type=int, default=640, help="image width (px)")
-    parser.add_argument("--height", type=int, default=480, help="image height (px)")
+    parser.add_argument("--width", type=int, default=None, help="image width (px; default 640)")
+    parser.add_argument("--height", type=int, default=None, help="image height (px; default 480)")
+    parser.add_argument(
+        "--layout",
+        type=Path,
+        default=None,
+        metavar="FILE.toml",
+        help="the cell's layout (as for foldbot fold): the scenes lie in its workspace on its "
+        "table, its arm stands where it says, the camera moves with the workspace",
+    )
+    parser.add_argument(
+        "--camera-pose",
+        type=Path,
+        default=None,
+        metavar="CALIBRATION.json",
+        help="render every scene from the camera a calibration found (its pose, and its image "
+        "size and intrinsics where the file keeps them) instead of the default camera jittered "
+        "±3 cm: perception's accuracy from where your camera is",
+    )
     parser.add_argument(
         "--folded-fraction",
         type=float,
@@ -250,13 +277,15 @@ def sample_garment_scene(
     edge_length: float | None = None,
     yaw_range: float = GARMENT_YAW[1],
     arm_pose: str = "anywhere",
+    layout: CellLayout = DEFAULT_LAYOUT,
 ) -> GarmentScene:
     """Draw one T-shirt or pants scene: a garment from its realistic ranges, yaw 90° ± `yaw_range`
-    (rad; default 15°), its centre within 3 cm of the workspace centre (less if it would leave
-    the workspace), and the towel scenes' colours, arm, camera jitter, noise and lighting."""
+    (rad; default 15°), its centre within 3 cm of the `layout`'s workspace centre (less if it
+    would leave the workspace), and the towel scenes' colours, arm, camera jitter, noise and
+    lighting."""
     if garment not in ("tshirt", "pants"):
         raise ConfigError(f"garment scenes are 'tshirt' or 'pants', got {garment!r}")
-    lay = DEFAULT_LAYOUT
+    lay = layout
     spec, mesh = sample_garment(garment, rng, edge_length)
     yaw = float(GARMENT_YAW[0] + rng.uniform(-yaw_range, yaw_range))
     c, s = math.cos(yaw), math.sin(yaw)
@@ -266,7 +295,7 @@ def sample_garment_scene(
     cx, cy = lay.workspace_center_xy
     x = cx + rng.uniform(-1, 1) * min(GARMENT_JITTER, max(0.0, half - ex))
     y = cy + rng.uniform(-1, 1) * min(GARMENT_JITTER, max(0.0, half - ey))
-    look = _sample_look(rng, arm_fraction, arm_pose)
+    look = _sample_look(rng, arm_fraction, arm_pose, layout)
     return GarmentScene(
         index=index, garment=garment, spec=spec, yaw=yaw, x=float(x), y=float(y), **look
     )
@@ -306,10 +335,11 @@ def sample_scene(
     arm_fraction: float,
     arm_pose: str = "anywhere",
     towel_sides: tuple[float, float] = TOWEL_SIDES,
+    layout: CellLayout = DEFAULT_LAYOUT,
 ) -> Scene:
-    """Draw one scene's randomisation (see the module docstring); each towel side uniform in
-    `towel_sides` (m)."""
-    lay = DEFAULT_LAYOUT
+    """Draw one scene's randomisation (see the module docstring) in `layout`'s workspace; each
+    towel side uniform in `towel_sides` (m)."""
+    lay = layout
     state = "folded" if rng.random() < folded_fraction else "flat"
     w, h = rng.uniform(*towel_sides, size=2)
     fold_axis = "x" if rng.random() < 0.5 else "y"
@@ -323,7 +353,7 @@ def sample_scene(
     cx, cy = lay.workspace_center_xy
     x = cx + rng.uniform(-1, 1) * max(0.0, (x1 - x0) / 2 - ex)
     y = cy + rng.uniform(-1, 1) * max(0.0, (y1 - y0) / 2 - ey)
-    look = _sample_look(rng, arm_fraction, arm_pose)
+    look = _sample_look(rng, arm_fraction, arm_pose, layout)
     return Scene(
         index=index,
         state=state,
@@ -338,13 +368,17 @@ def sample_scene(
 
 
 def _sample_look(
-    rng: np.random.Generator, arm_fraction: float, arm_pose: str = "anywhere"
+    rng: np.random.Generator,
+    arm_fraction: float,
+    arm_pose: str = "anywhere",
+    layout: CellLayout = DEFAULT_LAYOUT,
 ) -> dict[str, Any]:
-    """Colours, arm, camera jitter, sensor noise and lighting of one scene (Scene field → value);
-    the arm (`arm_pose`, ARM_POSES) moves nothing else: the same draws are made either way."""
+    """Colours, arm, camera jitter, sensor noise and lighting of one scene (Scene field → value)
+    in `layout` (the camera moved with its workspace, as the cell's); the arm (`arm_pose`,
+    ARM_POSES) moves nothing else: the same draws are made either way."""
     if arm_pose not in ARM_POSES:
         raise ConfigError(f"arm pose must be one of {ARM_POSES}, got {arm_pose!r}")
-    lay = DEFAULT_LAYOUT
+    lay = layout
     x0, x1, y0, y1 = lay.workspace_bounds
     table = rng.uniform(0.15, 0.85, size=3)
     similar = bool(rng.random() < 0.25)
@@ -359,8 +393,9 @@ def _sample_look(
         if arm_pose == "home":
             cx, cy = lay.workspace_center_xy
             arm_target = (cx, cy, lay.table_height + HOME_HEIGHT_ABOVE_TABLE)
-    eye = np.array(DEFAULT_EYE) + rng.uniform(-0.03, 0.03, 3)
-    target = np.array(DEFAULT_TARGET) + rng.uniform(-0.03, 0.03, 3)
+    shift = np.array(layout.workspace_shift())
+    eye = np.array(DEFAULT_EYE) + shift + rng.uniform(-0.03, 0.03, 3)
+    target = np.array(DEFAULT_TARGET) + shift + rng.uniform(-0.03, 0.03, 3)
     direction = rng.normal(size=3)
     direction[2] = abs(direction[2]) + 0.5
     lighting = Lighting(
@@ -387,7 +422,31 @@ def _sample_look(
     }
 
 
-def _camera_config(scene: Scene | GarmentScene, width: int, height: int, seed: int) -> CameraConfig:
+def _camera_config(
+    scene: Scene | GarmentScene,
+    width: int,
+    height: int,
+    seed: int,
+    camera: CameraPlacement | None = None,
+) -> CameraConfig:
+    """The scene's camera: at its jittered eye and target, turned by its roll; or, given
+    `camera`, that camera's pose, image size and intrinsics (the scene's noise and light)."""
+    if camera is not None:
+        K = camera.K
+        return CameraConfig(
+            width=camera.width,
+            height=camera.height,
+            fx=float(K[0, 0]),
+            fy=float(K[1, 1]),
+            cx=float(K[0, 2]),
+            cy=float(K[1, 2]),
+            pose=tuple(tuple(float(v) for v in row) for row in camera.T_world_camera),
+            depth_noise=scene.depth_noise,
+            depth_dropout=scene.depth_dropout,
+            rgb_noise=scene.rgb_noise,
+            seed=seed,
+            lighting=scene.lighting,
+        )
     view = np.array(scene.target) - np.array(scene.eye)
     view /= np.linalg.norm(view)
     up = np.array(DEFAULT_UP, dtype=float)
@@ -516,14 +575,17 @@ def render_scene(
     seed: int = 0,
     settle_time: float | None = None,
     depth_baseline: float | None = None,
+    layout: CellLayout = DEFAULT_LAYOUT,
+    camera: CameraPlacement | None = None,
 ) -> RenderedScene:
-    """Build, settle and render `scene` and read its ground truth.
+    """Build, settle and render `scene` in the cell `layout` lays out and read its ground truth.
 
     The corners are the mesh corners for a flat towel and the top-view outline corners for a
     folded one. `settle_time` (s) defaults to 1.0 flat / 1.5 folded; 0 renders the towel as
     spawned (after one physics step: flat, ~5 mm above the table), fast enough for unit tests.
     `depth_baseline` (m): the depth comes from a sensor that far beside the colour camera,
-    registered onto it (depth_sensor_config).
+    registered onto it (depth_sensor_config). `camera`: render from that camera (its pose,
+    size and intrinsics) instead of the scene's.
     """
     spec = TowelSpec(scene.towel_width, scene.towel_height, resolution)
     mesh = folded_towel(spec, scene.fold_axis) if scene.state == "folded" else make_towel(spec)
@@ -533,7 +595,9 @@ def render_scene(
     def truth(oracle: GroundTruthOracle) -> dict[str, np.ndarray]:
         return oracle.labelled_corners() if scene.state == "flat" else oracle.outline_corners()
 
-    return _render(scene, mesh, truth, width, height, seed, settle_time, depth_baseline)
+    return _render(
+        scene, mesh, truth, width, height, seed, settle_time, depth_baseline, layout, camera
+    )
 
 
 def render_garment_scene(
@@ -543,8 +607,11 @@ def render_garment_scene(
     seed: int = 0,
     settle_time: float = 1.0,
     depth_baseline: float | None = None,
+    layout: CellLayout = DEFAULT_LAYOUT,
+    camera: CameraPlacement | None = None,
 ) -> RenderedScene:
-    """Build, settle and render a garment scene; the ground truth is the mesh's named keypoints.
+    """Build, settle and render a garment scene (in `layout`'s cell, from `camera` where given,
+    as render_scene); the ground truth is the mesh's named keypoints.
 
     `settle_time` 0 renders the garment as spawned (after one physics step), for unit tests.
     """
@@ -558,6 +625,8 @@ def render_garment_scene(
         seed,
         settle_time,
         depth_baseline,
+        layout,
+        camera,
     )
 
 
@@ -570,12 +639,15 @@ def _render(
     seed: int,
     settle_time: float,
     depth_baseline: float | None = None,
+    layout: CellLayout = DEFAULT_LAYOUT,
+    camera: CameraPlacement | None = None,
 ) -> RenderedScene:
-    """Place `mesh` as the scene says (pose, colours, arm, camera, lighting), settle, render;
-    with `depth_baseline`, the depth from a sensor beside the camera, registered onto it."""
-    lay = DEFAULT_LAYOUT
+    """Place `mesh` as the scene says (pose, colours, arm, camera, lighting) in `layout`'s cell,
+    settle, render (from `camera` where given); with `depth_baseline`, the depth from a sensor
+    beside the camera, registered onto it."""
+    lay = layout
     rgba = (*scene.table_rgb, 1.0)
-    with SimWorld(SimConfig(table_rgba=rgba)) as world:
+    with SimWorld(SimConfig(table_rgba=rgba, layout=layout)) as world:
         robot = make_robot("ur5", world.client, world.layout)
         if scene.arm_target is not None:
             try:
@@ -599,18 +671,22 @@ def _render(
         else:
             world.step(1)  # PyBullet draws a soft body only once the world has stepped
         cloth.check_finite_and_bounded(lay.workspace_center_xy, 1.0)
-        camera = RGBDCamera(world.client, _camera_config(scene, width, height, seed))
-        obs = camera.observe(joint_positions=robot.joint_positions(), stamp=world.sim_time)
+        rgbd = RGBDCamera(world.client, _camera_config(scene, width, height, seed, camera))
+        obs = rgbd.observe(joint_positions=robot.joint_positions(), stamp=world.sim_time)
         if depth_baseline is not None:
-            depth_cfg, T_color_depth = depth_sensor_config(camera.config, depth_baseline)
+            depth_cfg, T_color_depth = depth_sensor_config(rgbd.config, depth_baseline)
             seen = RGBDCamera(world.client, depth_cfg).observe(stamp=world.sim_time)
             registered = register_depth(
-                seen.depth, depth_cfg.K, camera.config.K, T_color_depth, (width, height)
+                seen.depth,
+                depth_cfg.K,
+                rgbd.config.K,
+                T_color_depth,
+                (rgbd.config.width, rgbd.config.height),
             )
             obs = dataclasses.replace(obs, depth=registered)
-        oracle = GroundTruthOracle(cloth, camera)
+        oracle = GroundTruthOracle(cloth, rgbd)
         corners = truth(oracle)
-        seg = camera.render_segmentation()  # ground truth, read here for the IoU only
+        seg = rgbd.render_segmentation()  # ground truth, read here for the IoU only
         return RenderedScene(obs, corners, seg == cloth.body_id, seg == robot.body_id)
 
 
@@ -661,7 +737,7 @@ def _print_table(summary: dict[str, Any], worst: list[dict[str, Any]]) -> None:
 
     print(
         f"eval-perception: {summary['scenes']} scenes, seed {summary['seed']}, "
-        f"{summary['width']}×{summary['height']}"
+        f"{summary['width']}×{summary['height']}{_cell_words(summary)}"
     )
     header = (
         f"{'state':<8}{'scenes':>7}{'detect':>8}{'median mm':>11}{'p95 mm':>9}{'max mm':>9}"
@@ -713,6 +789,23 @@ def _with_defaults(args: argparse.Namespace) -> argparse.Namespace:
         out.garment_yaw_range = math.degrees(GARMENT_YAW[1])
     if not hasattr(out, "depth_sensor"):
         out.depth_sensor = None
+    layout_file = getattr(out, "layout", None)
+    out.cell_layout = DEFAULT_LAYOUT if layout_file is None else load_layout(layout_file)
+    out.camera = None
+    if getattr(out, "camera_pose", None) is not None:
+        from foldbot.commands.check_layout import camera_placement
+
+        if out.width is not None or out.height is not None:
+            raise ConfigError(
+                "--width and --height are the calibration's with --camera-pose (its camera_info, "
+                "or 640 × 480 where it has none); give one or the other"
+            )
+        out.camera = camera_placement(out.camera_pose, out.cell_layout)
+        out.width, out.height = out.camera.width, out.camera.height
+    if out.width is None:
+        out.width = 640
+    if out.height is None:
+        out.height = 480
     return out
 
 
@@ -815,7 +908,13 @@ def _evaluate(args: argparse.Namespace, stage: Path) -> dict[str, Any]:
     for i in tqdm(range(args.scenes), desc="eval-perception", unit="scene", file=sys.stderr):
         rng = np.random.default_rng([args.seed, i])
         scene = sample_scene(
-            rng, i, args.folded_fraction, args.arm_fraction, args.arm_pose, tuple(args.towel_sides)
+            rng,
+            i,
+            args.folded_fraction,
+            args.arm_fraction,
+            args.arm_pose,
+            tuple(args.towel_sides),
+            args.cell_layout,
         )
         try:
             rendered = render_scene(
@@ -825,6 +924,8 @@ def _evaluate(args: argparse.Namespace, stage: Path) -> dict[str, Any]:
                 args.resolution,
                 seed=args.seed * 100003 + i,
                 depth_baseline=args.depth_sensor,
+                layout=args.cell_layout,
+                camera=args.camera,
             )
         except SimulationDivergedError:
             failures.append(i)
@@ -851,7 +952,7 @@ def _evaluate(args: argparse.Namespace, stage: Path) -> dict[str, Any]:
             "corner_error_mm": {},
             "confidence": {},
             "label_ok": False,
-            "scene": {k: v for k, v in asdict(scene).items() if k not in ("index", "state")},
+            "scene": _scene_record(scene, args.camera, ("index", "state")),
         }
         if state.detected:
             seen = {name: state.keypoints[name][0] for name in CORNER_LABELS}
@@ -885,6 +986,7 @@ def _evaluate(args: argparse.Namespace, stage: Path) -> dict[str, Any]:
         "arm_pose": args.arm_pose,
         "towel_sides_m": list(args.towel_sides),
         "depth_sensor_baseline_m": args.depth_sensor,
+        **_cell_record(args),
         "corner_error_mm": headline["corner_error_mm"],
         "corner_error_scope": "flat scenes, vs mesh corners" if flat else "all scenes",
         "detection_rate": everything["detection_rate"],
@@ -910,6 +1012,44 @@ def _evaluate(args: argparse.Namespace, stage: Path) -> dict[str, Any]:
             iio.imwrite(odir / f"scene_{i:04d}.png", img)
     _print_table(summary, sorted(rows, key=_badness, reverse=True)[:5])
     return summary
+
+
+def _scene_record(
+    scene: Scene | GarmentScene, camera: CameraPlacement | None, leave: tuple[str, ...]
+) -> dict[str, Any]:
+    """A row's scene as summary.json keeps it: without `leave`, and without the jittered camera
+    a fixed one (--camera-pose) replaced."""
+    if camera is not None:
+        leave = (*leave, "eye", "target", "roll")
+    return {k: v for k, v in asdict(scene).items() if k not in leave}
+
+
+def _cell_record(args: argparse.Namespace) -> dict[str, Any]:
+    """The cell the scenes were rendered in: the layout's changes from the default cell's and the
+    camera (`jittered`: the default camera, ±3 cm a scene; else the calibration's)."""
+    camera: dict[str, Any] = {"source": "the default camera, jittered ±3 cm and ±3° a scene"}
+    if args.camera is not None:
+        camera = {
+            "source": args.camera.source,
+            "T_world_camera": args.camera.T_world_camera.tolist(),
+            "K": args.camera.K.tolist(),
+        }
+    layout_file = getattr(args, "layout", None)
+    return {
+        "layout": args.cell_layout.changes(),
+        "layout_file": None if layout_file is None else str(layout_file),
+        "camera": camera,
+    }
+
+
+def _cell_words(summary: dict[str, Any]) -> str:
+    """The header's note of a layout or a calibration's camera, where the run had one."""
+    words = ""
+    if summary.get("layout_file"):
+        words += f", layout {summary['layout_file']}"
+    if "T_world_camera" in summary.get("camera", {}):
+        words += f"; camera: {summary['camera']['source']}"
+    return words
 
 
 def _stats_mean(values: list[float]) -> dict[str, float | int | None]:
@@ -965,6 +1105,7 @@ def _evaluate_garment(args: argparse.Namespace, stage: Path) -> dict[str, Any]:
             args.edge_length,
             math.radians(args.garment_yaw_range),
             args.arm_pose,
+            args.cell_layout,
         )
         try:
             rendered = render_garment_scene(
@@ -973,6 +1114,8 @@ def _evaluate_garment(args: argparse.Namespace, stage: Path) -> dict[str, Any]:
                 args.height,
                 seed=args.seed * 100003 + i,
                 depth_baseline=args.depth_sensor,
+                layout=args.cell_layout,
+                camera=args.camera,
             )
         except SimulationDivergedError:
             failures.append(i)
@@ -997,7 +1140,7 @@ def _evaluate_garment(args: argparse.Namespace, stage: Path) -> dict[str, Any]:
             "keypoint_error_mm": {},
             "confidence": {},
             "missing": [n for n in names if n not in state.keypoints],
-            "scene": {k: v for k, v in asdict(scene).items() if k != "index"},
+            "scene": _scene_record(scene, args.camera, ("index",)),
         }
         found = [name for name in names if name in state.keypoints]
         row["keypoint_error_mm"] = keypoint_errors_mm(
@@ -1027,6 +1170,7 @@ def _evaluate_garment(args: argparse.Namespace, stage: Path) -> dict[str, Any]:
         "arm_pose": args.arm_pose,
         "garment_yaw_range_deg": args.garment_yaw_range,
         "depth_sensor_baseline_m": args.depth_sensor,
+        **_cell_record(args),
         **{k: v for k, v in overall.items() if k != "scenes"},
         "by_keypoint": by_keypoint,
         "sim_failures": failures,
@@ -1054,7 +1198,7 @@ def _print_garment_table(summary: dict[str, Any], worst: list[dict[str, Any]]) -
 
     print(
         f"eval-perception: {summary['scenes']} flat {summary['garment']} scenes, "
-        f"seed {summary['seed']}, {summary['width']}×{summary['height']}"
+        f"seed {summary['seed']}, {summary['width']}×{summary['height']}{_cell_words(summary)}"
     )
     header = (
         f"{'keypoint':<17}{'detect':>8}{'median mm':>11}{'mean mm':>9}{'p95 mm':>9}{'max mm':>9}"
