@@ -23,6 +23,7 @@ def build_parser() -> argparse.ArgumentParser:
         print_board,
         ros_calibrate,
         ros_cell,
+        ros_check,
         ros_fold,
         ros_replay,
         score,
@@ -46,6 +47,7 @@ def build_parser() -> argparse.ArgumentParser:
             ros_calibrate,
             "find the camera's pose on a running cell from a board the arm holds (ROS)",
         ),
+        "ros-check": (ros_check, "is a running cell ready to fold? ask it for all a fold needs"),
         "ros-replay": (ros_replay, "replay a recorded bag through perception; compare keypoints"),
         "calibrate": (
             calibrate,

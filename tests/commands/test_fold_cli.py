@@ -35,6 +35,7 @@ def test_help_lists_subcommands(capsys):
         "ros-calibrate",
         "print-board",
         "check-layout",
+        "ros-check",
     ],
 )
 def test_subcommand_help(cmd, capsys):

@@ -1,0 +1,383 @@
+"""The bring-up check node: `foldbot ros-check`'s run on a running cell. It asks the cell for
+everything `foldbot ros-fold --cell real` will need, all of it rather than the first thing
+missing, and says what it found: each arm's driver actions, /joint_states with every joint
+within its limits, the camera's colour, depth and camera_info, world → base_link and
+world → the camera on /tf_static (or a calibration's pose), the table where the layout puts it
+as the camera's depth sees it, and every workspace point reached by an arm and inside the image
+(foldbot.layout_check). Moves nothing. Writes ros_check.json and ros_check.png (the camera's
+image, the workspace drawn where the camera's pose puts it) into the staging folder it is given.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import threading
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import actionlib
+import cv2
+import imageio.v3 as iio
+import numpy as np
+import rospy
+from sensor_msgs.msg import CameraInfo, Image, JointState
+from tf2_msgs.msg import TFMessage
+
+from foldbot.errors import FoldbotError
+from foldbot.layout_check import CameraPlacement, check_layout
+from foldbot.ros import (
+    BASE_FRAME,
+    TOPICS,
+    WORLD_FRAME,
+    arm_joint_names,
+    arm_prefixes,
+    driver_actions,
+)
+from foldbot.ros.control_msgs import msg as control_msgs
+from foldbot.ros.frames import StaticFrames
+from foldbot.sim.layout import DEFAULT_LAYOUT, CellLayout, load_layout
+from foldbot.sim.robots import robot_class
+
+WAIT_S = 10.0
+"""How long (wall s) the check waits for each thing the cell should serve."""
+BASE_TOLERANCE_M = 0.01
+"""How far world → base_link may lie from the layout's robot_base_xyz (m)."""
+TABLE_TOLERANCE_M = 0.01
+"""How far the table the depth shows may lie from the layout's table_height (m)."""
+TILT_TOLERANCE_DEG = 2.0
+"""How far from level the table the depth shows may be tilted (a camera pose turned wrong)."""
+
+
+@dataclass(frozen=True)
+class Check:
+    """One line of the check: what was asked, whether the cell answered right, and what it said."""
+
+    name: str
+    ok: bool
+    detail: str
+
+
+class _Inbox:
+    """The newest message of each topic the check listens to."""
+
+    def __init__(self) -> None:
+        self.lock = threading.Lock()
+        self.latest: dict[str, Any] = {}
+        self.frames = StaticFrames()
+        topics = {
+            "color": (TOPICS["color"], Image),
+            "color_info": (TOPICS["color_info"], CameraInfo),
+            "depth": (TOPICS["depth"], Image),
+            "depth_info": (TOPICS["depth_info"], CameraInfo),
+            "joint_states": (TOPICS["joint_states"], JointState),
+        }
+        for key, (topic, kind) in topics.items():
+            rospy.Subscriber(
+                topic,
+                kind,
+                self._keep(key),
+                queue_size=2,
+                buff_size=2**24 if kind is Image else 65536,
+            )
+        rospy.Subscriber(TOPICS["tf_static"], TFMessage, self._on_tf, queue_size=10)
+
+    def _keep(self, key: str):
+        def keep(msg) -> None:
+            with self.lock:
+                self.latest[key] = msg
+
+        return keep
+
+    def _on_tf(self, msg: TFMessage) -> None:
+        with self.lock:
+            self.frames.add(msg)
+
+    def wait(self, keys: tuple[str, ...], timeout_s: float) -> dict[str, Any]:
+        """The newest of each of `keys` that came within `timeout_s` (those that did not: absent)."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline and not rospy.is_shutdown():
+            with self.lock:
+                if all(k in self.latest for k in keys):
+                    break
+            time.sleep(0.02)
+        with self.lock:
+            return {k: self.latest[k] for k in keys if k in self.latest}
+
+
+def check_drivers(arms: int) -> list[Check]:
+    """Each arm's FollowJointTrajectory and GripperCommand action servers answer."""
+    out = []
+    for names in driver_actions(arms):
+        for name, kind in zip(
+            names,
+            (control_msgs.FollowJointTrajectoryAction, control_msgs.GripperCommandAction),
+            strict=True,
+        ):
+            client = actionlib.SimpleActionClient(name, kind)
+            ok = client.wait_for_server(rospy.Duration(WAIT_S))
+            resolved = rospy.resolve_name(name)
+            out.append(
+                Check(
+                    f"action {resolved}",
+                    ok,
+                    "its server answers" if ok else f"no action server within {WAIT_S:g} s",
+                )
+            )
+    return out
+
+
+def check_joints(inbox: _Inbox, robot: str, arms: int) -> Check:
+    """/joint_states names every arm joint, each finite and within the robot's limits."""
+    msg = inbox.wait(("joint_states",), WAIT_S).get("joint_states")
+    topic = rospy.resolve_name(TOPICS["joint_states"])
+    if msg is None:
+        return Check(f"joints on {topic}", False, f"no message within {WAIT_S:g} s")
+    cls = robot_class(robot)
+    position = dict(zip(msg.name, msg.position, strict=False))
+    problems = []
+    for names in arm_joint_names(cls.ARM_JOINT_NAMES, arms):
+        for j, name in enumerate(names):
+            if name not in position:
+                problems.append(f"{name} missing")
+                continue
+            q = position[name]
+            lo, hi = cls.LOWER_LIMITS[j], cls.UPPER_LIMITS[j]
+            if not (np.isfinite(q) and lo - 1e-6 <= q <= hi + 1e-6):
+                problems.append(f"{name} = {q:.4g} rad outside [{lo:.4g}, {hi:.4g}]")
+    count = sum(len(n) for n in arm_joint_names(cls.ARM_JOINT_NAMES, arms))
+    if problems:
+        return Check(f"joints on {topic}", False, "; ".join(problems))
+    return Check(
+        f"joints on {topic}", True, f"all {count} arm joints of the {robot}, within limits"
+    )
+
+
+def _pose_check(
+    name: str, T: np.ndarray | None, expected_xyz, tolerance: float, hint: str
+) -> Check:
+    if T is None:
+        return Check(name, False, f"not on /tf_static; {hint}")
+    off = float(np.linalg.norm(T[:3, 3] - np.asarray(expected_xyz)))
+    xyz = ", ".join(f"{v:.3f}" for v in T[:3, 3])
+    if off > tolerance:
+        return Check(
+            name,
+            False,
+            f"at ({xyz}) m, {1000 * off:.0f} mm from the layout's "
+            f"({', '.join(f'{v:g}' for v in expected_xyz)}): is the layout file the cell's?",
+        )
+    return Check(name, True, f"at ({xyz}) m, as the layout says")
+
+
+def check_table(
+    depth: np.ndarray, K: np.ndarray, T_world_camera: np.ndarray, layout: CellLayout
+) -> Check:
+    """The table top the depth shows over the workspace lies at the layout's height and level:
+    the camera's pose and the layout agree (a pose turned or moved wrong tilts or lifts it)."""
+    h, w = depth.shape
+    v, u = np.mgrid[0:h, 0:w]
+    z = depth.ravel()
+    ok = np.isfinite(z) & (z > 0)
+    rays = np.linalg.inv(K) @ np.stack([u.ravel()[ok], v.ravel()[ok], np.ones(ok.sum())])
+    points = (T_world_camera[:3, :3] @ (rays * z[ok]) + T_world_camera[:3, 3:4]).T
+    x0, x1, y0, y1 = layout.workspace_bounds
+    inside = (
+        (points[:, 0] >= x0) & (points[:, 0] <= x1) & (points[:, 1] >= y0) & (points[:, 1] <= y1)
+    )
+    points = points[inside]
+    name = "the table in depth"
+    if len(points) < 100:
+        return Check(name, False, "under 100 depth pixels over the workspace: is it in view?")
+    # The table is the lowest large surface: fit a plane to the lowest half of the points (a
+    # cloth or an arm over the table lies above it).
+    low = points[points[:, 2] <= np.median(points[:, 2])]
+    A = np.column_stack([low[:, 0], low[:, 1], np.ones(len(low))])
+    (a, b, c), *_ = np.linalg.lstsq(A, low[:, 2], rcond=None)
+    cx, cy = layout.workspace_center_xy
+    height = float(a * cx + b * cy + c)
+    tilt = float(np.degrees(np.arctan(np.hypot(a, b))))
+    off = height - layout.table_height
+    detail = (
+        f"at {height:.4f} m over the workspace centre ({1000 * off:+.1f} mm from the layout's "
+        f"{layout.table_height:g}), tilted {tilt:.2f}°"
+    )
+    good = abs(off) <= TABLE_TOLERANCE_M and tilt <= TILT_TOLERANCE_DEG
+    if not good:
+        detail += (
+            f" (allowed ±{1000 * TABLE_TOLERANCE_M:.0f} mm, {TILT_TOLERANCE_DEG:g}°): the camera's "
+            "pose or the layout's table_height is off"
+        )
+    return Check(name, good, detail)
+
+
+def check_picture(
+    rgb: np.ndarray, camera: CameraPlacement, layout: CellLayout, seen: np.ndarray, xs, ys
+) -> np.ndarray:
+    """The camera's image with the workspace's outline (white) and its grid points (green:
+    inside the image) drawn where the camera's pose puts them on the table."""
+    img = np.ascontiguousarray(rgb[..., :3].copy())
+    x0, x1, y0, y1 = layout.workspace_bounds
+    z = layout.table_height
+    edge = np.array([(x0, y0, z), (x1, y0, z), (x1, y1, z), (x0, y1, z)])
+    uv, depth = camera.project(edge)
+    if (depth > 0).all():
+        cv2.polylines(img, [np.round(uv).astype(np.int32)], True, (255, 255, 255), 2, cv2.LINE_AA)
+    gx, gy = np.meshgrid(xs, ys)
+    pts = np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, z)], axis=1)
+    uv, depth = camera.project(pts)
+    for (u, v), d, ok in zip(uv, depth, seen.ravel(), strict=True):
+        if d > 0 and np.isfinite(u) and np.isfinite(v) and ok:
+            cv2.circle(img, (round(u), round(v)), 3, (60, 180, 75), -1, cv2.LINE_AA)
+    return img
+
+
+def run_checks(
+    robot: str, arms: int, layout: CellLayout, camera_pose: np.ndarray | None
+) -> tuple[list[Check], np.ndarray | None, dict[str, Any]]:
+    """Every check on the cell the master serves: the lines, the picture (None without a camera
+    frame and pose) and what the record keeps besides."""
+    inbox = _Inbox()
+    checks = check_drivers(arms)
+    checks.append(check_joints(inbox, robot, arms))
+    got = inbox.wait(("color", "color_info", "depth"), WAIT_S)
+    depth_info = inbox.wait(("depth_info",), 0.5).get("depth_info")
+    missing = [TOPICS[k] for k in ("color", "color_info", "depth") if k not in got]
+    extra: dict[str, Any] = {}
+    rgb = depth = intr = None
+    if missing:
+        checks.append(
+            Check(
+                "camera",
+                False,
+                f"nothing on {', '.join(map(rospy.resolve_name, missing))} within {WAIT_S:g} s",
+            )
+        )
+    else:
+        try:
+            with inbox.lock:
+                rgb, depth, intr = inbox.frames.camera_images(
+                    got["color"], got["depth"], got["color_info"], depth_info
+                )
+            checks.append(
+                Check(
+                    "camera",
+                    True,
+                    f"colour {got['color'].encoding} and depth {got['depth'].encoding}, "
+                    f"{intr.width} × {intr.height} px, fx {intr.fx:.1f} px",
+                )
+            )
+        except FoldbotError as exc:
+            checks.append(Check("camera", False, str(exc)))
+    # The frames: world → each base_link, world → the camera.
+    time.sleep(0.2)  # /tf_static is latched: it has come with the first messages
+    with inbox.lock:
+        frames = inbox.frames
+        for prefix, arm_layout in zip(arm_prefixes(arms), layout.arm_layouts(arms), strict=True):
+            T = frames.transform(WORLD_FRAME, prefix + BASE_FRAME)
+            checks.append(
+                _pose_check(
+                    f"{WORLD_FRAME} → {prefix}{BASE_FRAME}",
+                    T,
+                    arm_layout.robot_base_xyz,
+                    BASE_TOLERANCE_M,
+                    "the arm's driver or the cell's launch file publishes it",
+                )
+            )
+        cam_frame = got["color_info"].header.frame_id if "color_info" in got else None
+        T_cam = None
+        if camera_pose is not None:
+            T_cam = camera_pose
+            checks.append(Check("camera pose", True, "the calibration's (--camera-pose)"))
+        elif cam_frame is not None:
+            T_cam = frames.transform(WORLD_FRAME, cam_frame)
+            checks.append(
+                Check(
+                    f"{WORLD_FRAME} → {cam_frame}",
+                    T_cam is not None,
+                    "on /tf_static"
+                    if T_cam is not None
+                    else "not on /tf_static: calibrate the camera (`foldbot ros-calibrate`) and "
+                    "publish its pose, or give it here (--camera-pose CALIBRATION.json)",
+                )
+            )
+    picture = None
+    if depth is not None and intr is not None and T_cam is not None:
+        checks.append(check_table(depth, intr.K, T_cam, layout))
+    if intr is not None and T_cam is not None:
+        placement = CameraPlacement(T_cam, intr.K, intr.width, intr.height, "the cell's camera")
+        found = check_layout(layout, placement, robot=robot, arms=arms)
+        unreached = found.points - int(found.covered.sum())
+        checks.append(
+            Check(
+                "the arm's reach",
+                unreached == 0,
+                f"{int(found.covered.sum())} of {found.points} workspace points grasped and "
+                "placed gripper down"
+                + ("" if unreached == 0 else " (`foldbot check-layout` names the rest)"),
+            )
+        )
+        seen = int(found.in_view.sum())
+        checks.append(
+            Check(
+                "the workspace in view",
+                seen == found.points,
+                f"{seen} of {found.points} workspace points inside the image, "
+                f"{found.mm_per_px:.2f} mm per pixel at its centre",
+            )
+        )
+        extra["T_world_camera"] = T_cam.tolist()
+        extra["K"] = intr.K.tolist()
+        if rgb is not None:
+            picture = check_picture(rgb, placement, layout, found.in_view, found.xs, found.ys)
+    return checks, picture, extra
+
+
+def _master_uri() -> str:
+    import os
+
+    return os.environ.get("ROS_MASTER_URI", "")
+
+
+def main(argv: list[str] | None = None) -> int:
+    from foldbot.calibration.capture import calibration_camera
+
+    parser = argparse.ArgumentParser(prog="foldbot_check")
+    parser.add_argument("--stage", type=Path, required=True)
+    parser.add_argument("--robot", default="ur5")
+    parser.add_argument("--arms", type=int, default=1)
+    parser.add_argument("--layout", type=Path, default=None)
+    parser.add_argument("--camera-pose", type=Path, default=None)
+    args = parser.parse_args(rospy.myargv(argv if argv is not None else sys.argv)[1:])
+    rospy.init_node("foldbot_check", anonymous=True, disable_signals=True)
+    try:
+        layout = DEFAULT_LAYOUT if args.layout is None else load_layout(args.layout)
+        pose = None if args.camera_pose is None else calibration_camera(args.camera_pose)[0]
+        checks, picture, extra = run_checks(args.robot, args.arms, layout, pose)
+        record = {
+            "ok": all(c.ok for c in checks),
+            "master": _master_uri(),
+            "robot": args.robot,
+            "arms": args.arms,
+            "layout": layout.changes(),
+            "checks": [asdict(c) for c in checks],
+            **extra,
+        }
+        (args.stage / "ros_check.json").write_text(json.dumps(record, indent=2) + "\n")
+        if picture is not None:
+            iio.imwrite(args.stage / "ros_check.png", picture)
+        for c in checks:
+            print(f"{'ok  ' if c.ok else 'FAIL'} {c.name}: {c.detail}", flush=True)
+    except FoldbotError as exc:
+        print(f"{type(exc).__name__}: {exc}", file=sys.stderr, flush=True)
+        return 2
+    finally:
+        rospy.signal_shutdown("check done")
+    return 0 if record["ok"] else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,90 @@
+"""`foldbot ros-check` on a running cell (`foldbot ros-cell`): every check named, each failing
+where the cell lacks what it asks for (a camera pose), or disagrees with the layout it is told
+(a table 2 cm higher); no master, no check and no folder."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+from ros_helpers import free_port, requires_ros, start_cell, stop_cell, wait_for_master
+
+from foldbot.sim.camera import CameraConfig
+
+pytestmark = requires_ros
+
+
+def foldbot(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "foldbot.cli", *args], capture_output=True, text=True, timeout=600
+    )
+
+
+def test_a_running_cell_is_checked_for_all_a_fold_needs(tmp_path):
+    # The camera's true pose as a calibration would give it; the cell publishes none.
+    calibration = tmp_path / "calibration.json"
+    calibration.write_text(
+        json.dumps(
+            {
+                "T_world_camera": CameraConfig().T_world_camera.tolist(),
+                "parent_frame": "world",
+                "child_frame": "camera_color_optical_frame",
+            }
+        )
+    )
+    high = tmp_path / "high.toml"  # the table and the arm 2 cm higher than the cell's
+    high.write_text("table_height = 0.77\nrobot_base_xyz = [0.0, 0.0, 0.77]\n")
+    cell, port = start_cell("--hide-camera-pose", "--resolution", "5", "--camera-rate", "2")
+    runs = {}
+    try:
+        wait_for_master(port)
+        for name, extra in (
+            ("no_pose", []),
+            ("calibrated", ["--camera-pose", str(calibration)]),
+            ("high", ["--camera-pose", str(calibration), "--layout", str(high)]),
+        ):
+            runs[name] = foldbot(
+                "ros-check", "--out", str(tmp_path / name), "--port", str(port), *extra
+            )
+    finally:
+        log = stop_cell(cell)
+    no_pose, calibrated, wrong = runs["no_pose"], runs["calibrated"], runs["high"]
+    assert no_pose.returncode == 1, no_pose.stdout + no_pose.stderr + log[-3000:]
+    assert "ok   action /scaled_pos_joint_traj_controller/follow_joint_trajectory" in no_pose.stdout
+    assert "ok   action /gripper_controller/gripper_cmd" in no_pose.stdout
+    assert "ok   joints on /joint_states: all 6 arm joints of the ur5" in no_pose.stdout
+    assert "ok   camera: colour rgb8 and depth 32FC1, 640 × 480 px" in no_pose.stdout
+    assert "ok   world → base_link: at (0.000, 0.000, 0.750) m" in no_pose.stdout
+    assert "FAIL world → camera_color_optical_frame: not on /tf_static" in no_pose.stdout
+    assert "1 of 6 checks failed" in no_pose.stdout
+    assert not (tmp_path / "no_pose" / "ros_check.png").exists()  # no pose: nothing to draw
+
+    assert calibrated.returncode == 0, calibrated.stdout + calibrated.stderr
+    assert "ros-check: the cell is ready to fold" in calibrated.stdout
+    record = json.loads((tmp_path / "calibrated" / "ros_check.json").read_text())
+    assert record["ok"] and len(record["checks"]) == 9
+    table = next(c for c in record["checks"] if c["name"] == "the table in depth")
+    assert "(-0.0 mm from the layout's 0.75)" in table["detail"]
+    assert "169 of 169 workspace points inside the image" in calibrated.stdout
+    assert (tmp_path / "calibrated" / "ros_check.png").stat().st_size > 10_000
+    np.testing.assert_allclose(record["T_world_camera"], CameraConfig().T_world_camera)
+
+    assert wrong.returncode == 1
+    assert "FAIL world → base_link: at (0.000, 0.000, 0.750) m, 20 mm from the layout's" in (
+        wrong.stdout
+    )
+    assert (
+        "FAIL the table in depth: at 0.7500 m over the workspace centre (-20.0 mm" in wrong.stdout
+    )
+    assert "2 of 9 checks failed: world → base_link, the table in depth" in wrong.stdout
+
+
+def test_no_master_no_check_and_no_folder(tmp_path):
+    out = tmp_path / "check"
+    port = free_port()
+    proc = foldbot("ros-check", "--out", str(out), "--port", str(port), "--master-wait", "0.5")
+    assert proc.returncode == 2
+    assert f"no ROS master answers at http://localhost:{port}" in proc.stderr
+    assert not out.exists() and list(tmp_path.iterdir()) == []
+    proc = foldbot("ros-check", "--out", str(out), "--layout", str(tmp_path / "no.toml"))
+    assert proc.returncode == 2 and "does not exist" in proc.stderr
