@@ -189,7 +189,7 @@ def _read_calibration(path: Path) -> tuple[dict[str, Any], np.ndarray]:
     try:
         record = json.loads(path.read_text())
         T = np.asarray(record["T_world_camera"], dtype=float)
-        str(record["parent_frame"]), str(record["child_frame"])
+        _frames = (record["parent_frame"], record["child_frame"])  # both must be named
     except FileNotFoundError:
         raise ConfigError(f"{str(path)!r}: no such file") from None
     except (OSError, ValueError, KeyError, TypeError) as exc:
@@ -223,7 +223,7 @@ def calibration_camera(
 ) -> tuple[np.ndarray, tuple[np.ndarray, int, int] | None]:
     """The camera a calibration.json found: T_world_camera, and (K, width, height) where the
     file records the intrinsics it was solved with (`camera_info`; files written before
-    2026-12 have none: None)."""
+    2026-11-30 have none: None)."""
     path = Path(path)
     record, T = _read_calibration(path)
     info = record.get("camera_info")

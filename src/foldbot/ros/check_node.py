@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import threading
 import time
@@ -336,12 +337,6 @@ def run_checks(
     return checks, picture, extra
 
 
-def _master_uri() -> str:
-    import os
-
-    return os.environ.get("ROS_MASTER_URI", "")
-
-
 def main(argv: list[str] | None = None) -> int:
     from foldbot.calibration.capture import calibration_camera
 
@@ -359,7 +354,7 @@ def main(argv: list[str] | None = None) -> int:
         checks, picture, extra = run_checks(args.robot, args.arms, layout, pose)
         record = {
             "ok": all(c.ok for c in checks),
-            "master": _master_uri(),
+            "master": os.environ.get("ROS_MASTER_URI", ""),
             "robot": args.robot,
             "arms": args.arms,
             "layout": layout.changes(),
