@@ -43,8 +43,9 @@ from foldbot.ros.frames import StaticFrames
 from foldbot.sim.layout import DEFAULT_LAYOUT, CellLayout, load_layout
 from foldbot.sim.robots import robot_class
 
-WAIT_S = 10.0
-"""How long (wall s) the check waits for each thing the cell should serve."""
+WAIT_S = 30.0
+"""How long (wall s) the check waits for what the cell should serve (its action servers, together;
+then its joint states; then its camera's topics): a loaded cell can be slow to connect."""
 BASE_TOLERANCE_M = 0.01
 """How far world → base_link may lie from the layout's robot_base_xyz (m)."""
 TABLE_TOLERANCE_M = 0.01
@@ -110,25 +111,28 @@ class _Inbox:
 
 
 def check_drivers(arms: int) -> list[Check]:
-    """Each arm's FollowJointTrajectory and GripperCommand action servers answer."""
-    out = []
-    for names in driver_actions(arms):
-        for name, kind in zip(
-            names,
-            (control_msgs.FollowJointTrajectoryAction, control_msgs.GripperCommandAction),
-            strict=True,
-        ):
-            client = actionlib.SimpleActionClient(name, kind)
-            ok = client.wait_for_server(rospy.Duration(WAIT_S))
-            resolved = rospy.resolve_name(name)
-            out.append(
-                Check(
-                    f"action {resolved}",
-                    ok,
-                    "its server answers" if ok else f"no action server within {WAIT_S:g} s",
-                )
-            )
-    return out
+    """Each arm's FollowJointTrajectory and GripperCommand action servers answer (all asked at
+    once, within one WAIT_S: a busy cell can take seconds to connect an action's topics)."""
+    kinds = (control_msgs.FollowJointTrajectoryAction, control_msgs.GripperCommandAction)
+    clients = {
+        name: actionlib.SimpleActionClient(name, kind)
+        for names in driver_actions(arms)
+        for name, kind in zip(names, kinds, strict=True)
+    }
+    ready = dict.fromkeys(clients, False)
+    deadline = time.monotonic() + WAIT_S
+    while not all(ready.values()) and time.monotonic() < deadline and not rospy.is_shutdown():
+        for name, client in clients.items():
+            if not ready[name]:
+                ready[name] = client.wait_for_server(rospy.Duration(0.05))
+    return [
+        Check(
+            f"action {rospy.resolve_name(name)}",
+            ok,
+            "its server answers" if ok else f"no action server within {WAIT_S:g} s",
+        )
+        for name, ok in ready.items()
+    ]
 
 
 def check_joints(inbox: _Inbox, robot: str, arms: int) -> Check:
