@@ -21,54 +21,25 @@ from __future__ import annotations
 import argparse
 import json
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 from foldbot.commands.calibrate import add_board_arguments, plan_from_args
-from foldbot.commands.ros_fold import (
-    MASTER_WAIT_S,
-    add_master_port,
-    check_port,
-    master_running,
-    ros_env,
-    ros_missing,
-)
-from foldbot.errors import ConfigError, FoldbotError
+from foldbot.commands.ros_fold import add_running_cell_master, run_node, running_cell_env
 from foldbot.io.staging import commit_output, prepare_output
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, required=True, help="output folder")
     add_board_arguments(parser)
-    add_master_port(parser, "a cell must be running there")
-    parser.add_argument(
-        "--master-wait",
-        type=float,
-        default=None,
-        metavar="S",
-        help=f"how long to wait for the master to answer (default {MASTER_WAIT_S:g} s)",
-    )
+    add_running_cell_master(parser)
 
 
 def run(args: argparse.Namespace) -> int:
-    check_port(args.port)
     plan = plan_from_args(args)  # every option checked before the cell is asked anything
-    wait_s = MASTER_WAIT_S if args.master_wait is None else args.master_wait
-    if not (wait_s >= 0):
-        raise ConfigError(f"--master-wait must be ≥ 0 s, got {args.master_wait!r}")
-    missing = ros_missing()
-    if missing:
-        raise FoldbotError(missing)
-    env = ros_env(args.port)
-    if not master_running(env, wait_s):
-        raise FoldbotError(
-            f"no ROS master answers at {env['ROS_MASTER_URI']} within {wait_s:g} s: start the "
-            "cell first (a real one, or `foldbot ros-cell --calibration-board`)"
-        )
+    env = running_cell_env(args, "a real one, or `foldbot ros-cell --calibration-board`")
     stage = prepare_output(args.out)
     try:
-        cmd = [sys.executable, "-m", "foldbot.ros.calibrate_node", "--stage", str(stage)]
+        cmd = ["--stage", str(stage)]
         cmd += ["--robot", args.robot, "--board", args.board, "--square", repr(args.square)]
         cmd += ["--arms", str(args.arms), "--arm", args.arm]
         cmd += ["--board-offset", *(repr(v) for v in plan.mount.offset_m)]
@@ -76,12 +47,7 @@ def run(args: argparse.Namespace) -> int:
         cmd += ["--views", str(args.views), "--look-from", *(repr(v) for v in plan.look_from)]
         if args.layout is not None:
             cmd += ["--layout", str(Path(args.layout).resolve())]
-        proc = subprocess.run(cmd, env=env, stderr=subprocess.PIPE, text=True, check=False)
-        if proc.returncode != 0:
-            lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
-            raise FoldbotError(
-                "the calibration failed: " + (lines[-1] if lines else f"exit {proc.returncode}")
-            )
+        run_node("foldbot.ros.calibrate_node", cmd, env, "the calibration")
     except BaseException:
         shutil.rmtree(stage, ignore_errors=True)
         raise

@@ -25,19 +25,9 @@ from __future__ import annotations
 import argparse
 import json
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
-from foldbot.commands.ros_fold import (
-    MASTER_WAIT_S,
-    add_master_port,
-    check_port,
-    master_running,
-    ros_env,
-    ros_missing,
-)
-from foldbot.errors import ConfigError, FoldbotError
+from foldbot.commands.ros_fold import add_running_cell_master, run_node, running_cell_env
 from foldbot.io.staging import commit_output, prepare_output
 from foldbot.sim.layout import load_layout
 from foldbot.sim.robots import ROBOT_NAMES
@@ -64,51 +54,26 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="the camera's pose from a calibration, where the cell publishes none (as "
         "`ros-fold --cell real --camera-pose` publishes it)",
     )
-    add_master_port(parser, "a cell must be running there")
-    parser.add_argument(
-        "--master-wait",
-        type=float,
-        default=None,
-        metavar="S",
-        help=f"how long to wait for the master to answer (default {MASTER_WAIT_S:g} s)",
-    )
+    add_running_cell_master(parser)
 
 
 def run(args: argparse.Namespace) -> int:
-    check_port(args.port)
-    wait_s = MASTER_WAIT_S if args.master_wait is None else args.master_wait
-    if not (wait_s >= 0):
-        raise ConfigError(f"--master-wait must be ≥ 0 s, got {args.master_wait!r}")
     if args.layout is not None:
         load_layout(args.layout)  # named before the cell is asked anything
     if args.camera_pose is not None:
         from foldbot.calibration.capture import calibration_camera
 
         calibration_camera(args.camera_pose)
-    missing = ros_missing()
-    if missing:
-        raise FoldbotError(missing)
-    env = ros_env(args.port)
-    if not master_running(env, wait_s):
-        raise FoldbotError(
-            f"no ROS master answers at {env['ROS_MASTER_URI']} within {wait_s:g} s: start the "
-            "cell first (a real one, or `foldbot ros-cell`)"
-        )
+    env = running_cell_env(args, "a real one, or `foldbot ros-cell`")
     stage = prepare_output(args.out)
     try:
-        cmd = [sys.executable, "-m", "foldbot.ros.check_node", "--stage", str(stage)]
-        cmd += ["--robot", args.robot, "--arms", str(args.arms)]
+        cmd = ["--stage", str(stage), "--robot", args.robot, "--arms", str(args.arms)]
         if args.layout is not None:
             cmd += ["--layout", str(Path(args.layout).resolve())]
         if args.camera_pose is not None:
             cmd += ["--camera-pose", str(Path(args.camera_pose).resolve())]
         print(f"ros-check: asking the cell at {env['ROS_MASTER_URI']}", flush=True)
-        proc = subprocess.run(cmd, env=env, stderr=subprocess.PIPE, text=True, check=False)
-        if proc.returncode not in (0, 1):
-            lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
-            raise FoldbotError(
-                "the check failed: " + (lines[-1] if lines else f"exit {proc.returncode}")
-            )
+        run_node("foldbot.ros.check_node", cmd, env, "the check", ok=(0, 1))
     except BaseException:
         shutil.rmtree(stage, ignore_errors=True)
         raise

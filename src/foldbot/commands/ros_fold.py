@@ -209,6 +209,51 @@ def master_running(env: dict[str, str], wait_s: float = MASTER_WAIT_S) -> bool:
     return True
 
 
+def add_running_cell_master(parser: argparse.ArgumentParser) -> None:
+    """--port and --master-wait, for a command that asks a cell already running."""
+    add_master_port(parser, "a cell must be running there")
+    parser.add_argument(
+        "--master-wait",
+        type=float,
+        default=None,
+        metavar="S",
+        help=f"how long to wait for the master to answer (default {MASTER_WAIT_S:g} s)",
+    )
+
+
+def running_cell_env(args: argparse.Namespace, start: str) -> dict[str, str]:
+    """The environment of a node that asks the cell already running at --port's master (or
+    ROS_MASTER_URI's), once ROS is here and that master answers within --master-wait;
+    FoldbotError naming what is missing, `start` saying how to bring a cell up."""
+    check_port(args.port)
+    wait_s = MASTER_WAIT_S if args.master_wait is None else args.master_wait
+    if not (wait_s >= 0):
+        raise ConfigError(f"--master-wait must be ≥ 0 s, got {args.master_wait!r}")
+    missing = ros_missing()
+    if missing:
+        raise FoldbotError(missing)
+    env = ros_env(args.port)
+    if not master_running(env, wait_s):
+        raise FoldbotError(
+            f"no ROS master answers at {env['ROS_MASTER_URI']} within {wait_s:g} s: start the "
+            f"cell first ({start})"
+        )
+    return env
+
+
+def run_node(
+    module: str, node_args: list[str], env: dict[str, str], what: str, ok: tuple[int, ...] = (0,)
+) -> int:
+    """Run foldbot's node `module` (python -m) against the running cell; its exit code, or
+    FoldbotError naming `what` failed with the node's last word on stderr."""
+    cmd = [sys.executable, "-m", module, *node_args]
+    proc = subprocess.run(cmd, env=env, stderr=subprocess.PIPE, text=True, check=False)
+    if proc.returncode not in ok:
+        lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+        raise FoldbotError(f"{what} failed: " + (lines[-1] if lines else f"exit {proc.returncode}"))
+    return proc.returncode
+
+
 def fold_args_text(args: argparse.Namespace) -> str:
     """The episode's `foldbot fold` options as one shell-quoted string (the nodes parse it): every
     option that shapes the episode, so the nodes' EpisodeConfig is the command's. With --suite,
