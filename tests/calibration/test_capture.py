@@ -61,6 +61,32 @@ def test_a_view_that_disagrees_is_dropped_and_the_rest_solved():
     assert np.allclose(T, sol.T_world_camera, atol=1e-6)
 
 
+def test_two_views_wrong_together_are_both_dropped():
+    # Neither drop alone halves the error (the other wrong view stays): the fewest views that
+    # agree are found instead.
+    board, caps = captures(8)
+    for k, shift in ((2, [0.03, 0.0, 0.0]), (6, [0.0, -0.04, 0.02])):
+        caps[k].T_world_tcp = caps[k].T_world_tcp.copy()
+        caps[k].T_world_tcp[:3, 3] += shift
+    sol = solve_captures(caps, board, K, np.zeros(5))
+    assert [k for k, c in enumerate(caps) if c.dropped] == [2, 6]
+    assert all("disagreed with the rest" in caps[k].dropped for k in (2, 6))
+    dt, dr = pose_error(sol.T_world_camera, X_TRUE)
+    assert dt < 1e-3 and np.rad2deg(dr) < 0.05
+
+
+def test_views_that_agree_on_nothing_are_refused_not_written():
+    board, caps = captures(6)
+    rng = np.random.default_rng(0)
+    for cap in caps[1:]:
+        cap.T_world_tcp = cap.T_world_tcp.copy()
+        cap.T_world_tcp[:3, 3] += rng.uniform(-0.05, 0.05, 3)
+    with pytest.raises(PerceptionError, match=r"no 4 or more views agree: .* px RMS") as err:
+        solve_captures(caps, board, K, np.zeros(5))
+    assert "view 0 " in str(err.value) and "--board-pattern charuco" in str(err.value)
+    assert not any(c.dropped for c in caps)  # nothing marked: nothing was solved
+
+
 def test_too_few_seen_views_name_why_the_others_were_dropped():
     board, caps = captures(5)
     caps[0].dropped = "the board was not seen whole"

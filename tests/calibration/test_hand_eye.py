@@ -90,3 +90,21 @@ def test_too_few_or_too_alike_views_are_refused():
         solve_eye_to_hand(A, B, corners, board, K)
     with pytest.raises(ConfigError, match="every view needs"):
         solve_eye_to_hand(A, B[:-1], corners, board, K)
+
+
+def test_views_that_saw_part_of_the_board_are_solved_on_the_corners_they_saw():
+    board, A, B, corners = views(8, noise_px=0.1, seed=5)
+    rng = np.random.default_rng(1)
+    ids = [
+        np.sort(rng.choice(len(c), size=rng.integers(8, len(c)), replace=False)) for c in corners
+    ]
+    sol = solve_eye_to_hand(
+        A, B, [c[i] for c, i in zip(corners, ids, strict=True)], board, K, None, ids
+    )
+    dt, dr = pose_error(sol.T_world_camera, X_TRUE)
+    assert dt < 1e-3 and np.rad2deg(dr) < 0.05
+    # The ids must match the corners given, view by view.
+    with pytest.raises(ConfigError, match="view 0: 28 corners seen for 8 corner ids"):
+        solve_eye_to_hand(A, B, corners, board, K, None, [np.arange(8)] + ids[1:])
+    with pytest.raises(ConfigError, match="corner_ids must name each view's corners, got 7 for 8"):
+        solve_eye_to_hand(A, B, corners, board, K, None, ids[1:])

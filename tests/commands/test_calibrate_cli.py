@@ -59,6 +59,16 @@ def test_a_moved_camera_is_found_from_the_held_board(tmp_path, capsys):
             "--board-turn must be a rotation vector of at most 180°",
         ),
         (["--board-offset", "0.6", "0", "0"], "--board-offset must put the board within 0.5 m"),
+        (["--marker", "0.02"], "--marker and --aruco-dictionary are for --board-pattern charuco"),
+        (["--board-pattern", "charuco", "--marker", "0.035"], "marker_m must be 0.4–0.9"),
+        (
+            ["--board-pattern", "charuco", "--board", "12x10", "--square", "0.01"],
+            "needs 60 markers, more than dictionary 4x4_50's 50",
+        ),
+        (
+            ["--board-pattern", "charuco", "--board", "7x5", "--square", "0.03"],
+            "at most 127 (PyBullet's links on one body); this 7 × 5 charuco needs 160",
+        ),
     ],
 )
 def test_bad_options_are_refused_by_name_and_leave_no_folder(tmp_path, capsys, extra, needle):
@@ -112,3 +122,56 @@ def test_a_board_mounted_elsewhere_is_found_where_it_is(tmp_path):
     assert np.allclose(Y[:3, 3], [-0.2, 0.03, -0.08], atol=2e-3)
     assert np.allclose(Y[:3, :3], Rotation.from_euler("z", 90, degrees=True).as_matrix(), atol=5e-3)
     assert record["truth"]["translation_error_mm"] < 1.0
+
+
+def test_a_camera_the_chessboard_runs_off_is_found_from_a_charuco_board(tmp_path, capsys):
+    """A camera 30 cm nearer (0.9, 0, 1.45): half the views show the chessboard in part, and two
+    of those it finds in the wrong order; a ChArUco board names its corners, so every view
+    counts. The chessboard's two wrong views halve nothing one at a time: both are dropped
+    together and the four that agree solved."""
+    eye = ["--camera-eye", "0.9", "0.0", "1.45"]
+    chess, charuco = tmp_path / "chessboard", tmp_path / "charuco"
+    assert main(["calibrate", "--out", str(chess), *eye]) == 0
+    record = json.loads((chess / "calibration.json").read_text())
+    fates = [v["dropped"] or "used" for v in record["views"]]
+    assert fates.count("the board was not seen whole") == 6 and record["views_used"] == 4
+    assert sum("disagreed with the rest" in f for f in fates) == 2
+    assert record["reprojection_rms_px"] < 0.5
+    assert record["truth"]["translation_error_mm"] < 3.0
+    assert main(["calibrate", "--out", str(charuco), *eye, "--board-pattern", "charuco"]) == 0
+    record = json.loads((charuco / "calibration.json").read_text())
+    assert record["board"] == {
+        "pattern": "charuco",
+        "squares": [6, 4],
+        "square_m": 0.036,
+        "marker_m": 0.027,
+        "dictionary": "4x4_50",
+    }
+    assert record["views_used"] == 12
+    seen = [v["corners_seen"] for v in record["views"]]
+    assert min(seen) >= 6 and min(seen) < 15  # some views show the board only in part
+    assert record["truth"]["translation_error_mm"] < 1.0
+    assert record["truth"]["rotation_error_deg"] < 0.1
+    assert "of 15 corners)" in capsys.readouterr().out
+
+
+def test_the_charuco_board_to_print(tmp_path, capsys):
+    from PIL import Image
+
+    out = tmp_path / "charuco.png"
+    assert main(["print-board", str(out), "--board-pattern", "charuco", "--dpi", "254"]) == 0
+    with Image.open(out) as img:
+        assert img.size == (2560, 1840)  # 6 × 36 + 40 by 4 × 36 + 40 mm at 10 px/mm
+    assert "charuco" in capsys.readouterr().out
+
+
+def test_a_board_too_large_to_simulate_leaves_no_pybullet_client_open(tmp_path, capsys):
+    # Refused while the cell is built: its worlds are closed (a client left open would be the
+    # next test's default client 0, where its unqualified PyBullet calls would land).
+    import pybullet as p
+
+    open_before = [c for c in range(16) if p.isConnected(c)]
+    args = ["calibrate", "--out", str(tmp_path / "cal"), "--board-pattern", "charuco"]
+    assert main([*args, "--board", "7x5", "--square", "0.03"]) == 2
+    assert "this 7 × 5 charuco needs 160" in capsys.readouterr().err
+    assert [c for c in range(16) if p.isConnected(c)] == open_before

@@ -20,7 +20,7 @@ import imageio.v3 as iio
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from foldbot.calibration.board import Chessboard, board_pose, detect_corners
+from foldbot.calibration.board import CalibrationBoard, board_pose, find_corners
 from foldbot.calibration.hand_eye import MIN_VIEWS, HandEyeSolution, solve_eye_to_hand
 from foldbot.calibration.views import CalibrationView
 from foldbot.errors import ConfigError, OutputError, PerceptionError, UnreachableTargetError
@@ -31,6 +31,12 @@ OUTLIER_PX = 1.0
 """A solve whose corners reproject worse than this (px RMS; a sound one reprojects within a few
 tenths) looks for a view to drop: a board seen mid-swing, a joint reading off, a corner found on
 the wrong edge."""
+TRIAL_EVALUATIONS = 40
+"""Residual evaluations a trial solve (one view left out) may take: a sound one converges in a
+handful, one of views that disagree takes ~200 (a second) and is bad whichever way it ends."""
+MAX_RMS_PX = 2.0
+"""A solve that still reprojects worse than this (px RMS) after dropping views is refused, not
+written: its views disagree (wrong corner order, wrong intrinsics, a board that slipped)."""
 
 
 class CalibrationCell(abc.ABC):
@@ -63,7 +69,10 @@ class Capture:
     T_world_tcp: np.ndarray | None = None
     rgb: np.ndarray | None = None
     corners: np.ndarray | None = None
+    """The board's corners seen (N × 2 px)."""
     T_camera_board: np.ndarray | None = None
+    corner_ids: np.ndarray | None = None
+    """Which of the board's corners `corners` are (indices into its object_points); None: all."""
     dropped: str = ""
     """Why the view is not in the solve ("" if it is)."""
 
@@ -79,7 +88,7 @@ def pose_matrix(position: np.ndarray, quaternion: np.ndarray) -> np.ndarray:
 def capture_views(
     cell: CalibrationCell,
     views: list[CalibrationView],
-    board: Chessboard,
+    board: CalibrationBoard,
     progress: Callable[[str], None] = lambda line: None,
 ) -> list[Capture]:
     """Hold the board at every view in turn; each view's image, tool pose and corners, or why
@@ -96,19 +105,26 @@ def capture_views(
             progress(f"{view.name}: {cap.dropped}")
             continue
         cap.rgb, cap.T_world_tcp = cell.frame()
-        cap.corners = detect_corners(cap.rgb, board)
-        if cap.corners is None:
-            cap.dropped = "the board was not seen whole"
+        found = find_corners(cap.rgb, board)
+        if found is None:
+            cap.dropped = board.unseen_reason
         else:
-            cap.T_camera_board = board_pose(cap.corners, board, K, dist)
-        progress(f"{view.name}: {cap.dropped or 'board seen'}")
+            cap.corner_ids, cap.corners = found
+            cap.T_camera_board = board_pose(cap.corners, board, K, dist, cap.corner_ids)
+        total = len(board.object_points())
+        seen = (
+            ""
+            if found is None or len(found[0]) == total
+            else f" ({len(found[0])} of {total} corners)"
+        )
+        progress(f"{view.name}: {cap.dropped or 'board seen' + seen}")
         captures.append(cap)
     cell.finish()
     return captures
 
 
 def solve_captures(
-    captures: list[Capture], board: Chessboard, K: np.ndarray, dist: np.ndarray
+    captures: list[Capture], board: CalibrationBoard, K: np.ndarray, dist: np.ndarray
 ) -> HandEyeSolution:
     """The solve over every view that saw the board. While its corners reproject worse than
     OUTLIER_PX, the view without which the rest agree best is dropped (marked so) if that at
@@ -121,7 +137,7 @@ def solve_captures(
             f"needed){': ' + reasons if reasons else ''}"
         )
 
-    def solve(views: list[Capture]) -> HandEyeSolution:
+    def solve(views: list[Capture], max_evaluations: int | None = None) -> HandEyeSolution:
         return solve_eye_to_hand(
             [c.T_world_tcp for c in views],
             [c.T_camera_board for c in views],
@@ -129,20 +145,52 @@ def solve_captures(
             board,
             K,
             dist,
+            [c.corner_ids for c in views],
+            max_evaluations,
         )
 
-    solution = solve(used)
-    while solution.reprojection_rms_px > OUTLIER_PX and len(used) > MIN_VIEWS:
-        trials = [(solve(used[:k] + used[k + 1 :]), k) for k in range(len(used))]
-        best, k = min(trials, key=lambda trial: trial[0].reprojection_rms_px)
-        if best.reprojection_rms_px > 0.5 * solution.reprojection_rms_px:
-            break
-        used[k].dropped = (
-            f"disagreed with the rest: {solution.reprojection_rms_px:.2f} px RMS with it, "
-            f"{best.reprojection_rms_px:.2f} without"
+    def drop_worst(
+        views: list[Capture], solution: HandEyeSolution, must_halve: bool
+    ) -> tuple[HandEyeSolution, list[tuple[Capture, str]]]:
+        """While the solve reprojects worse than OUTLIER_PX, drop the view without which the
+        rest agree best (where `must_halve`, only if that at least halves the error); the
+        trial solves cut short (TRIAL_EVALUATIONS: views that agree converge in a handful),
+        the kept views solved in full."""
+        drops = []
+        while solution.reprojection_rms_px > OUTLIER_PX and len(views) > MIN_VIEWS:
+            trials = [
+                (solve(views[:k] + views[k + 1 :], TRIAL_EVALUATIONS), k) for k in range(len(views))
+            ]
+            best, k = min(trials, key=lambda trial: trial[0].reprojection_rms_px)
+            if must_halve and best.reprojection_rms_px > 0.5 * solution.reprojection_rms_px:
+                break
+            why = (
+                f"disagreed with the rest: {solution.reprojection_rms_px:.2f} px RMS with it, "
+                f"{best.reprojection_rms_px:.2f} without"
+            )
+            drops.append((views[k], why))
+            views, solution = views[:k] + views[k + 1 :], best
+        return (solve(views) if drops else solution), drops
+
+    first = solve(used)
+    solution, drops = drop_worst(used, first, must_halve=True)
+    if solution.reprojection_rms_px > MAX_RMS_PX:
+        # Two or more views wrong together (a chessboard's corners ordered wrongly where it
+        # runs off the image) halve nothing one at a time: the fewest views that agree.
+        solution, drops = drop_worst(used, first, must_halve=False)
+    if solution.reprojection_rms_px > MAX_RMS_PX:
+        per_view = ", ".join(
+            f"{c.view.name} {rms:.1f}" for c, rms in zip(used, first.view_rms_px, strict=True)
         )
-        used = used[:k] + used[k + 1 :]
-        solution = best
+        raise PerceptionError(
+            f"no {MIN_VIEWS} or more views agree: the best solve reprojects the corners "
+            f"{solution.reprojection_rms_px:.1f} px RMS (a sound one within a few tenths, at "
+            f"most {MAX_RMS_PX:g} accepted); per view, px RMS: {per_view}. Check the camera's "
+            "intrinsics and the board's size; a chessboard partly out of the image can be "
+            "found in the wrong order (--board-pattern charuco names each corner)"
+        )
+    for cap, why in drops:
+        cap.dropped = why
     return solution
 
 
@@ -248,7 +296,7 @@ def calibration_camera(
 def contact_sheet(
     captures: list[Capture],
     solution: HandEyeSolution | None,
-    board: Chessboard,
+    board: CalibrationBoard,
     K: np.ndarray,
     dist: np.ndarray,
     columns: int = 4,
@@ -263,9 +311,16 @@ def contact_sheet(
             tile = np.full((240, 320, 3), 40, np.uint8)
         else:
             tile = np.ascontiguousarray(cap.rgb[..., :3].copy())
-            if cap.corners is not None:
+            if cap.corners is not None and board.pattern == "chessboard":
                 cv2.drawChessboardCorners(
                     tile, board.pattern_size, cap.corners.reshape(-1, 1, 2).astype(np.float32), True
+                )
+            elif cap.corners is not None:
+                cv2.aruco.drawDetectedCornersCharuco(
+                    tile,
+                    cap.corners.reshape(-1, 1, 2).astype(np.float32),
+                    np.asarray(cap.corner_ids, dtype=np.int32).reshape(-1, 1),
+                    (0, 255, 0),
                 )
             if solution is not None and cap.T_world_tcp is not None and not cap.dropped:
                 T = np.linalg.inv(solution.T_world_camera) @ cap.T_world_tcp @ solution.T_tcp_board
@@ -289,7 +344,7 @@ def contact_sheet(
 
 
 def calibration_record(
-    captures: list[Capture], solution: HandEyeSolution, board: Chessboard
+    captures: list[Capture], solution: HandEyeSolution, board: CalibrationBoard
 ) -> dict[str, Any]:
     """calibration.json's content: the camera's pose, the board's on the tool, the residuals
     and every view's fate."""
@@ -302,13 +357,15 @@ def calibration_record(
         "translation_m": X[:3, 3].tolist(),
         "quaternion_xyzw": _quat(X),
         "T_tcp_board": solution.T_tcp_board.tolist(),
-        "board": {
-            "squares": [board.squares_x, board.squares_y],
-            "square_m": board.square_m,
-        },
+        "board": board.record(),
         "views_used": len(used),
         "views": [
-            {"name": c.view.name, "used": not c.dropped, "dropped": c.dropped or None}
+            {
+                "name": c.view.name,
+                "used": not c.dropped,
+                "dropped": c.dropped or None,
+                "corners_seen": None if c.corners is None else len(c.corners),
+            }
             for c in captures
         ],
         "reprojection_rms_px": solution.reprojection_rms_px,
@@ -328,7 +385,7 @@ def write_calibration(
     stage: Path,
     captures: list[Capture],
     solution: HandEyeSolution,
-    board: Chessboard,
+    board: CalibrationBoard,
     K: np.ndarray,
     dist: np.ndarray,
     extra: dict[str, Any] | None = None,

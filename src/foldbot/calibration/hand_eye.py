@@ -19,7 +19,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from foldbot.calibration.board import Chessboard
+from foldbot.calibration.board import CalibrationBoard
 from foldbot.errors import require
 
 MIN_VIEWS = 4
@@ -97,12 +97,16 @@ def solve_eye_to_hand(
     T_world_tcp: list[np.ndarray],
     T_camera_board: list[np.ndarray],
     corners: list[np.ndarray],
-    board: Chessboard,
+    board: CalibrationBoard,
     K: np.ndarray,
     dist: np.ndarray | None = None,
+    corner_ids: list[np.ndarray | None] | None = None,
+    max_evaluations: int | None = None,
 ) -> HandEyeSolution:
     """The camera's pose in the world (and the board's on the tool) from views of the board the
-    arm holds: the tool's pose, the board's PnP pose and its detected corners per view."""
+    arm holds: the tool's pose, the board's PnP pose and its detected corners per view (which
+    of the board's corners each view saw: `corner_ids`, None for all). `max_evaluations` cuts
+    the least-squares refinement short (a trial solve)."""
     n = len(T_world_tcp)
     require(
         n == len(T_camera_board) == len(corners),
@@ -113,31 +117,37 @@ def solve_eye_to_hand(
     A = [np.asarray(a, dtype=float) for a in T_world_tcp]
     B = [np.asarray(b, dtype=float) for b in T_camera_board]
     X0, Y0 = _initial(A, B)
-    obj = board.object_points()
+    ids = [None] * n if corner_ids is None else list(corner_ids)
+    require(len(ids) == n, f"corner_ids must name each view's corners, got {len(ids)} for {n}")
+    every = board.object_points()
+    objs = [every if i is None else every[np.asarray(i, dtype=int)] for i in ids]
     K = np.asarray(K, dtype=float)
     d = np.zeros(5) if dist is None else np.asarray(dist, dtype=float)
     seen = [np.asarray(c, dtype=float).reshape(-1, 2) for c in corners]
+    for k, (o, c) in enumerate(zip(objs, seen, strict=True)):
+        require(len(o) == len(c), f"view {k}: {len(c)} corners seen for {len(o)} corner ids")
+    views = list(zip(A, seen, objs, strict=True))
 
-    def project(X: np.ndarray, Y: np.ndarray, a: np.ndarray) -> np.ndarray:
+    def project(X: np.ndarray, Y: np.ndarray, a: np.ndarray, obj: np.ndarray) -> np.ndarray:
         T = np.linalg.inv(X) @ a @ Y  # board → camera as the arm holds it
         rvec = cv2.Rodrigues(T[:3, :3])[0]
         return cv2.projectPoints(obj, rvec, T[:3, 3], K, d)[0].reshape(-1, 2)
 
     def residuals(x: np.ndarray) -> np.ndarray:
         X, Y = _T(x[0:3], x[3:6]), _T(x[6:9], x[9:12])
-        return np.concatenate(
-            [(project(X, Y, a) - c).ravel() for a, c in zip(A, seen, strict=True)]
-        )
+        return np.concatenate([(project(X, Y, a, o) - c).ravel() for a, c, o in views])
 
-    fit = least_squares(residuals, np.concatenate([_params(X0), _params(Y0)]), x_scale="jac")
+    fit = least_squares(
+        residuals,
+        np.concatenate([_params(X0), _params(Y0)]),
+        x_scale="jac",
+        max_nfev=max_evaluations,
+    )
     X, Y = _T(fit.x[0:3], fit.x[3:6]), _T(fit.x[6:9], fit.x[9:12])
     per_view = [
-        float(np.sqrt(np.mean(np.sum((project(X, Y, a) - c) ** 2, axis=1))))
-        for a, c in zip(A, seen, strict=True)
+        float(np.sqrt(np.mean(np.sum((project(X, Y, a, o) - c) ** 2, axis=1)))) for a, c, o in views
     ]
-    all_sq = np.concatenate(
-        [np.sum((project(X, Y, a) - c) ** 2, axis=1) for a, c in zip(A, seen, strict=True)]
-    )
+    all_sq = np.concatenate([np.sum((project(X, Y, a, o) - c) ** 2, axis=1) for a, c, o in views])
     dist_m, dist_rad = [], []
     for a, b in zip(A, B, strict=True):
         by_camera, by_arm = X @ b, a @ Y

@@ -6,12 +6,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from foldbot.calibration.board import Chessboard
+from foldbot.calibration.board import CalibrationBoard
 from foldbot.calibration.capture import CalibrationCell, pose_matrix
 from foldbot.calibration.views import BoardMount, CalibrationView
 from foldbot.control.executor import ArmExecutor, move_joints_together
 from foldbot.sim.calibration_board import attach_board
 from foldbot.sim.camera import CameraConfig, RGBDCamera
+from foldbot.sim.layout import CellLayout
 from foldbot.sim.robots import make_robot
 from foldbot.sim.world import SimConfig, SimWorld
 
@@ -27,7 +28,7 @@ class SimCalibrationCell(CalibrationCell):
         self,
         robot: str,
         camera: CameraConfig,
-        board: Chessboard,
+        board: CalibrationBoard,
         mount: BoardMount,
         sim: SimConfig,
         arms: int = 1,
@@ -36,6 +37,21 @@ class SimCalibrationCell(CalibrationCell):
         layouts = sim.layout.arm_layouts(arms)
         self.world = SimWorld(sim)
         self.model_world = SimWorld(SimConfig(time_step=sim.time_step, layout=sim.layout))
+        try:
+            self._build(robot, camera, board, mount, layouts, arm)
+        except BaseException:  # e.g. a board too large to print: no PyBullet client left open
+            self.close()
+            raise
+
+    def _build(
+        self,
+        robot: str,
+        camera: CameraConfig,
+        board: CalibrationBoard,
+        mount: BoardMount,
+        layouts: tuple[CellLayout, ...],
+        arm: int,
+    ) -> None:
         robots = [make_robot(robot, self.world.client, lay) for lay in layouts]
         self.robot = robots[arm]
         self.model = make_robot(robot, self.model_world.client, layouts[arm])

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from foldbot.calibration.board import Chessboard
+from foldbot.calibration.board import CalibrationBoard
 from foldbot.errors import require
 from foldbot.sim.layout import CellLayout
 
@@ -85,7 +85,7 @@ MAX_VIEWS = len(_PATTERN)
 def calibration_views(
     layout: CellLayout,
     look_from: tuple[float, float, float],
-    board: Chessboard,
+    board: CalibrationBoard,
     mount: BoardMount,
     count: int = MAX_VIEWS,
 ) -> list[CalibrationView]:

@@ -1,11 +1,13 @@
-"""`foldbot calibrate`: find the camera's pose in the cell from a chessboard the arm holds
-(eye-to-hand calibration), on the simulated cell, and measure it against the camera's true pose.
+"""`foldbot calibrate`: find the camera's pose in the cell from a board the arm holds (eye-to-hand
+calibration), on the simulated cell, and measure it against the camera's true pose.
 
-The arm holds the board (by default 8 × 5 squares of 24 mm, on a bracket beside the jaws) at up to
-12 poses over the workspace, turned towards where the camera roughly is (`--look-from`); each
-pose's image gives the board's corners, the joints give the tool's pose, and the two are solved
-for the camera's pose in the world and the board's on the tool (calibration.hand_eye). Nothing
-in the solve reads the simulated camera's pose; it is compared with the answer afterwards.
+The arm holds the board (by default a chessboard of 8 × 5 squares of 24 mm; `--board-pattern
+charuco`: a ChArUco board of 6 × 4 squares of 36 mm, found in part too; on a bracket beside the
+jaws) at up to 12 poses over the workspace, turned towards where the camera roughly is
+(`--look-from`); each pose's image gives the board's corners, the joints give the tool's pose,
+and the two are solved for the camera's pose in the world and the board's on the tool
+(calibration.hand_eye). Nothing in the solve reads the simulated camera's pose; it is compared
+with the answer afterwards.
 
 Writes, into --out:
   calibration.json    the camera's pose (world → camera_color_optical_frame), the board's on
@@ -30,7 +32,12 @@ from typing import Any
 
 import numpy as np
 
-from foldbot.calibration.board import Chessboard
+from foldbot.calibration.board import (
+    ARUCO_DICTIONARIES,
+    CalibrationBoard,
+    CharucoBoard,
+    Chessboard,
+)
 from foldbot.calibration.capture import capture_views, solve_captures, write_calibration
 from foldbot.calibration.hand_eye import pose_error
 from foldbot.calibration.views import MAX_VIEWS, BoardMount, CalibrationView, calibration_views
@@ -47,28 +54,85 @@ TABLE_GRID = 5
 """The table-top error is measured on this many × this many points over the workspace."""
 
 
-def board_from_args(args: argparse.Namespace) -> Chessboard:
-    """The board the options name (`--board COLSxROWS`, `--square M`)."""
-    text = str(args.board).lower()
-    try:
-        cols, rows = (int(v) for v in text.split("x"))
-    except ValueError:
-        raise ConfigError(
-            f"--board must be COLUMNSxROWS of squares (e.g. 8x5), got {args.board!r}"
-        ) from None
-    return Chessboard(squares_x=cols, squares_y=rows, square_m=args.square)
+BOARD_PATTERNS = ("chessboard", "charuco")
+MARKER_SHARE = 0.75
+"""A ChArUco marker's side as a share of its square's, where --marker is not given."""
+
+
+def board_from_args(args: argparse.Namespace) -> CalibrationBoard:
+    """The board the options name (`--board-pattern`, `--board COLSxROWS`, `--square M`,
+    `--marker M`, `--aruco-dictionary`); each pattern's own defaults where not given."""
+    charuco = args.board_pattern == "charuco"
+    default = CharucoBoard() if charuco else Chessboard()
+    if args.board is None:
+        cols, rows = default.squares_x, default.squares_y
+    else:
+        try:
+            cols, rows = (int(v) for v in str(args.board).lower().split("x"))
+        except ValueError:
+            raise ConfigError(
+                f"--board must be COLUMNSxROWS of squares (e.g. 8x5), got {args.board!r}"
+            ) from None
+    square = default.square_m if args.square is None else args.square
+    if not charuco:
+        if args.marker is not None or args.aruco_dictionary is not None:
+            raise ConfigError("--marker and --aruco-dictionary are for --board-pattern charuco")
+        return Chessboard(squares_x=cols, squares_y=rows, square_m=square)
+    marker = round(MARKER_SHARE * square, 9) if args.marker is None else args.marker
+    dictionary = args.aruco_dictionary or default.dictionary
+    return CharucoBoard(
+        squares_x=cols, squares_y=rows, square_m=square, marker_m=marker, dictionary=dictionary
+    )
+
+
+def board_words(args: argparse.Namespace) -> list[str]:
+    """The board options as given, to hand on to another command's parser."""
+    words = ["--board-pattern", args.board_pattern]
+    for flag, value in (
+        ("--board", args.board),
+        ("--square", args.square),
+        ("--marker", args.marker),
+        ("--aruco-dictionary", args.aruco_dictionary),
+    ):
+        if value is not None:
+            words += [flag, repr(value) if isinstance(value, float) else str(value)]
+    return words
 
 
 def add_board_shape_arguments(parser: argparse.ArgumentParser) -> None:
-    """The board's squares and their size (`--board COLSxROWS`, `--square M`)."""
+    """The board's pattern, squares and their size (`--board-pattern`, `--board COLSxROWS`,
+    `--square M`, `--marker M`, `--aruco-dictionary`)."""
     parser.add_argument(
-        "--board",
-        default="8x5",
-        help="the chessboard's squares, COLUMNSxROWS, more columns than rows and odd in all "
-        "(default 8x5: 7 × 4 inner corners)",
+        "--board-pattern",
+        choices=BOARD_PATTERNS,
+        default="chessboard",
+        help="chessboard (default; found only whole) or charuco (a ChArUco board: ArUco markers "
+        "in the white squares name each corner, so a view that shows part of it counts)",
     )
     parser.add_argument(
-        "--square", type=float, default=0.024, help="a square's side in m (default 0.024)"
+        "--board",
+        default=None,
+        help="the board's squares, COLUMNSxROWS, more columns than rows (a chessboard's odd in "
+        "all); default 8x5 for a chessboard, 6x4 for a ChArUco board",
+    )
+    parser.add_argument(
+        "--square",
+        type=float,
+        default=None,
+        help="a square's side in m (default 0.024 for a chessboard, 0.036 for a ChArUco board)",
+    )
+    parser.add_argument(
+        "--marker",
+        type=float,
+        default=None,
+        help=f"ChArUco: a marker's side in m, its black border included (default "
+        f"{MARKER_SHARE:g} of the square)",
+    )
+    parser.add_argument(
+        "--aruco-dictionary",
+        choices=sorted(ARUCO_DICTIONARIES),
+        default=None,
+        help="ChArUco: the markers' ArUco dictionary (default 4x4_50, OpenCV's DICT_4X4_50)",
     )
 
 
@@ -194,7 +258,7 @@ class CalibrationPlan:
     nominal place on the tool, the cell, the arm that holds it, where it is turned towards and
     the views."""
 
-    board: Chessboard
+    board: CalibrationBoard
     mount: BoardMount
     layout: CellLayout
     robot: str

@@ -1,5 +1,6 @@
-"""`foldbot print-board`: the calibration chessboard as a PNG to print at 100 % (its resolution
-written into the file), for `foldbot ros-calibrate` on a real cell.
+"""`foldbot print-board`: the calibration board (a chessboard, or `--board-pattern charuco` a
+ChArUco board) as a PNG to print at 100 % (its resolution written into the file), for `foldbot
+ros-calibrate` on a real cell.
 
 Print it without scaling, check one square with a ruler (--square, 24 mm by default), and fix it
 flat on a stiff plate to a bracket beside the jaws, its printed face up when the gripper points
@@ -40,9 +41,15 @@ def run(args: argparse.Namespace) -> int:
     except OSError as exc:
         raise OutputError(f"cannot write {str(args.file)!r}: {exc.strerror or exc}") from None
     w_mm, h_mm = (1000.0 * v / (args.dpi / INCH_M) for v in (img.shape[1], img.shape[0]))
+    name = "ChArUco board" if board.pattern == "charuco" else "chessboard"
+    markers = (
+        f" with {board.dictionary} ArUco markers of {1000 * board.marker_m:g} mm"
+        if board.pattern == "charuco"
+        else ""
+    )
     print(
-        f"print-board: {board.squares_x} × {board.squares_y} squares of "
-        f"{1000 * board.square_m:g} mm, {w_mm:.0f} × {h_mm:.0f} mm at {args.dpi} dpi: "
+        f"print-board: a {name} of {board.squares_x} × {board.squares_y} squares of "
+        f"{1000 * board.square_m:g} mm{markers}, {w_mm:.0f} × {h_mm:.0f} mm at {args.dpi} dpi: "
         f"{args.file} (print at 100 %, then measure a square)"
     )
     return 0

@@ -1,9 +1,11 @@
 """`foldbot ros-calibrate`: find the camera's pose on a running cell, a real one or `foldbot
-ros-cell --calibration-board`, from a chessboard the arm holds (eye-to-hand calibration).
+ros-cell --calibration-board`, from a board the arm holds (eye-to-hand calibration).
 
-Fix a printed chessboard to the tool (by default 8 × 5 squares of 24 mm, on a bracket beside the
-jaws, its printed face up with the gripper pointing down: see calibration.views.BoardMount; the
-calibration solves the board's real place on the tool, the nominal one only aims the views).
+Fix a printed board (`foldbot print-board`) to the tool (by default a chessboard of 8 × 5 squares
+of 24 mm; `--board-pattern charuco`, a ChArUco board of 6 × 4 squares of 36 mm, counts views that
+show it in part), on a bracket beside the jaws, its printed face up with the gripper pointing
+down: see calibration.views.BoardMount; the calibration solves the board's real place on the
+tool, the nominal one only aims the views.
 The arm, through its driver's FollowJointTrajectory action, holds the board at up to 12 poses
 over the workspace turned towards where the camera roughly is (`--look-from`), comes back to
 where it started, and the views' corners (the colour camera's image and camera_info) and joints
@@ -23,7 +25,7 @@ import json
 import shutil
 from pathlib import Path
 
-from foldbot.commands.calibrate import add_board_arguments, plan_from_args
+from foldbot.commands.calibrate import add_board_arguments, board_words, plan_from_args
 from foldbot.commands.ros_fold import add_running_cell_master, run_node, running_cell_env
 from foldbot.io.staging import commit_output, prepare_output
 
@@ -40,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     stage = prepare_output(args.out)
     try:
         cmd = ["--stage", str(stage)]
-        cmd += ["--robot", args.robot, "--board", args.board, "--square", repr(args.square)]
+        cmd += ["--robot", args.robot, *board_words(args)]
         cmd += ["--arms", str(args.arms), "--arm", args.arm]
         cmd += ["--board-offset", *(repr(v) for v in plan.mount.offset_m)]
         cmd += ["--board-turn", *(repr(v) for v in args.board_turn)]

@@ -19,7 +19,7 @@ import subprocess
 import tempfile
 
 from foldbot.commands import fold
-from foldbot.commands.calibrate import ARM_NAMES
+from foldbot.commands.calibrate import ARM_NAMES, BOARD_PATTERNS
 from foldbot.commands.ros_fold import (
     DEFAULT_PORT,
     add_master_port,
@@ -63,9 +63,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         choices=ARM_NAMES,
         metavar="ARM",
-        help="the arm holds the calibration chessboard (8 × 5 squares of 24 mm on a bracket "
-        "beside the jaws), for `foldbot ros-calibrate`; with --arms 2, the left arm's (the "
-        "default) or the right's",
+        help="the arm holds the calibration board (a chessboard of 8 × 5 squares of 24 mm on "
+        "a bracket beside the jaws; --calibration-board-pattern), for `foldbot ros-calibrate`; "
+        "with --arms 2, the left arm's (the default) or the right's",
+    )
+    parser.add_argument(
+        "--calibration-board-pattern",
+        choices=BOARD_PATTERNS,
+        default="chessboard",
+        help="that board: chessboard (default) or charuco (6 × 4 squares of 36 mm with ArUco "
+        "4x4_50 markers of 27 mm; `ros-calibrate --board-pattern charuco`)",
     )
     parser.add_argument(
         "--hide-camera-pose",
@@ -104,6 +111,7 @@ def run(args: argparse.Namespace) -> int:
             f"camera_rate:={args.camera_rate!r}",
             f"real_time_factor:={args.real_time_factor or 1.0!r}",
             f"calibration_board:={board_arm}",
+            f"calibration_board_pattern:={args.calibration_board_pattern}",
             f"camera_pose:={'false' if args.hide_camera_pose else 'true'}",
         ]
         print(
@@ -116,6 +124,11 @@ def run(args: argparse.Namespace) -> int:
             + (
                 f"; find its camera with `foldbot ros-calibrate --port {port} --out DIR"
                 + (f" --arms 2 --arm {args.calibration_board}" if cfg.arms == 2 else "")
+                + (
+                    " --board-pattern charuco"
+                    if args.calibration_board_pattern == "charuco"
+                    else ""
+                )
                 + "`"
                 if args.calibration_board
                 else ""

@@ -47,6 +47,9 @@ CALIBRATION_BOARD_PARAM = "/foldbot/calibration_board"
 """The sim node: the arm (0, or 1 of two) whose tool holds the calibration chessboard
 (calibration.board.Chessboard's default, on calibration.views.BoardMount's default bracket), for
 `foldbot ros-calibrate`; negative: none."""
+CALIBRATION_BOARD_PATTERN_PARAM = "/foldbot/calibration_board_pattern"
+"""The sim node: the board that arm holds, "chessboard" (calibration.board.Chessboard's default)
+or "charuco" (CharucoBoard's default)."""
 PUBLISH_CAMERA_POSE_PARAM = "/foldbot/publish_camera_pose"
 """The sim node: whether it publishes world → the camera on /tf_static (False: a cell whose camera
 is not calibrated yet; `foldbot ros-fold --cell real --camera-pose` then publishes one)."""

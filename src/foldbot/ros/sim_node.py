@@ -45,6 +45,7 @@ from foldbot.ros.node_args import (
     ARM_INTERFACE_PARAM,
     ARM_INTERFACES,
     CALIBRATION_BOARD_PARAM,
+    CALIBRATION_BOARD_PATTERN_PARAM,
     CAMERA_RATE_PARAM,
     FOLD_ARGS_PARAM,
     PUBLISH_CAMERA_POSE_PARAM,
@@ -104,6 +105,7 @@ class SimNode:
         real_time_factor: float = 1.0,
         calibration_board: int | None = None,
         publish_camera_pose: bool = True,
+        calibration_board_pattern: str = "chessboard",
     ) -> None:
         _args, self.cfg = parse_fold_args(fold_args)
         if arm_interface not in ARM_INTERFACES:
@@ -122,8 +124,8 @@ class SimNode:
         """One per arm, arm 0 first; each has its kinematic twin (`model`, in a world of its own:
         FK there gives the commanded TCP without touching the simulated arm) and its grasp."""
         self.robot = self.parts.robot
-        if calibration_board is not None:  # that arm holds the chessboard (`ros-calibrate`)
-            from foldbot.calibration.board import Chessboard
+        if calibration_board is not None:  # that arm holds the board (`ros-calibrate`)
+            from foldbot.calibration.board import CharucoBoard, Chessboard
             from foldbot.calibration.views import BoardMount
             from foldbot.sim.calibration_board import attach_board
 
@@ -132,7 +134,14 @@ class SimNode:
                     f"calibration_board must name an arm, 0 to {len(self.executors) - 1}, got "
                     f"{calibration_board}"
                 )
-            attach_board(self.executors[calibration_board].robot, Chessboard(), BoardMount())
+            boards = {"chessboard": Chessboard, "charuco": CharucoBoard}
+            if calibration_board_pattern not in boards:
+                raise FoldbotError(
+                    f"calibration_board_pattern must be one of {', '.join(boards)}, got "
+                    f"{calibration_board_pattern!r}"
+                )
+            board = boards[calibration_board_pattern]()
+            attach_board(self.executors[calibration_board].robot, board, BoardMount())
         self.publish_camera_pose = publish_camera_pose
         """Whether world → the camera goes on /tf_static (False: a cell not yet calibrated)."""
         self.first_frame_topics = (
@@ -463,6 +472,7 @@ def main(argv: list[str] | None = None) -> int:
         if (board_arm := int(rospy.get_param(CALIBRATION_BOARD_PARAM, -1))) >= 0
         else None,
         bool(rospy.get_param(PUBLISH_CAMERA_POSE_PARAM, True)),
+        str(rospy.get_param(CALIBRATION_BOARD_PATTERN_PARAM, "chessboard")),
     )
     try:
         node.spin()

@@ -1,5 +1,5 @@
-"""A chessboard fixed to the simulated arm's tool, for hand–eye calibration: a white plate and
-its black squares as one rigid body (visual shapes only: it touches nothing), held on the TCP
+"""A calibration board fixed to the simulated arm's tool, for hand–eye calibration: a white plate
+and what is printed black on it (squares, and a ChArUco board's markers) as one rigid body (visual shapes only: it touches nothing), held on the TCP
 link by a fixed constraint as a bracket holds a printed board."""
 
 from __future__ import annotations
@@ -8,18 +8,22 @@ import numpy as np
 import pybullet as p
 from scipy.spatial.transform import Rotation
 
-from foldbot.calibration.board import Chessboard
+from foldbot.calibration.board import CalibrationBoard
 from foldbot.calibration.views import BoardMount
+from foldbot.errors import require
 
 PLATE_THICKNESS = 0.004
 """The plate's thickness (m), behind its printed face."""
 PRINT_THICKNESS = 0.0004
-"""The black squares stand this proud of the plate's face (m)."""
+"""The black print stands this proud of the plate's face (m)."""
+MAX_PRINT_PIECES = 127
+"""Black boxes one board body holds: PyBullet keeps at most 128 links on a multibody and drops
+the rest unsaid (the plate is one)."""
 BOARD_MASS = 0.05
 """The board and its bracket (kg)."""
 
 
-def attach_board(robot, board: Chessboard, mount: BoardMount) -> int:
+def attach_board(robot, board: CalibrationBoard, mount: BoardMount) -> int:
     """Build `board` in the robot's PyBullet client and fix it to the robot's TCP as `mount`
     says; returns the board's body id. Its base frame is the board frame (calibration.board)."""
     client = robot.client
@@ -41,15 +45,29 @@ def attach_board(robot, board: Chessboard, mount: BoardMount) -> int:
         collisionFramePosition=[(x0 + x1) / 2.0, (y0 + y1) / 2.0, PLATE_THICKNESS / 2.0],
         physicsClientId=client,
     )
-    half = board.square_m / 2.0
-    square = p.createVisualShape(
-        p.GEOM_BOX,
-        halfExtents=[half, half, PRINT_THICKNESS / 2.0],
-        rgbaColor=[0.02, 0.02, 0.02, 1.0],
-        specularColor=[0.0, 0.0, 0.0],
-        physicsClientId=client,
+    shapes: dict[tuple[float, float], int] = {}  # one visual shape per rectangle size
+
+    def shape(w: float, h: float) -> int:
+        key = (round(w, 9), round(h, 9))
+        if key not in shapes:
+            shapes[key] = p.createVisualShape(
+                p.GEOM_BOX,
+                halfExtents=[w / 2.0, h / 2.0, PRINT_THICKNESS / 2.0],
+                rgbaColor=[0.02, 0.02, 0.02, 1.0],
+                specularColor=[0.0, 0.0, 0.0],
+                physicsClientId=client,
+            )
+        return shapes[key]
+
+    rects = board.black_rects()
+    require(
+        len(rects) <= MAX_PRINT_PIECES,
+        f"the simulated board prints in boxes, at most {MAX_PRINT_PIECES} (PyBullet's links "
+        f"on one body); this {board.squares_x} × {board.squares_y} {board.pattern} needs "
+        f"{len(rects)}: fewer squares, or a ChArUco board's markers from a smaller dictionary",
     )
-    black = [(x, y) for x, y, is_black in board.squares() if is_black]
+    black = [((a0 + a1) / 2.0, (b0 + b1) / 2.0) for a0, a1, b0, b1 in rects]
+    visuals = [shape(a1 - a0, b1 - b0) for a0, a1, b0, b1 in rects]
     n = len(black)
     T_tcp_board = mount.T_tcp_board()
     tcp_pos, tcp_quat = robot.tcp_pose()
@@ -64,7 +82,7 @@ def attach_board(robot, board: Chessboard, mount: BoardMount) -> int:
         baseOrientation=quat.tolist(),
         linkMasses=[0.0] * n,
         linkCollisionShapeIndices=[-1] * n,
-        linkVisualShapeIndices=[square] * n,
+        linkVisualShapeIndices=visuals,
         linkPositions=[[x, y, -PRINT_THICKNESS / 2.0] for x, y in black],
         linkOrientations=[[0.0, 0.0, 0.0, 1.0]] * n,
         linkInertialFramePositions=[[0.0, 0.0, 0.0]] * n,

@@ -65,20 +65,26 @@ def test_indices(robot: Panda) -> None:
     assert robot.finger_joint_indices == (9, 10)
     assert robot.finger_link_indices == (9, 10)
     assert robot.tcp_link_index == 11
-    assert p.getJointInfo(robot.body_id, 11)[12] == b"panda_grasptarget"
+    assert (
+        p.getJointInfo(robot.body_id, 11, physicsClientId=robot.client)[12] == b"panda_grasptarget"
+    )
     for link in robot.finger_link_indices:
-        assert p.getDynamicsInfo(robot.body_id, link)[0] > 0.0  # fingers carry mass
+        assert (
+            p.getDynamicsInfo(robot.body_id, link, physicsClientId=robot.client)[0] > 0.0
+        )  # fingers carry mass
     # getBasePositionAndOrientation reports the base's centre of mass (5 cm above link0's frame);
     # link0's URDF frame is at the mount point: joint 1 sits 0.333 m straight above it.
-    _, orn = p.getBasePositionAndOrientation(robot.body_id)
+    _, orn = p.getBasePositionAndOrientation(robot.body_id, physicsClientId=robot.client)
     np.testing.assert_allclose(orn, [0, 0, 0, 1], atol=1e-9)
-    link1 = p.getLinkState(robot.body_id, 0, computeForwardKinematics=True)[4]
+    link1 = p.getLinkState(
+        robot.body_id, 0, computeForwardKinematics=True, physicsClientId=robot.client
+    )[4]
     np.testing.assert_allclose(link1, np.add(LAYOUT.robot_base_xyz, [0, 0, 0.333]), atol=1e-6)
 
 
 def test_limits_within_urdf(robot: Panda) -> None:
     for k, j in enumerate(robot.arm_joint_indices):
-        info = p.getJointInfo(robot.body_id, j)
+        info = p.getJointInfo(robot.body_id, j, physicsClientId=robot.client)
         assert info[8] <= robot.lower_limits[k] < robot.upper_limits[k] <= info[9]
         assert info[10] == pytest.approx(robot.effort_limits[k])
         assert info[11] == pytest.approx(robot.velocity_limits[k])
@@ -89,7 +95,8 @@ def test_limits_within_urdf(robot: Panda) -> None:
 def test_tcp_is_between_the_fingertips(robot: Panda) -> None:
     tcp, orn = robot.tcp_pose()
     left, right = (
-        np.asarray(p.getLinkState(robot.body_id, i)[4]) for i in robot.finger_link_indices
+        np.asarray(p.getLinkState(robot.body_id, i, physicsClientId=robot.client)[4])
+        for i in robot.finger_link_indices
     )
     r = _rot(orn)
     mid = (left + right) / 2

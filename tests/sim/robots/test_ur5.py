@@ -66,11 +66,16 @@ def test_indices_and_mounting(robot: UR5) -> None:
     assert robot.name == "ur5"
     assert len(robot.arm_joint_indices) == 6
     for j in robot.arm_joint_indices:
-        assert p.getJointInfo(robot.body_id, j)[2] == p.JOINT_REVOLUTE
+        assert p.getJointInfo(robot.body_id, j, physicsClientId=robot.client)[2] == p.JOINT_REVOLUTE
     for j in robot.finger_joint_indices:
-        assert p.getJointInfo(robot.body_id, j)[2] == p.JOINT_PRISMATIC
-    assert p.getJointInfo(robot.body_id, robot.tcp_link_index)[12] == b"tcp"
-    pos, orn = p.getBasePositionAndOrientation(robot.body_id)
+        assert (
+            p.getJointInfo(robot.body_id, j, physicsClientId=robot.client)[2] == p.JOINT_PRISMATIC
+        )
+    assert (
+        p.getJointInfo(robot.body_id, robot.tcp_link_index, physicsClientId=robot.client)[12]
+        == b"tcp"
+    )
+    pos, orn = p.getBasePositionAndOrientation(robot.body_id, physicsClientId=robot.client)
     np.testing.assert_allclose(pos, LAYOUT.robot_base_xyz, atol=1e-9)
     np.testing.assert_allclose(orn, [0, 0, 0, 1], atol=1e-9)
     # Base x towards the table: at q = 0 the arm stretches along +x world.
@@ -81,7 +86,7 @@ def test_indices_and_mounting(robot: UR5) -> None:
 
 def test_urdf_limits_equal_constants(robot: UR5) -> None:
     for k, j in enumerate(robot.arm_joint_indices):
-        info = p.getJointInfo(robot.body_id, j)
+        info = p.getJointInfo(robot.body_id, j, physicsClientId=robot.client)
         assert info[8] == pytest.approx(robot.lower_limits[k], abs=1e-12)
         assert info[9] == pytest.approx(robot.upper_limits[k], abs=1e-12)
         assert info[10] == pytest.approx(robot.effort_limits[k])
@@ -93,15 +98,18 @@ def test_urdf_limits_equal_constants(robot: UR5) -> None:
     np.testing.assert_allclose(robot.effort_limits, [150, 150, 150, 28, 28, 28])
     assert robot.acceleration_limits.shape == robot.jerk_limits.shape == (6,)
     for j in robot.finger_joint_indices:
-        info = p.getJointInfo(robot.body_id, j)
+        info = p.getJointInfo(robot.body_id, j, physicsClientId=robot.client)
         assert (info[8], info[9]) == (0.0, pytest.approx(0.039))
 
 
 def test_link_masses_match_ur_description(robot: UR5) -> None:
-    masses = [p.getDynamicsInfo(robot.body_id, j)[0] for j in robot.arm_joint_indices]
+    masses = [
+        p.getDynamicsInfo(robot.body_id, j, physicsClientId=robot.client)[0]
+        for j in robot.arm_joint_indices
+    ]
     np.testing.assert_allclose(masses, [3.7, 8.393, 2.275, 1.219, 1.219, 0.1879])
     for link in robot.finger_link_indices:
-        mass, friction = p.getDynamicsInfo(robot.body_id, link)[:2]
+        mass, friction = p.getDynamicsInfo(robot.body_id, link, physicsClientId=robot.client)[:2]
         assert mass == pytest.approx(0.05)
         assert friction >= 1.0
 
@@ -229,7 +237,10 @@ def test_gripper_opens_and_closes_under_position_control(robot: UR5) -> None:
         p.stepSimulation(physicsClientId=robot.client)
     assert robot.gripper_opening() == pytest.approx(0.05, abs=5e-4)
     # The measured gap really is the distance between the finger inner faces along TCP y.
-    left, right = (p.getLinkState(robot.body_id, i)[4] for i in robot.finger_link_indices)
+    left, right = (
+        p.getLinkState(robot.body_id, i, physicsClientId=robot.client)[4]
+        for i in robot.finger_link_indices
+    )
     y = _rot(robot.tcp_pose()[1])[:, 1]
     assert (np.asarray(left) - right) @ y == pytest.approx(robot.gripper_opening())
     for bad in (-0.001, 0.09, float("nan")):
