@@ -25,6 +25,22 @@ import numpy as np
 from foldbot.errors import require
 
 
+def _check_grid(board: Chessboard | CharucoBoard) -> None:
+    """ConfigError naming a board's squares or sizes that cannot be."""
+    for name in ("squares_x", "squares_y"):
+        v = getattr(board, name)
+        require(
+            isinstance(v, int) and not isinstance(v, bool) and 3 <= v <= 30,
+            f"board {name} must be an integer in [3, 30], got {v!r}",
+        )
+    for name, low, high in (("square_m", 0.005, 0.2), ("margin_m", 0.0, 0.2)):
+        v = getattr(board, name)
+        require(
+            isinstance(v, int | float) and math.isfinite(v) and low < v <= high,
+            f"board {name} must be in ({low}, {high}] m, got {v!r}",
+        )
+
+
 @dataclass(frozen=True)
 class Chessboard:
     """A chessboard of `squares_x` × `squares_y` squares of `square_m` metres, printed on a white
@@ -40,23 +56,12 @@ class Chessboard:
     """The white border around the squares (m): the detector needs it."""
 
     def __post_init__(self) -> None:
-        for name in ("squares_x", "squares_y"):
-            v = getattr(self, name)
-            require(
-                isinstance(v, int) and not isinstance(v, bool) and 3 <= v <= 30,
-                f"board {name} must be an integer in [3, 30], got {v!r}",
-            )
+        _check_grid(self)
         require(
             (self.squares_x + self.squares_y) % 2 == 1 and self.squares_x > self.squares_y,
             f"board squares must be more along x than y and odd in all (e.g. 8 × 5) so its "
             f"corners have one order, got {self.squares_x} × {self.squares_y}",
         )
-        for name, low, high in (("square_m", 0.005, 0.2), ("margin_m", 0.0, 0.2)):
-            v = getattr(self, name)
-            require(
-                isinstance(v, int | float) and math.isfinite(v) and low < v <= high,
-                f"board {name} must be in ({low}, {high}] m, got {v!r}",
-            )
 
     @property
     def pattern_size(self) -> tuple[int, int]:
@@ -149,23 +154,12 @@ class CharucoBoard:
     pattern = "charuco"
 
     def __post_init__(self) -> None:
-        for name in ("squares_x", "squares_y"):
-            v = getattr(self, name)
-            require(
-                isinstance(v, int) and not isinstance(v, bool) and 3 <= v <= 30,
-                f"board {name} must be an integer in [3, 30], got {v!r}",
-            )
+        _check_grid(self)
         require(
             self.squares_x >= self.squares_y,
             f"board squares must be at least as many along x as along y, got "
             f"{self.squares_x} × {self.squares_y}",
         )
-        for name, low, high in (("square_m", 0.005, 0.2), ("margin_m", 0.0, 0.2)):
-            v = getattr(self, name)
-            require(
-                isinstance(v, int | float) and math.isfinite(v) and low < v <= high,
-                f"board {name} must be in ({low}, {high}] m, got {v!r}",
-            )
         m = self.marker_m
         require(
             isinstance(m, int | float)
