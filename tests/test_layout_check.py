@@ -106,6 +106,30 @@ def test_the_cameras_footprint_projects_back_onto_the_image_corners():
     assert up.footprint(0.75) is None
 
 
+def test_a_placement_becomes_the_simulated_camera_it_describes():
+    """CameraPlacement.sim_camera: the placement's size and intrinsics over a camera's noise and
+    light; rendered from the true pose where one is known, Observations carrying the found one."""
+    cam = sim_camera()
+    base = CameraConfig(depth_noise=0.001, rgb_noise=2.0)
+    plain = cam.sim_camera(base)
+    np.testing.assert_allclose(plain.T_world_camera, cam.T_world_camera)
+    assert plain.reported_pose is None and plain.depth_noise == 0.001 and plain.rgb_noise == 2.0
+    found = cam.T_world_camera.copy()
+    found[:3, 3] += (0.002, 0.0, 0.0)
+    K = CameraConfig(width=320, height=240).K
+    calibrated = CameraPlacement(found, K, 320, 240, "cal.json", cam.T_world_camera)
+    placed = calibrated.sim_camera(base)
+    np.testing.assert_allclose(placed.T_world_camera, cam.T_world_camera)
+    np.testing.assert_allclose(placed.reported_T_world_camera, found)
+    assert placed.reported_pose_source == "cal.json"
+    np.testing.assert_allclose(placed.K, K)
+    assert (placed.width, placed.height) == (320, 240)
+    skewed = K.copy()
+    skewed[0, 1] = 0.5
+    with pytest.raises(ConfigError, match=r"cal.json: the simulated camera has no skew.*0.5"):
+        CameraPlacement(found, skewed, 320, 240, "cal.json").sim_camera(base)
+
+
 def test_the_picture_shows_the_cell_from_above():
     check = check_layout(DEFAULT_LAYOUT, sim_camera(), grid=3, arms=2)
     img = check_picture(check)

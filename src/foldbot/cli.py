@@ -57,7 +57,10 @@ def build_parser() -> argparse.ArgumentParser:
             check_layout,
             "can the arm reach, and the camera see, every point of a layout's workspace?",
         ),
-        "print-board": (print_board, "the calibration chessboard as a PNG to print at full size"),
+        "print-board": (
+            print_board,
+            "the calibration board (chessboard or ChArUco) as a PNG to print at full size",
+        ),
         "export-bag": (export_bag, "write an episode folder as a ROS 1 bag (no ROS needed)"),
     }
     for name, (module, help_text) in commands.items():

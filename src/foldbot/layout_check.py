@@ -11,7 +11,7 @@ here steps physics or touches a simulated cell.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import cv2
@@ -20,6 +20,7 @@ import numpy as np
 from foldbot.control.executor import ArmExecutor
 from foldbot.errors import ConfigError, UnreachableTargetError
 from foldbot.planning.motion import MotionConfig
+from foldbot.sim.camera import CameraConfig
 from foldbot.sim.layout import CellLayout
 from foldbot.sim.robots import (
     HOME_HEIGHT_ABOVE_TABLE,
@@ -50,13 +51,41 @@ GRID_RANGE = (2, 41)
 @dataclass(frozen=True)
 class CameraPlacement:
     """Where a camera stands and what it sees: 4 × 4 T_world_camera (OpenCV axes), the 3 × 3
-    intrinsics, the image size, and where the pose came from (for the report)."""
+    intrinsics, the image size, and where the pose came from (for the report).
+    `true_T_world_camera`: where the camera truly stands, where that is known apart from
+    T_world_camera (a calibration solved on the simulated cell: T_world_camera is what it
+    found, this what it was found against)."""
 
     T_world_camera: np.ndarray
     K: np.ndarray
     width: int
     height: int
     source: str
+    true_T_world_camera: np.ndarray | None = None
+
+    def sim_camera(self, base: CameraConfig) -> CameraConfig:
+        """`base` (its noise, lighting, clipping) as this camera: its image size and
+        intrinsics, rendered from where the camera truly stands, its Observations carrying
+        T_world_camera (the calibration's pose: perception works from it, as on a real cell)."""
+        K = np.asarray(self.K, dtype=float)
+        if abs(K[0, 1]) > 1e-9:
+            raise ConfigError(
+                f"{self.source}: the simulated camera has no skew, but K[0][1] is {K[0, 1]!r}"
+            )
+        rows = tuple(tuple(float(v) for v in row) for row in self.T_world_camera)
+        true = self.true_T_world_camera
+        return replace(
+            base,
+            width=int(self.width),
+            height=int(self.height),
+            fx=float(K[0, 0]),
+            fy=float(K[1, 1]),
+            cx=float(K[0, 2]),
+            cy=float(K[1, 2]),
+            pose=rows if true is None else tuple(tuple(float(v) for v in r) for r in true),
+            reported_pose=None if true is None else rows,
+            reported_pose_source="" if true is None else self.source,
+        )
 
     def project(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Pixel (u, v) of world points (N × 3) and their depth along the optical axis (m)."""

@@ -15,6 +15,7 @@ import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -535,16 +536,32 @@ def episode_result(
         "grasp_points_source": "oracle" if cfg.perception == "oracle" else "vision",
         ("towel" if cfg.garment == "towel" else "garment_spec"): spec_record(spec),
         "cloth_pose": {"x": x, "y": y, "yaw": yaw},
-        "camera": {
-            "width": camera.width,
-            "height": camera.height,
-            "K": camera.K.tolist(),
-            "T_world_camera": camera.T_world_camera.tolist(),
-        },
+        "camera": camera_record(camera),
         "actions": record.actions,
         "sim_seconds": sim_seconds,
         "wall_seconds": wall_seconds,
     }
+
+
+def camera_record(camera: CameraConfig) -> dict[str, Any]:
+    """result.json's camera: image size, intrinsics and where it stands; where perception was
+    given a calibration's pose instead (--camera-pose), that pose, its file, and how far it lies
+    from the true one."""
+    out: dict[str, Any] = {
+        "width": camera.width,
+        "height": camera.height,
+        "K": camera.K.tolist(),
+        "T_world_camera": camera.T_world_camera.tolist(),
+    }
+    if camera.reported_pose is not None:
+        from foldbot.calibration.hand_eye import pose_error_record
+
+        out |= {
+            "perceived_from": camera.reported_pose_source,
+            "reported_T_world_camera": camera.reported_T_world_camera.tolist(),
+            **pose_error_record(camera.reported_T_world_camera, camera.T_world_camera),
+        }
+    return out
 
 
 def true_start_keypoints(

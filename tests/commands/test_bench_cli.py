@@ -4,6 +4,7 @@ import json
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from foldbot.bench.suite import load_suite
@@ -243,3 +244,36 @@ def test_flatten_options_go_over_the_suites_own(tmp_path):
     )
     with pytest.raises(ConfigError, match=r"flatten options \(min_pull\) act on crumpled starts"):
         suite_from_args(args)
+
+
+def test_a_calibration_sees_every_episode_and_a_resume_keeps_its_pose(tmp_path):
+    """`bench --camera-pose`: every episode perceives from the calibration's pose, the camera
+    standing where it truly stood; the ids are the suite's own (compare pairs them with a run of
+    the exact pose); the pose is read once and kept in suite.json, and summary.md's command
+    repeats the option."""
+    from calibration_files import write_calibration
+
+    from foldbot.bench.suite import EpisodeSpec
+
+    cal = tmp_path / "calibration.json"
+    true, found = write_calibration(cal)
+    args = build_parser().parse_args(["bench", "--suite", "smoke", "--out", "x"])
+    plain = suite_from_args(args)
+    args = build_parser().parse_args(
+        ["bench", "--suite", "smoke", "--out", "x", "--camera-pose", str(cal)]
+    )
+    suite = suite_from_args(args)
+    assert [e.id for e in suite.episodes] == [e.id for e in plain.episodes]
+    for e in suite.episodes:
+        camera = e.to_config().camera
+        np.testing.assert_allclose(camera.T_world_camera, true)
+        np.testing.assert_allclose(camera.reported_T_world_camera, found)
+        assert camera.reported_pose_source.startswith(str(cal))
+        again = EpisodeSpec.from_dict(json.loads(json.dumps(e.as_dict())))
+        assert again == e and again.to_config() == e.to_config()
+    assert "camera" not in plain.episodes[0].as_dict()  # earlier runs resume unchanged
+    out = tmp_path / "r"
+    assert main(["bench", "--suite", "smoke", "--out", str(out), "--report-only",
+                 "--camera-pose", str(cal)]) == 0  # fmt: skip
+    command = json.loads((out / "summary.json").read_text())["command"]
+    assert command.endswith(f"--camera-pose {cal} --out {out}")

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from calibration_files import write_calibration
 
 from foldbot.commands import eval_perception
 from foldbot.commands.eval_perception import folded_towel, sample_garment_scene, sample_scene
@@ -269,6 +270,17 @@ def test_a_layout_moves_the_scenes_and_the_camera_with_its_workspace(tmp_path: P
     assert summary["corner_error_mm"]["max"] < 3.0  # the corners found on the 0.70 m table
 
 
+def two_flat_scenes_through(cal: Path, out: Path) -> dict:
+    """eval-perception of two flat scenes, the arm parked, through the calibration `cal`: the
+    summary it wrote into `out`."""
+    args = _args(
+        "--scenes", "2", "--seed", "0", "--out", str(out), "--folded-fraction", "0",
+        "--resolution", "10", "--arm-fraction", "0", "--camera-pose", str(cal),
+    )  # fmt: skip
+    assert eval_perception.run(args) == 0
+    return json.loads((out / "summary.json").read_text())
+
+
 def test_a_calibrations_camera_renders_every_scene(
     tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
@@ -277,25 +289,9 @@ def test_a_calibrations_camera_renders_every_scene(
     from foldbot.sim.camera import DEFAULT_UP, look_at
 
     T = look_at((0.95, 0.4, 1.6), (0.45, 0.0, 0.75), DEFAULT_UP)
-    K = CameraConfig(width=320, height=240).K
     cal = tmp_path / "calibration.json"
-    cal.write_text(
-        json.dumps(
-            {
-                "T_world_camera": T.tolist(),
-                "parent_frame": "world",
-                "child_frame": "camera_color_optical_frame",
-                "camera_info": {"width": 320, "height": 240, "K": K.tolist()},
-            }
-        )
-    )
-    out = tmp_path / "eval"
-    args = _args(
-        "--scenes", "2", "--seed", "0", "--out", str(out), "--folded-fraction", "0",
-        "--resolution", "10", "--arm-fraction", "0", "--camera-pose", str(cal),
-    )  # fmt: skip
-    assert eval_perception.run(args) == 0
-    summary = json.loads((out / "summary.json").read_text())
+    write_calibration(cal, (0.0, 0.0, 0.0), truth=False, intrinsics=True, true_pose=T)
+    summary = two_flat_scenes_through(cal, tmp_path / "eval")
     assert (summary["width"], summary["height"]) == (320, 240)
     assert summary["camera"]["source"] == str(cal)
     np.testing.assert_allclose(summary["camera"]["T_world_camera"], T)
@@ -326,3 +322,24 @@ def test_a_missing_layout_or_calibration_is_named(
     assert eval_perception.run(_args("--out", str(tmp_path / "eval"), *argv)) == 2
     assert message in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_simulated_calibrations_error_counts_in_the_figures(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """A calibration that knows where the camera truly stood (`foldbot calibrate`'s `truth`):
+    the scenes are rendered from there and perceived from the pose it found, 5 mm off, so every
+    corner is found about 5 mm off (within 3 mm from the true pose: the test above)."""
+    from foldbot.sim.camera import DEFAULT_UP, look_at
+
+    side = look_at((0.95, 0.4, 1.6), (0.45, 0.0, 0.75), DEFAULT_UP)
+    cal = tmp_path / "calibration.json"
+    true, found = write_calibration(cal, (0.0, 0.003, 0.004), true_pose=side)
+    summary = two_flat_scenes_through(cal, tmp_path / "eval")
+    camera = summary["camera"]
+    np.testing.assert_allclose(camera["T_world_camera"], found)
+    np.testing.assert_allclose(camera["true_T_world_camera"], true)
+    assert camera["calibration_error_mm"] == pytest.approx(5.0)
+    errors = summary["corner_error_mm"]
+    assert summary["detection_rate"] == 1.0 and 3.0 < errors["median"] < 7.0, errors
+    assert "perceived from the calibration's, 5.00 mm and 0.000° off it" in capsys.readouterr().out

@@ -9,6 +9,7 @@ import subprocess
 import sys
 
 import pytest
+from calibration_files import write_calibration
 
 from foldbot.cli import main
 from foldbot.commands.fold import add_arguments, config_from_args
@@ -354,3 +355,91 @@ def test_a_suite_episode_for_a_seed_the_suite_does_not_list():
     assert spec.id == episode and by_seed == by_id == spec.to_config()
     assert 24 not in load_suite("towel_crumpled_two_arms").axes["seeds"]
     assert (by_seed.seed, by_seed.towel_size_range) == (24, (0.25, 0.45))  # drawn when it runs
+
+
+def test_a_calibration_places_the_camera_and_perception_gets_its_pose(tmp_path, capsys):
+    """`--camera-pose CALIBRATION.json`: a simulated cell's calibration places the camera where it
+    truly stood and hands perception the pose it found; a real cell's (no truth) places the
+    camera at its pose. Its intrinsics come too; beside --suite it is the suite's episode with
+    that camera."""
+    import numpy as np
+
+    from foldbot.commands.fold import camera_words
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    cal = tmp_path / "calibration.json"
+    true, found = write_calibration(cal, intrinsics=True)
+    cfg = config_from_args(parser.parse_args(["--out", "x", "--camera-pose", str(cal)]))
+    np.testing.assert_allclose(cfg.camera.T_world_camera, true)
+    np.testing.assert_allclose(cfg.camera.reported_T_world_camera, found)
+    assert cfg.camera.reported_pose_source == str(cal)
+    assert (cfg.camera.width, cfg.camera.height, cfg.camera.fx) == (320, 240, 440.0)
+    assert cfg.cell_camera == cfg.camera  # a placed camera does not move with the layout
+    assert camera_words(cfg.camera) == (
+        f"camera: perceived from {cal}'s pose, 5.00 mm and 0.000° from where it truly stands"
+    )
+    bare = tmp_path / "real.json"
+    _, found = write_calibration(bare, truth=False)
+    cfg = config_from_args(parser.parse_args(["--out", "x", "--camera-pose", str(bare)]))
+    np.testing.assert_allclose(cfg.camera.T_world_camera, found)
+    assert cfg.camera.reported_pose is None and camera_words(cfg.camera) == ""
+    suite = ["--out", "x", "--suite", "towel_loop", "--seed", "4", "--recipe", "thirds"]
+    plain = config_from_args(parser.parse_args(suite))
+    cfg = config_from_args(parser.parse_args([*suite, "--camera-pose", str(cal)]))
+    assert cfg == dataclasses.replace(plain, camera=cfg.camera)
+    np.testing.assert_allclose(cfg.camera.reported_T_world_camera, found)
+
+
+@pytest.mark.parametrize(
+    ("content", "needle"),
+    [
+        (None, "no such file"),
+        ('{"T_world_camera": 1}', "is not a calibration.json"),
+        (
+            '{"T_world_camera": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]], "parent_frame": "w", '
+            '"child_frame": "c", "truth": {"T_world_camera": [[2,0,0,0],[0,1,0,0],[0,0,1,0],'
+            "[0,0,0,1]]}}",
+            "truth's T_world_camera must be a rigid 4 × 4 transform",
+        ),
+    ],
+)
+def test_a_bad_calibration_is_named_before_anything_is_written(tmp_path, capsys, content, needle):
+    cal = tmp_path / "calibration.json"
+    if content is not None:
+        cal.write_text(content)
+    out = tmp_path / "ep"
+    assert main(["fold", "--camera-pose", str(cal), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert needle in err and str(cal) in err and "Traceback" not in err
+    assert not out.exists()
+
+
+@pytest.mark.slow
+def test_a_fold_perceives_from_the_calibrations_pose(tmp_path):
+    """A calibration 5 mm off: the fold plans from corners seen 5 mm off (the first frame's
+    keypoint error, 0.1–0.2 mm from the true pose), folds all the same, and result.json keeps
+    both poses and the calibration's error."""
+    import numpy as np
+
+    cal = tmp_path / "calibration.json"
+    true, found = write_calibration(cal)
+    out = tmp_path / "ep"
+    args = ["fold", "--resolution", "8", "--recipe", "diagonal", "--video-fps", "0"]
+    proc = subprocess.run(
+        [sys.executable, "-m", "foldbot.cli", *args, "--camera-pose", str(cal), "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert f"camera: perceived from {cal}" in proc.stdout
+    result = json.loads((out / "result.json").read_text())
+    camera = result["camera"]
+    np.testing.assert_allclose(camera["T_world_camera"], true)
+    np.testing.assert_allclose(camera["reported_T_world_camera"], found)
+    assert camera["perceived_from"].startswith(str(cal))
+    assert camera["calibration_error_mm"] == pytest.approx(5.0)
+    seen = result["first_frame_keypoint_error_mm"]
+    assert all(4.0 < e < 6.0 for e in seen.values()), seen
+    assert result["success"] and result["coverage"] < 0.6

@@ -4,6 +4,7 @@ run with or without ROS installed)."""
 import argparse
 
 import pytest
+from calibration_files import write_calibration
 
 from foldbot.cli import main
 from foldbot.commands.ros_fold import add_arguments, fold_args_text
@@ -331,3 +332,34 @@ def test_the_gripper_lead_is_seconds_or_off(capsys):
     with pytest.raises(SystemExit):
         main(["ros-fold", "--out", "unused", "--gripper-lead", "2"])
     assert "--gripper-lead: must be seconds in [0, 1] or off, got '2'" in capsys.readouterr().err
+
+
+def test_a_calibration_reaches_the_simulated_cells_nodes(tmp_path, monkeypatch):
+    """`ros-fold --camera-pose` on the simulated cell, and `ros-cell --camera-pose`: the sim node
+    places its camera as `foldbot fold --camera-pose` does (the calibration's absolute path, the
+    nodes running elsewhere), so the pose it publishes is the calibration's; on a real cell the
+    calibration is published instead and no node builds a camera from it."""
+    from foldbot.commands import fold, ros_cell, ros_fold
+    from foldbot.ros.node_args import parse_fold_args
+
+    write_calibration(tmp_path / "calibration.json")
+    monkeypatch.chdir(tmp_path)
+    fold_parser, cell_parser, plain = (argparse.ArgumentParser() for _ in range(3))
+    ros_fold.add_arguments(fold_parser)
+    ros_cell.add_arguments(cell_parser)
+    fold.add_arguments(plain)
+    options = ["--resolution", "9", "--camera-pose", "calibration.json"]
+    absolute = ["--resolution", "9", "--camera-pose", str(tmp_path / "calibration.json")]
+    expected = fold.config_from_args(plain.parse_args([*absolute, "--out", "e"]))
+    assert expected.camera.reported_pose is not None
+    args = fold_parser.parse_args([*options, "--out", "e"])
+    args.camera_calibration = args.camera_pose  # as ros_fold.run sets it for the sim cell
+    words = fold_args_text(args).split()
+    assert words[words.index("--camera-pose") + 1] == str(tmp_path / "calibration.json")
+    assert parse_fold_args(fold_args_text(args))[1].camera == expected.camera
+    cell_args = cell_parser.parse_args(options)
+    cell_args.out = tmp_path / "unused"
+    assert parse_fold_args(fold_args_text(cell_args))[1].camera == expected.camera
+    real = fold_parser.parse_args([*options, "--out", "e", "--cell", "real"])
+    real.camera_calibration = None  # ros_fold.run: a real cell's camera is where it is
+    assert "--camera-pose" not in fold_args_text(real).split()

@@ -184,3 +184,35 @@ def test_the_out_of_view_park_hides_nothing_from_the_default_camera(name):
         dx, dy, dz = OUT_OF_VIEW_TCP_FROM_BASE
         expected = [bx + dx, by + dy, world.layout.table_height + dz]
         assert robot.tcp_pose()[0] == pytest.approx(expected, abs=2e-3)
+
+
+def test_a_reported_pose_is_what_observations_carry_the_image_is_the_true_pose(
+    plate_world,
+) -> None:
+    """A calibration's pose (`reported_pose`) goes to perception with each frame; the picture is
+    still rendered from where the camera stands, so a plate's corners back-projected through
+    the reported pose land off by the calibration's error."""
+    world, _body, corners = plate_world
+    true = CameraConfig(width=320, height=240)
+    off = true.T_world_camera.copy()
+    off[:3, 3] += (0.004, -0.003, 0.0)  # a calibration 5 mm off
+    cam = RGBDCamera(world.client, dataclasses.replace(true, reported_pose=off))
+    exact = RGBDCamera(world.client, true)
+    seen, truth = cam.observe(), exact.observe()
+    np.testing.assert_array_equal(seen.rgb, truth.rgb)
+    np.testing.assert_array_equal(seen.depth, truth.depth)
+    np.testing.assert_allclose(seen.T_world_camera, off)
+    np.testing.assert_allclose(cam.T_world_camera, true.T_world_camera)
+    np.testing.assert_allclose(cam.reported_T_world_camera, off)
+    inner = corners + 0.7 * (corners.mean(axis=0) - corners)  # on the plate, off its edges
+    uv, _ = project_points(inner, truth.intrinsics, truth.T_world_camera)
+    px = np.rint(uv).astype(int)
+    back = backproject(px, seen.depth[px[:, 1], px[:, 0]], seen.intrinsics, seen.T_world_camera)
+    exact_back = backproject(
+        px, truth.depth[px[:, 1], px[:, 0]], truth.intrinsics, exact.T_world_camera
+    )
+    assert np.linalg.norm(exact_back - inner, axis=1).max() < 0.003  # half a pixel, rounded
+    shift = np.linalg.norm(back - exact_back, axis=1)
+    np.testing.assert_allclose(shift, 0.005, atol=1e-6)  # a rigid shift: the calibration's
+    with pytest.raises(ConfigError, match="camera reported_pose must be a rigid 4×4"):
+        CameraConfig(reported_pose=np.diag([1.0, 2.0, 1.0, 1.0]))

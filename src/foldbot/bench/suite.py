@@ -75,10 +75,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from foldbot.cloth_options import CLOTH_OPTIONS, apply_cloth_options, check_cloth_options
 from foldbot.errors import ConfigError
 from foldbot.flatten_options import FLATTEN_OPTIONS, FlattenOptionValue, check_flatten_options
 from foldbot.garments.towel import MAX_RESOLUTION, MIN_RESOLUTION, MIN_VERTICES, TowelSpec
+from foldbot.layout_check import CameraPlacement
 from foldbot.loop_options import LOOP_OPTIONS, LoopOptionValue, check_loop_options
 from foldbot.pipeline import (
     ARM_COUNTS,
@@ -91,6 +94,7 @@ from foldbot.pipeline import (
 )
 from foldbot.planning.garment_recipes import GARMENT_RECIPES
 from foldbot.planning.recipes import RECIPES
+from foldbot.sim.camera import CameraConfig
 from foldbot.sim.cloth import ClothConfig
 from foldbot.sim.grasp import JAW_CATCHES
 from foldbot.sim.layout import DEFAULT_LAYOUT, LAYOUT_FIELDS, CellLayout, layout_from_table
@@ -207,6 +211,10 @@ class EpisodeSpec:
     layout: tuple[tuple[str, Any], ...] = ()
     """The cell's layout set by field (sim.layout.CellLayout), as (name, value), lists as
     tuples; the others at the default cell's."""
+    camera: tuple[tuple[str, Any], ...] = ()
+    """The camera a calibration placed (`bench --camera-pose`; camera_items): its pose found,
+    where it truly stood, K, image size and file, as (name, value); empty: the suite's
+    camera, its pose given to perception exactly."""
 
     @property
     def id(self) -> str:
@@ -257,6 +265,7 @@ class EpisodeSpec:
                 time_step=SimConfig.time_step if self.time_step is None else self.time_step,
                 layout=CellLayout(**dict(self.layout)) if self.layout else DEFAULT_LAYOUT,
             ),
+            camera=calibrated_camera(self.camera),
         )
 
     def as_dict(self) -> dict[str, Any]:
@@ -292,6 +301,10 @@ class EpisodeSpec:
             d["layout"] = {k: list(v) if isinstance(v, tuple) else v for k, v in self.layout}
         else:
             del d["layout"]  # likewise
+        if d["camera"]:
+            d["camera"] = {k: _plain(v) for k, v in self.camera}
+        else:
+            del d["camera"]  # likewise
         if d["towel_side_range"] is not None:
             d["towel_side_range"] = list(d["towel_side_range"])
         return d
@@ -326,7 +339,58 @@ class EpisodeSpec:
                 d[key] = tuple(d[key].items())
         if "layout" in d:
             d["layout"] = layout_items(d["layout"])
+        if "camera" in d:
+            d["camera"] = tuple(
+                (k, _frozen(v) if isinstance(v, list) else v) for k, v in d["camera"].items()
+            )
         return cls(**d)
+
+    def with_camera(self, camera: tuple[tuple[str, Any], ...]) -> EpisodeSpec:
+        """This episode seen through the camera a calibration placed (camera_items)."""
+        return dataclasses.replace(self, camera=camera)
+
+
+def camera_items(placement: CameraPlacement) -> tuple[tuple[str, Any], ...]:
+    """A calibration's camera as an EpisodeSpec keeps it (hashable, JSON-able)."""
+    true = placement.true_T_world_camera
+    return (
+        ("T_world_camera", _frozen(placement.T_world_camera)),
+        ("true_T_world_camera", None if true is None else _frozen(true)),
+        ("K", _frozen(placement.K)),
+        ("width", int(placement.width)),
+        ("height", int(placement.height)),
+        ("source", placement.source),
+    )
+
+
+def calibrated_camera(camera: tuple[tuple[str, Any], ...]) -> CameraConfig:
+    """The EpisodeConfig camera for an EpisodeSpec's `camera`: the default camera, or the one
+    the calibration placed (CameraPlacement.sim_camera)."""
+    if not camera:
+        return CameraConfig()
+    c = dict(camera)
+    true = c["true_T_world_camera"]
+    placement = CameraPlacement(
+        np.array(c["T_world_camera"], dtype=float),
+        np.array(c["K"], dtype=float),
+        int(c["width"]),
+        int(c["height"]),
+        str(c["source"]),
+        None if true is None else np.array(true, dtype=float),
+    )
+    return placement.sim_camera(CameraConfig())
+
+
+def _frozen(value: Any) -> Any:
+    """Nested lists or arrays as nested tuples of floats (None kept)."""
+    if value is None:
+        return None
+    return tuple(tuple(float(v) for v in row) for row in np.asarray(value, dtype=float))
+
+
+def _plain(value: Any) -> Any:
+    """Nested tuples as nested lists, for JSON."""
+    return [list(row) for row in value] if isinstance(value, tuple) else value
 
 
 @dataclass(frozen=True)

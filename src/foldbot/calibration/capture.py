@@ -245,18 +245,23 @@ def _read_calibration(path: Path) -> tuple[dict[str, Any], np.ndarray]:
             f"{str(path)!r} is not a calibration.json of `foldbot calibrate` or "
             f"`foldbot ros-calibrate` (T_world_camera, parent_frame, child_frame): {exc}"
         ) from None
-    R = T[:3, :3] if T.shape == (4, 4) else np.zeros((3, 3))
-    if not (
-        T.shape == (4, 4)
-        and np.isfinite(T).all()
-        and np.allclose(R @ R.T, np.eye(3), atol=1e-6)
-        and abs(np.linalg.det(R) - 1.0) < 1e-6
-        and np.allclose(T[3], [0, 0, 0, 1])
-    ):
+    if not _is_rigid(T):
         raise ConfigError(
             f"{str(path)!r}: T_world_camera must be a rigid 4 × 4 transform, got {T.tolist()}"
         )
     return record, T
+
+
+def _is_rigid(T: np.ndarray) -> bool:
+    """T is a finite 4 × 4 rigid transform (orthonormal rotation, last row 0 0 0 1)."""
+    if T.shape != (4, 4) or not np.isfinite(T).all():
+        return False
+    R = T[:3, :3]
+    return bool(
+        np.allclose(R @ R.T, np.eye(3), atol=1e-6)
+        and abs(np.linalg.det(R) - 1.0) < 1e-6
+        and np.allclose(T[3], [0, 0, 0, 1])
+    )
 
 
 def calibration_pose_words(path: str | Path) -> list[str]:
@@ -291,6 +296,27 @@ def calibration_camera(
             f"{str(path)!r}: camera_info's image size must be positive, got {width} × {height}"
         )
     return T, (K, width, height)
+
+
+def calibration_truth(path: str | Path) -> np.ndarray | None:
+    """Where the camera truly stood when a calibration.json was solved: `truth`'s T_world_camera,
+    which only `foldbot calibrate` on the simulated cell knows (None for a real cell's);
+    ConfigError naming what is wrong with the file."""
+    path = Path(path)
+    record, _T = _read_calibration(path)
+    truth = record.get("truth")
+    if truth is None:
+        return None
+    try:
+        T = np.asarray(truth["T_world_camera"], dtype=float)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ConfigError(f"{str(path)!r}: truth must hold T_world_camera (4 × 4): {exc}") from None
+    if not _is_rigid(T):
+        raise ConfigError(
+            f"{str(path)!r}: truth's T_world_camera must be a rigid 4 × 4 transform, "
+            f"got {T.tolist()}"
+        )
+    return T
 
 
 def contact_sheet(

@@ -27,10 +27,15 @@ from pathlib import Path
 
 from foldbot.bench.report import write_report
 from foldbot.bench.runner import DEFAULT_TIMEOUT_S, run_suite
-from foldbot.bench.suite import Suite, load_suite, parse_seeds, suite_from_dict
+from foldbot.bench.suite import Suite, camera_items, load_suite, parse_seeds, suite_from_dict
 from foldbot.bench.summary import summarise
 from foldbot.cloth_options import cloth_options_from_args
-from foldbot.commands.fold import add_cloth_option, add_flatten_option, add_loop_option
+from foldbot.commands.fold import (
+    add_camera_pose_option,
+    add_cloth_option,
+    add_flatten_option,
+    add_loop_option,
+)
 from foldbot.errors import ConfigError
 from foldbot.flatten_options import flatten_options_from_args
 from foldbot.loop_options import loop_options_from_args
@@ -90,6 +95,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_loop_option(parser, "in every episode, over the suite's [loop_options]")
     add_cloth_option(parser, "in every episode, over the suite's [cloth]")
     add_flatten_option(parser, "in every episode, over the suite's [flatten_options]")
+    add_camera_pose_option(
+        parser,
+        "every episode perceives from the camera pose a calibration found, as `foldbot "
+        "fold --camera-pose` does (a simulated calibration: the camera where it truly stood, "
+        "perception given the pose found); the episodes keep their ids, so `foldbot compare` "
+        "pairs them with a run of the exact pose",
+    )
     one = parser.add_argument_group("one-recipe suite (instead of --suite)")
     one.add_argument(
         "--recipe",
@@ -119,13 +131,33 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def suite_from_args(args: argparse.Namespace) -> Suite:
     """The suite named by --suite, or the one-recipe suite the other options describe, with the
-    --loop-option, --cloth and --flatten-option settings over its own."""
-    return with_options(
+    --loop-option, --cloth and --flatten-option settings over its own, seen through the camera
+    --camera-pose places."""
+    suite = with_options(
         _suite_from_args(args),
         loop_options_from_args(args.loop_option),
         cloth_options_from_args(args.cloth),
         flatten_options_from_args(args.flatten_option),
     )
+    path = getattr(args, "camera_calibration", None)
+    return suite if path is None else with_camera(suite, path)
+
+
+def with_camera(suite: Suite, path: Path) -> Suite:
+    """The suite's episodes seen through the camera the calibration at `path` places (the file
+    read once: a resumed run keeps the pose its episodes were run with)."""
+    from foldbot.commands.check_layout import camera_placement
+
+    placed: dict = {}
+    episodes = []
+    for e in suite.episodes:
+        if e.layout not in placed:
+            layout = e.to_config().sim.layout
+            placed[e.layout] = camera_items(camera_placement(path.resolve(), layout))
+        episodes.append(e.with_camera(placed[e.layout]))
+    for e in {(e.layout, e.garment): e for e in episodes}.values():
+        e.to_config()  # a camera the calibration cannot place, refused here before any run
+    return dataclasses.replace(suite, episodes=tuple(episodes))
 
 
 def with_options(suite: Suite, loop: dict, cloth: dict, flatten: dict | None = None) -> Suite:
@@ -230,6 +262,8 @@ def run(args: argparse.Namespace) -> int:
         cmd += ["--cloth", option]
     for option in args.flatten_option:
         cmd += ["--flatten-option", option]
+    if getattr(args, "camera_calibration", None) is not None:
+        cmd += ["--camera-pose", str(args.camera_calibration)]
     summary["command"] = shlex.join([*cmd, "--out", str(out)])
     if suite.ravens_speed and not args.no_reference:
         summary["ravens_speed_reference"] = _reference(suite, summary)

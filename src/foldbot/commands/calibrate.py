@@ -395,4 +395,8 @@ def run(args: argparse.Namespace) -> int:
         f"{1000 * dt:.2f} mm, {np.rad2deg(dr):.3f}°, on the table ≤ {1000 * table:.2f} mm"
     )
     print(f"calibrate: wrote {args.out}/calibration.json, camera_pose.launch, views.png")
+    print(
+        f"calibrate: fold through it (this camera, perception given the pose found): "
+        f"foldbot fold --camera-pose {args.out}/calibration.json --out DIR"
+    )
     return 0

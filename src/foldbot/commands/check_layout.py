@@ -72,7 +72,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def camera_placement(path: Path | None, layout: CellLayout) -> CameraPlacement:
-    """The camera --camera-pose names, or the simulated one placed for `layout`."""
+    """The camera --camera-pose names (with where it truly stood, for a calibration solved on the
+    simulated cell), or the simulated one placed for `layout`."""
     default = camera_for_layout(CameraConfig(), layout)
     if path is None:
         where = "the simulated camera" + (
@@ -81,9 +82,10 @@ def camera_placement(path: Path | None, layout: CellLayout) -> CameraPlacement:
         return CameraPlacement(
             default.T_world_camera, default.K, default.width, default.height, where
         )
-    from foldbot.calibration.capture import calibration_camera
+    from foldbot.calibration.capture import calibration_camera, calibration_truth
 
     T, intrinsics = calibration_camera(path)
+    truth = calibration_truth(path)
     if intrinsics is None:
         return CameraPlacement(
             T,
@@ -91,9 +93,10 @@ def camera_placement(path: Path | None, layout: CellLayout) -> CameraPlacement:
             default.width,
             default.height,
             f"{path}; its file has no intrinsics: the simulated camera's",
+            truth,
         )
     K, width, height = intrinsics
-    return CameraPlacement(T, K, width, height, str(path))
+    return CameraPlacement(T, K, width, height, str(path), truth)
 
 
 def run(args: argparse.Namespace) -> int:

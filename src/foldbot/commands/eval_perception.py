@@ -45,8 +45,11 @@ Renders N randomised scenes and compares `VisionEstimator` with the `GroundTruth
 it (the towel on its table in its workspace, its arm, the camera moved with the workspace).
 `--camera-pose CALIBRATION.json`: every scene seen from the camera a calibration found
 (`foldbot ros-calibrate`: its pose, and its image size and intrinsics where the file keeps
-them), without the ±3 cm jitter: perception's accuracy from where a real camera stands. The
-pose is taken as exact; the calibration's own error (0.1–0.7 mm in the simulated cell) adds to it.
+them), without the ±3 cm jitter: perception's accuracy from where a real camera stands. A
+calibration solved on the simulated cell (`foldbot calibrate`) also knows where the camera truly
+stood (its `truth`): the scenes are rendered from there and perceived from the pose the
+calibration found, so the calibration's own error counts in the figures; any other calibration's
+pose is taken as exact.
 
 `--depth-sensor M` (either kind): the depth comes from a sensor M m beside the colour camera, as
 on a real RGB-D camera (`depth_sensor_config`), registered onto the colour image
@@ -72,6 +75,7 @@ from typing import TYPE_CHECKING, Any
 import imageio.v3 as iio
 import numpy as np
 
+from foldbot.calibration.hand_eye import pose_error_record
 from foldbot.errors import ConfigError, FoldbotError, SimulationDivergedError
 from foldbot.garments import GARMENT_KEYPOINTS, make_garment, sample_garment
 from foldbot.garments.mesh import ClothMesh
@@ -158,7 +162,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="CALIBRATION.json",
         help="render every scene from the camera a calibration found (its pose, and its image "
         "size and intrinsics where the file keeps them) instead of the default camera jittered "
-        "±3 cm: perception's accuracy from where your camera is",
+        "±3 cm: perception's accuracy from where your camera is; a calibration solved on the "
+        "simulated cell (foldbot calibrate) renders from its true pose and perceives from the "
+        "one it found, so its error counts",
     )
     parser.add_argument(
         "--folded-fraction",
@@ -430,22 +436,18 @@ def _camera_config(
     camera: CameraPlacement | None = None,
 ) -> CameraConfig:
     """The scene's camera: at its jittered eye and target, turned by its roll; or, given
-    `camera`, that camera's pose, image size and intrinsics (the scene's noise and light)."""
+    `camera`, that camera's image size and intrinsics, rendered from where it truly stands and
+    perceived from the pose it was given (CameraPlacement.sim_camera; the scene's noise and
+    light)."""
     if camera is not None:
-        K = camera.K
-        return CameraConfig(
-            width=camera.width,
-            height=camera.height,
-            fx=float(K[0, 0]),
-            fy=float(K[1, 1]),
-            cx=float(K[0, 2]),
-            cy=float(K[1, 2]),
-            pose=tuple(tuple(float(v) for v in row) for row in camera.T_world_camera),
-            depth_noise=scene.depth_noise,
-            depth_dropout=scene.depth_dropout,
-            rgb_noise=scene.rgb_noise,
-            seed=seed,
-            lighting=scene.lighting,
+        return camera.sim_camera(
+            CameraConfig(
+                depth_noise=scene.depth_noise,
+                depth_dropout=scene.depth_dropout,
+                rgb_noise=scene.rgb_noise,
+                seed=seed,
+                lighting=scene.lighting,
+            )
         )
     view = np.array(scene.target) - np.array(scene.eye)
     view /= np.linalg.norm(view)
@@ -1034,6 +1036,12 @@ def _cell_record(args: argparse.Namespace) -> dict[str, Any]:
             "T_world_camera": args.camera.T_world_camera.tolist(),
             "K": args.camera.K.tolist(),
         }
+        true = args.camera.true_T_world_camera
+        if true is not None:
+            camera |= {
+                "true_T_world_camera": true.tolist(),
+                **pose_error_record(args.camera.T_world_camera, true),
+            }
     layout_file = getattr(args, "layout", None)
     return {
         "layout": args.cell_layout.changes(),
@@ -1047,8 +1055,15 @@ def _cell_words(summary: dict[str, Any]) -> str:
     words = ""
     if summary.get("layout_file"):
         words += f", layout {summary['layout_file']}"
-    if "T_world_camera" in summary.get("camera", {}):
-        words += f"; camera: {summary['camera']['source']}"
+    camera = summary.get("camera", {})
+    if "T_world_camera" in camera:
+        words += f"; camera: {camera['source']}"
+        if "calibration_error_mm" in camera:
+            words += (
+                f" (rendered from the true pose, perceived from the calibration's, "
+                f"{camera['calibration_error_mm']:.2f} mm and "
+                f"{camera['calibration_error_deg']:.3f}° off it)"
+            )
     return words
 
 

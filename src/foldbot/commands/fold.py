@@ -26,8 +26,9 @@ from foldbot.pipeline import (
 )
 from foldbot.planning.garment_recipes import GARMENT_RECIPE_HELP, GARMENT_RECIPES
 from foldbot.planning.recipes import RECIPE_HELP, RECIPES
+from foldbot.sim.camera import CameraConfig
 from foldbot.sim.grasp import JAW_CATCHES
-from foldbot.sim.layout import DEFAULT_LAYOUT, LAYOUT_FIELDS, load_layout
+from foldbot.sim.layout import DEFAULT_LAYOUT, LAYOUT_FIELDS, CellLayout, load_layout
 from foldbot.sim.robots import ROBOT_NAMES
 from foldbot.sim.world import SimConfig
 
@@ -98,10 +99,23 @@ def add_flatten_option(parser: argparse.ArgumentParser, where: str) -> None:
     )
 
 
-def add_arguments(parser: argparse.ArgumentParser, output: bool = True) -> None:
+def add_arguments(
+    parser: argparse.ArgumentParser, output: bool = True, camera_pose: bool = True
+) -> None:
     """Options of `foldbot fold`: an episode's, and `--suite` (`output` False: without the
-    episode folder's --out and --overwrite, or --gui)."""
+    episode folder's --out and --overwrite, or --gui; `camera_pose` False: without
+    --camera-pose, which `ros-fold` defines its own way)."""
     add_episode_arguments(parser, output)
+    if camera_pose:
+        add_camera_pose_option(
+            parser,
+            "perceive from the camera pose a calibration found, as a real cell does: "
+            "`foldbot calibrate`'s calibration.json places the simulated camera where it truly "
+            "stood and its Observations carry the pose the calibration found, so the "
+            "calibration's error reaches the fold; a real cell's (`ros-calibrate`, no truth) "
+            "places the camera at its pose, taken as exact. Its image size and intrinsics too, "
+            "where the file keeps them (default: perception is given the camera's true pose)",
+        )
     parser.add_argument(
         "--suite",
         default=None,
@@ -124,10 +138,24 @@ def add_arguments(parser: argparse.ArgumentParser, output: bool = True) -> None:
     )
 
 
+def add_camera_pose_option(parser: argparse.ArgumentParser, help_text: str) -> None:
+    """--camera-pose CALIBRATION.json (args.camera_calibration; calibrated_camera reads it)."""
+    parser.add_argument(
+        "--camera-pose",
+        dest="camera_calibration",
+        type=Path,
+        default=None,
+        metavar="CALIBRATION.json",
+        help=help_text,
+    )
+
+
 SUITE_PICKS = ("suite", "episode", "seed", "replicate", "recipe", "perception")
 """With --suite, the options that pick one of its episodes."""
 SUITE_FREE = ("video_fps", "out", "overwrite", "gui")
 """With --suite, the options that do not change the episode's physics or plan."""
+SUITE_CAMERA = ("camera_calibration",)
+"""With --suite, the camera a calibration found (--camera-pose) in place of the exact one."""
 SUITE_OVER = ("loop_option", "cloth", "flatten_option")
 """With --suite, the options set over the suite's own tables, as `foldbot bench --suite` sets
 them: a trial of one of its episodes."""
@@ -284,6 +312,7 @@ def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
             raise ConfigError("the cloth's mass is given twice (--mass and --cloth mass=)")
         cloth_options["mass"] = args.mass
     cloth = apply_cloth_options(base.cloth, cloth_options)
+    layout = DEFAULT_LAYOUT if args.layout is None else load_layout(args.layout)
     return EpisodeConfig(
         garment=args.garment,
         recipe=args.recipe or DEFAULT_RECIPES[args.garment],
@@ -308,17 +337,47 @@ def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
         sim=SimConfig(
             time_step=args.time_step,
             gui=args.gui,
-            layout=DEFAULT_LAYOUT if args.layout is None else load_layout(args.layout),
+            layout=layout,
         ),
+        camera=calibrated_camera(args, base.camera, layout),
         video_fps=args.video_fps,
         loop_options=loop_options_from_args(args.loop_option),
         flatten_options=flatten_options_from_args(args.flatten_option),
     )
 
 
+def calibrated_camera(
+    args: argparse.Namespace, camera: CameraConfig, layout: CellLayout
+) -> CameraConfig:
+    """`camera` as the calibration --camera-pose names places it (CameraPlacement.sim_camera),
+    or unchanged without one."""
+    path = getattr(args, "camera_calibration", None)
+    if path is None:
+        return camera
+    from foldbot.commands.check_layout import camera_placement
+
+    return camera_placement(path, layout).sim_camera(camera)
+
+
+def camera_words(camera: CameraConfig) -> str:
+    """What the fold's perception was told of the camera's pose, where a calibration gave it."""
+    if camera.reported_pose is None:
+        return ""
+    from foldbot.calibration.hand_eye import pose_error_record
+
+    off = pose_error_record(camera.reported_T_world_camera, camera.T_world_camera)
+    return (
+        f"camera: perceived from {camera.reported_pose_source}'s pose, "
+        f"{off['calibration_error_mm']:.2f} mm and {off['calibration_error_deg']:.3f}° from where "
+        "it truly stands"
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the episode and print where its outputs are."""
     cfg = config_from_args(args)
+    if words := camera_words(cfg.camera):
+        print(words)
     result = run_episode(cfg, args.out, overwrite=args.overwrite)
     flat = result.get("flatten")
     if flat is not None:
@@ -348,10 +407,13 @@ def run(args: argparse.Namespace) -> int:
 def suite_episode_config(args: argparse.Namespace) -> EpisodeConfig:
     """The EpisodeConfig `foldbot bench --suite args.suite` runs for the episode the options
     pick (pick_suite_episode), with this command's video rate and GUI (neither changes its
-    physics)."""
+    physics) and the camera pose a calibration found (--camera-pose), where given."""
     cfg = pick_suite_episode(args).to_config()
     return dataclasses.replace(
-        cfg, video_fps=args.video_fps, sim=dataclasses.replace(cfg.sim, gui=args.gui)
+        cfg,
+        video_fps=args.video_fps,
+        sim=dataclasses.replace(cfg.sim, gui=args.gui),
+        camera=calibrated_camera(args, cfg.camera, cfg.sim.layout),
     )
 
 
@@ -365,15 +427,15 @@ def pick_suite_episode(args: argparse.Namespace) -> EpisodeSpec:
     given = [
         "--" + name.replace("_", "-")
         for name, default in vars(defaults.parse_args(["--out", "-"])).items()
-        if name not in SUITE_PICKS + SUITE_FREE + SUITE_OVER
+        if name not in SUITE_PICKS + SUITE_FREE + SUITE_OVER + SUITE_CAMERA
         and getattr(args, name, default) != default
     ]
     if given:
         raise ConfigError(
             f"--suite {args.suite} sets the episode; drop {', '.join(given)} (beside --suite only "
             "--seed, --replicate, --recipe, --perception, --video-fps, --out, --overwrite, "
-            "--gui, and --loop-option, --cloth and --flatten-option over the suite's own, are "
-            "allowed)"
+            "--gui, --camera-pose, and --loop-option, --cloth and --flatten-option over the suite's "
+            "own, are allowed)"
         )
     return _picked(args, defaults).with_options(
         loop_options_from_args(args.loop_option),

@@ -74,7 +74,7 @@ def ros_env(port: int | None) -> dict[str, str]:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """`foldbot fold`'s options (`--suite` among them), plus the ROS ones."""
-    fold.add_arguments(parser)
+    fold.add_arguments(parser, camera_pose=False)
     parser.add_argument("--record", type=Path, default=None, help="record the run to this .bag")
     parser.add_argument(
         "--camera-rate",
@@ -140,7 +140,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="CALIBRATION.json",
         help="with --cell real: publish the camera's pose from this calibration (`foldbot "
         "ros-calibrate`'s calibration.json) as world → camera_color_optical_frame on /tf_static, "
-        "for a cell that publishes none of its own",
+        "for a cell that publishes none of its own; on the simulated cell: as `foldbot fold "
+        "--camera-pose`, the camera placed where the calibration was solved and the pose it "
+        "found published",
     )
     parser.add_argument(
         "--gripper-lead",
@@ -283,9 +285,17 @@ def fold_args_text(args: argparse.Namespace) -> str:
         words += ["--max-vertices", str(args.max_vertices)]
     if args.layout is not None:  # its absolute path: the nodes run elsewhere
         words += ["--layout", str(Path(args.layout).resolve())]
+    words += camera_words(args)
     if args.overwrite:
         words.append("--overwrite")
     return shlex.join(words)
+
+
+def camera_words(args: argparse.Namespace) -> list[str]:
+    """`--camera-pose` with the calibration's absolute path, where the simulated cell's camera
+    is placed by one (fold.calibrated_camera); else none."""
+    path = getattr(args, "camera_calibration", None)
+    return [] if path is None else ["--camera-pose", str(Path(path).resolve())]
 
 
 def option_words(args: argparse.Namespace) -> list[str]:
@@ -308,6 +318,7 @@ def suite_args_words(args: argparse.Namespace) -> list[str]:
 
     words = ["--suite", str(resolve_suite_path(args.suite).resolve())]
     words += ["--episode", fold.pick_suite_episode(args).id, *option_words(args)]
+    words += camera_words(args)
     words += ["--video-fps", repr(args.video_fps), "--out", str(Path(args.out).resolve())]
     if args.overwrite:
         words.append("--overwrite")
@@ -333,14 +344,19 @@ def run(args: argparse.Namespace) -> int:
     """Validate, roslaunch the fold, then report from the episode folder the task node wrote."""
     if args.gui:
         raise ConfigError("--gui is not available over ROS; use `foldbot fold --gui`")
+    real = args.cell == "real"
+    # On the simulated cell a calibration places its camera (fold.calibrated_camera); on a real
+    # one it is published as the camera's pose.
+    args.camera_calibration = None if real else args.camera_pose
     # Bad values fail here, before anything starts.
     cfg = fold.config_from_args(args)
+    if words := fold.camera_words(cfg.camera):
+        print(words)
     if cfg.perception != "vision":
         raise ConfigError(
             f"--perception {cfg.perception!r} is not available over ROS: the perception node "
             "is vision (RGB-D) only; use `foldbot fold --perception oracle` for the oracle"
         )
-    real = args.cell == "real"
     interface = args.arm_interface or ("actions" if real else "topics")
     if real:
         check_real_cell(args, cfg, interface)
@@ -360,11 +376,7 @@ def run(args: argparse.Namespace) -> int:
             "thickness is used: two collision margins, set by --cloth margin_divisor=N)"
         )
     camera_pose = ""
-    if args.camera_pose is not None:
-        if not real:
-            raise ConfigError(
-                "--camera-pose is for --cell real (the simulated cell publishes its camera's pose)"
-            )
+    if args.camera_pose is not None and real:
         camera_pose = " ".join(calibration_pose_words(args.camera_pose))
     if thickness is not None and not (
         math.isfinite(thickness) and 0.0 < thickness <= MAX_CLOTH_THICKNESS

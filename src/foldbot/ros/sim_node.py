@@ -262,7 +262,7 @@ class SimNode:
         if self.publish_camera_pose:
             tfs.append(
                 convert.transform_msg(
-                    self.parts.camera.T_world_camera, WORLD_FRAME, CAMERA_FRAME, 0.0
+                    self.parts.camera.reported_T_world_camera, WORLD_FRAME, CAMERA_FRAME, 0.0
                 )
             )
         self.pub["tf"].publish(TFMessage(transforms=tfs))

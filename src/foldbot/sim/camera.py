@@ -29,6 +29,20 @@ from foldbot.types import CameraIntrinsics, Observation
 _OPENCV_FROM_GL = np.diag([1.0, -1.0, -1.0, 1.0])
 
 
+def _rigid_pose(name: str, value: object) -> tuple[tuple[float, ...], ...]:
+    """A 4×4 rigid transform (nested tuples of floats), or ConfigError naming `name`."""
+    T = np.asarray(_finite_vector(name, value, 16)).reshape(4, 4)
+    R = T[:3, :3]
+    require(
+        np.allclose(R @ R.T, np.eye(3), atol=1e-6)
+        and abs(np.linalg.det(R) - 1.0) < 1e-6
+        and np.allclose(T[3], [0.0, 0.0, 0.0, 1.0]),
+        f"{name} must be a rigid 4×4 transform (orthonormal rotation, last row 0 0 0 1), "
+        f"got {T.tolist()!r}",
+    )
+    return tuple(tuple(float(v) for v in row) for row in T)
+
+
 def _finite_vector(name: str, value: object, size: int) -> tuple[float, ...]:
     try:
         arr = np.asarray(value, dtype=float).reshape(-1)
@@ -164,6 +178,12 @@ class CameraConfig:
     """World direction that appears upwards in the image; ignored when `pose` is given."""
     pose: tuple[tuple[float, ...], ...] | None = None
     """Optional 4×4 T_world_camera (OpenCV axes), overriding eye/target/up."""
+    reported_pose: tuple[tuple[float, ...], ...] | None = None
+    """Optional 4×4 T_world_camera the Observations carry instead of the true one: where a
+    calibration found the camera, which perception then works from, as on a real cell (the
+    image is still rendered from where the camera truly is). None: the true pose."""
+    reported_pose_source: str = ""
+    """Where `reported_pose` came from (a calibration file), for the episode's record."""
     depth_noise: float = 0.0
     """Depth noise coefficient a (1/m): Gaussian σ = a·z² at depth z; 0.001 → 1.2 mm at 1.1 m."""
     depth_dropout: float = 0.0
@@ -215,18 +235,17 @@ class CameraConfig:
         for name in ("eye", "target", "up"):
             object.__setattr__(self, name, _finite_vector(f"camera {name}", getattr(self, name), 3))
         if self.pose is not None:
-            T = np.asarray(_finite_vector("camera pose", self.pose, 16)).reshape(4, 4)
-            R = T[:3, :3]
-            require(
-                np.allclose(R @ R.T, np.eye(3), atol=1e-6)
-                and abs(np.linalg.det(R) - 1.0) < 1e-6
-                and np.allclose(T[3], [0.0, 0.0, 0.0, 1.0]),
-                f"camera pose must be a rigid 4×4 transform (orthonormal rotation, last row "
-                f"0 0 0 1), got {T.tolist()!r}",
-            )
-            object.__setattr__(self, "pose", tuple(tuple(float(v) for v in row) for row in T))
+            object.__setattr__(self, "pose", _rigid_pose("camera pose", self.pose))
         else:
             look_at(self.eye, self.target, self.up)  # validates eye ≠ target and up
+        if self.reported_pose is not None:
+            object.__setattr__(
+                self, "reported_pose", _rigid_pose("camera reported_pose", self.reported_pose)
+            )
+        require(
+            isinstance(self.reported_pose_source, str),
+            f"camera reported_pose_source must be a string, got {self.reported_pose_source!r}",
+        )
         for name in ("depth_noise", "rgb_noise"):
             v = getattr(self, name)
             require(
@@ -254,10 +273,17 @@ class CameraConfig:
 
     @property
     def T_world_camera(self) -> np.ndarray:
-        """4×4 transform from OpenCV camera coordinates to the world."""
+        """4×4 transform from OpenCV camera coordinates to the world: where the camera is."""
         if self.pose is not None:
             return np.array(self.pose, dtype=float)
         return look_at(self.eye, self.target, self.up)
+
+    @property
+    def reported_T_world_camera(self) -> np.ndarray:
+        """4×4 T_world_camera the Observations carry: `reported_pose`, else the true pose."""
+        if self.reported_pose is not None:
+            return np.array(self.reported_pose, dtype=float)
+        return self.T_world_camera
 
 
 class RGBDCamera:
@@ -278,8 +304,14 @@ class RGBDCamera:
 
     @property
     def T_world_camera(self) -> np.ndarray:
-        """4×4 transform from OpenCV camera coordinates to the world (a copy)."""
+        """4×4 transform from OpenCV camera coordinates to the world, where the camera truly is
+        (a copy). GROUND TRUTH where a calibration's pose is reported instead."""
         return self._T_world_camera.copy()
+
+    @property
+    def reported_T_world_camera(self) -> np.ndarray:
+        """The camera pose its Observations carry (a copy): a calibration's, or the true one."""
+        return self.config.reported_T_world_camera
 
     @property
     def intrinsics(self) -> CameraIntrinsics:
@@ -337,7 +369,7 @@ class RGBDCamera:
             rgb=rgb,
             depth=depth,
             intrinsics=cfg.intrinsics,
-            T_world_camera=self.T_world_camera,
+            T_world_camera=self.reported_T_world_camera,
             joint_positions=q.copy(),
             stamp=float(stamp),
         )
