@@ -364,7 +364,7 @@ def test_a_calibration_places_the_camera_and_perception_gets_its_pose(tmp_path, 
     that camera."""
     import numpy as np
 
-    from foldbot.commands.fold import camera_words
+    from foldbot.commands.fold import perceived_pose_line
 
     parser = argparse.ArgumentParser()
     add_arguments(parser)
@@ -376,14 +376,14 @@ def test_a_calibration_places_the_camera_and_perception_gets_its_pose(tmp_path, 
     assert cfg.camera.reported_pose_source == str(cal)
     assert (cfg.camera.width, cfg.camera.height, cfg.camera.fx) == (320, 240, 440.0)
     assert cfg.cell_camera == cfg.camera  # a placed camera does not move with the layout
-    assert camera_words(cfg.camera) == (
+    assert perceived_pose_line(cfg.camera) == (
         f"camera: perceived from {cal}'s pose, 5.00 mm and 0.000° from where it truly stands"
     )
     bare = tmp_path / "real.json"
     _, found = write_calibration(bare, truth=False)
     cfg = config_from_args(parser.parse_args(["--out", "x", "--camera-pose", str(bare)]))
     np.testing.assert_allclose(cfg.camera.T_world_camera, found)
-    assert cfg.camera.reported_pose is None and camera_words(cfg.camera) == ""
+    assert cfg.camera.reported_pose is None and perceived_pose_line(cfg.camera) == ""
     suite = ["--out", "x", "--suite", "towel_loop", "--seed", "4", "--recipe", "thirds"]
     plain = config_from_args(parser.parse_args(suite))
     cfg = config_from_args(parser.parse_args([*suite, "--camera-pose", str(cal)]))

@@ -265,7 +265,7 @@ class EpisodeSpec:
                 time_step=SimConfig.time_step if self.time_step is None else self.time_step,
                 layout=CellLayout(**dict(self.layout)) if self.layout else DEFAULT_LAYOUT,
             ),
-            camera=calibrated_camera(self.camera),
+            camera=camera_from_items(self.camera),
         )
 
     def as_dict(self) -> dict[str, Any]:
@@ -345,10 +345,6 @@ class EpisodeSpec:
             )
         return cls(**d)
 
-    def with_camera(self, camera: tuple[tuple[str, Any], ...]) -> EpisodeSpec:
-        """This episode seen through the camera a calibration placed (camera_items)."""
-        return dataclasses.replace(self, camera=camera)
-
 
 def camera_items(placement: CameraPlacement) -> tuple[tuple[str, Any], ...]:
     """A calibration's camera as an EpisodeSpec keeps it (hashable, JSON-able)."""
@@ -363,7 +359,7 @@ def camera_items(placement: CameraPlacement) -> tuple[tuple[str, Any], ...]:
     )
 
 
-def calibrated_camera(camera: tuple[tuple[str, Any], ...]) -> CameraConfig:
+def camera_from_items(camera: tuple[tuple[str, Any], ...]) -> CameraConfig:
     """The EpisodeConfig camera for an EpisodeSpec's `camera`: the default camera, or the one
     the calibration placed (CameraPlacement.sim_camera)."""
     if not camera:

@@ -27,7 +27,14 @@ from pathlib import Path
 
 from foldbot.bench.report import write_report
 from foldbot.bench.runner import DEFAULT_TIMEOUT_S, run_suite
-from foldbot.bench.suite import Suite, camera_items, load_suite, parse_seeds, suite_from_dict
+from foldbot.bench.suite import (
+    Suite,
+    camera_from_items,
+    camera_items,
+    load_suite,
+    parse_seeds,
+    suite_from_dict,
+)
 from foldbot.bench.summary import summarise
 from foldbot.cloth_options import cloth_options_from_args
 from foldbot.commands.fold import (
@@ -41,6 +48,7 @@ from foldbot.flatten_options import flatten_options_from_args
 from foldbot.loop_options import loop_options_from_args
 from foldbot.pipeline import PERCEPTION_MODES
 from foldbot.planning.recipes import RECIPE_HELP, RECIPES
+from foldbot.sim.layout import DEFAULT_LAYOUT
 
 __all__ = ["add_arguments", "parse_seeds", "run", "suite_from_args"]
 
@@ -145,19 +153,14 @@ def suite_from_args(args: argparse.Namespace) -> Suite:
 
 def with_camera(suite: Suite, path: Path) -> Suite:
     """The suite's episodes seen through the camera the calibration at `path` places (the file
-    read once: a resumed run keeps the pose its episodes were run with)."""
+    read once: a resumed run keeps the pose its episodes were run with). A placed camera does
+    not move with a layout, so one placement serves every episode."""
     from foldbot.commands.check_layout import camera_placement
 
-    placed: dict = {}
-    episodes = []
-    for e in suite.episodes:
-        if e.layout not in placed:
-            layout = e.to_config().sim.layout
-            placed[e.layout] = camera_items(camera_placement(path.resolve(), layout))
-        episodes.append(e.with_camera(placed[e.layout]))
-    for e in {(e.layout, e.garment): e for e in episodes}.values():
-        e.to_config()  # a camera the calibration cannot place, refused here before any run
-    return dataclasses.replace(suite, episodes=tuple(episodes))
+    camera = camera_items(camera_placement(path.resolve(), DEFAULT_LAYOUT))
+    camera_from_items(camera)  # a camera the calibration cannot place, refused before any run
+    episodes = tuple(dataclasses.replace(e, camera=camera) for e in suite.episodes)
+    return dataclasses.replace(suite, episodes=episodes)
 
 
 def with_options(suite: Suite, loop: dict, cloth: dict, flatten: dict | None = None) -> Suite:

@@ -359,7 +359,7 @@ def calibrated_camera(
     return camera_placement(path, layout).sim_camera(camera)
 
 
-def camera_words(camera: CameraConfig) -> str:
+def perceived_pose_line(camera: CameraConfig) -> str:
     """What the fold's perception was told of the camera's pose, where a calibration gave it."""
     if camera.reported_pose is None:
         return ""
@@ -376,7 +376,7 @@ def camera_words(camera: CameraConfig) -> str:
 def run(args: argparse.Namespace) -> int:
     """Run the episode and print where its outputs are."""
     cfg = config_from_args(args)
-    if words := camera_words(cfg.camera):
+    if words := perceived_pose_line(cfg.camera):
         print(words)
     result = run_episode(cfg, args.out, overwrite=args.overwrite)
     flat = result.get("flatten")

@@ -350,7 +350,7 @@ def run(args: argparse.Namespace) -> int:
     args.camera_calibration = None if real else args.camera_pose
     # Bad values fail here, before anything starts.
     cfg = fold.config_from_args(args)
-    if words := fold.camera_words(cfg.camera):
+    if words := fold.perceived_pose_line(cfg.camera):
         print(words)
     if cfg.perception != "vision":
         raise ConfigError(
