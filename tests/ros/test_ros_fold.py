@@ -40,11 +40,11 @@ def ros_run(tmp_path_factory):
         "--record", str(bag), "--port", str(free_port()), "--cloth", "crossing_guard=1",
     )  # fmt: skip
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
-    return out, bag
+    return out, bag, proc.stdout + proc.stderr
 
 
 def test_episode_folder_matches_the_contract(ros_run):
-    out, _bag = ros_run
+    out, _bag, _log = ros_run
     assert {
         "result.json",
         "cloth.npz",
@@ -68,10 +68,18 @@ def test_episode_folder_matches_the_contract(ros_run):
     assert isinstance(result["crossing_guard_restored"], int)
 
 
+def test_the_first_frame_and_its_perception_reach_the_task_node_at_once(ros_run):
+    # The nodes start together; the camera's and perception's topics are latched, so a task node
+    # whose subscriptions connect after the resting frame went out still gets it and its
+    # estimate, rather than asking for the frame again after FRAME_RETRY_S (10 s lost).
+    _out, _bag, log = ros_run
+    assert "asking for another" not in log, log[-3000:]
+
+
 def test_bag_holds_the_topics_with_ros_conventions(ros_run):
     import rosbag
 
-    _out, bag_path = ros_run
+    _out, bag_path, _log = ros_run
     with rosbag.Bag(str(bag_path)) as bag:
         topics = bag.get_type_and_topic_info().topics
         for name, kind in {
@@ -108,7 +116,7 @@ def test_bag_holds_the_topics_with_ros_conventions(ros_run):
 
 
 def test_replay_gives_the_live_keypoints(ros_run):
-    _out, bag = ros_run
+    _out, bag, _log = ros_run
     proc = foldbot("ros-replay", str(bag), "--port", str(free_port()), "--rate", "2")
     assert proc.returncode == 0, proc.stdout + proc.stderr[-3000:]
     assert "same keypoints as the live run" in proc.stdout
@@ -124,7 +132,7 @@ def test_a_drivers_bgr8_and_millimetre_depth_give_the_same_corners(ros_run, tmp_
 
     from foldbot.ros import convert
 
-    _out, bag_path = ros_run
+    _out, bag_path, _log = ros_run
     driver = tmp_path / "driver.bag"
     with rosbag.Bag(str(bag_path)) as src, rosbag.Bag(str(driver), "w") as dst:
         for topic, msg, t in src.read_messages():
@@ -163,7 +171,7 @@ print(rospy.wait_for_message("/task/result", String, timeout=120).data, flush=Tr
 def test_exported_bag_plays_back_in_ros(ros_run, tmp_path):
     import rosgraph
 
-    out, _bag = ros_run
+    out, _bag, _log = ros_run
     exported = tmp_path / "export.bag"
     proc = foldbot("export-bag", str(out), "--out", str(exported))
     assert proc.returncode == 0, proc.stderr

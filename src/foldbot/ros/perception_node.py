@@ -43,12 +43,14 @@ class PerceptionNode:
         self._pending: list[tuple[Image, Image, CameraInfo]] = []
         """Frames that came before the camera pose (or, for a depth image in its own frame,
         before its camera_info and transform); estimated once they arrive."""
-        # Latched: a planner node that subscribes late still gets the newest frame's corners.
+        # Latched: a planner or task node that subscribes late still gets the newest frame's
+        # corners, mask and state (the task node's connection to these came up after the first
+        # frame's estimate in most runs, which then waited 10 s for a re-send).
         self.pub_keypoints = rospy.Publisher(
             TOPICS["keypoints"], PoseArray, queue_size=50, latch=True
         )
-        self.pub_mask = rospy.Publisher(TOPICS["mask"], Image, queue_size=50)
-        self.pub_state = rospy.Publisher(TOPICS["state"], String, queue_size=50)
+        self.pub_mask = rospy.Publisher(TOPICS["mask"], Image, queue_size=50, latch=True)
+        self.pub_state = rospy.Publisher(TOPICS["state"], String, queue_size=50, latch=True)
         rospy.Subscriber(TOPICS["tf_static"], TFMessage, self._on_tf)
         rospy.Subscriber(TOPICS["depth_info"], CameraInfo, self._on_depth_info, queue_size=5)
         subs = [

@@ -161,14 +161,18 @@ class SimNode:
         self._next_joints = 0.0
         self._next_frame = 0.0
         latch = {"queue_size": 1, "latch": True}
+        # The camera's topics are latched too: a subscriber that connects after a frame (the
+        # task node, launched with the perception node, often connected a moment after the
+        # resting frame went out) gets the newest at once instead of waiting for a re-send.
+        frames = {"queue_size": 50, "latch": True}
         self.pub = {
             "clock": rospy.Publisher(TOPICS["clock"], Clock, queue_size=10),
             "joints": rospy.Publisher(TOPICS["joint_states"], JointState, queue_size=10),
             "tf": rospy.Publisher(TOPICS["tf_static"], TFMessage, **latch),
-            "color": rospy.Publisher(TOPICS["color"], Image, queue_size=50),
-            "color_info": rospy.Publisher(TOPICS["color_info"], CameraInfo, queue_size=50),
-            "depth": rospy.Publisher(TOPICS["depth"], Image, queue_size=50),
-            "depth_info": rospy.Publisher(TOPICS["depth_info"], CameraInfo, queue_size=50),
+            "color": rospy.Publisher(TOPICS["color"], Image, **frames),
+            "color_info": rospy.Publisher(TOPICS["color_info"], CameraInfo, **frames),
+            "depth": rospy.Publisher(TOPICS["depth"], Image, **frames),
+            "depth_info": rospy.Publisher(TOPICS["depth_info"], CameraInfo, **frames),
             "grasp": rospy.Publisher(TOPICS["grasp"], String, queue_size=10),
             "result": rospy.Publisher(TOPICS["cell_result"], String, **latch),
             "truth": rospy.Publisher(TOPICS["ground_truth"], PointCloud2, **latch),
@@ -269,7 +273,8 @@ class SimNode:
 
     def wait_for_camera_subscribers(self, timeout_s: float = SUBSCRIBER_WAIT_S) -> None:
         """Hold the first frame until something subscribes to the camera's images and info (the
-        perception node): frames are not latched, and the task waits for that one's perception."""
+        perception node): a latched frame reaches a late subscriber, but the perception node should
+        estimate the resting frame itself, not only the newest one when it connects."""
         deadline = time.monotonic() + timeout_s
         while not rospy.is_shutdown():
             missing = [

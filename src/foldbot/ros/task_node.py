@@ -521,8 +521,8 @@ class RosCell(FoldCell):
                         key = found
                         self.rest_stamp = found
                     break
-            # A subscriber that joined late missed the frame (frames are not latched): the
-            # resting cell publishes it again at the same stamp (a zero-second wait); a cell
+            # The frame or its perception was lost (the topics are latched, so a late subscriber
+            # gets the newest; a lost message is rarer): the resting cell publishes it again at the same stamp (a zero-second wait); a cell
             # that streams (the actions interface) gives the next frame.
             rospy.logwarn(
                 "no perception of the frame at t = %.3f s within %.0f s; asking for another",
