@@ -402,7 +402,10 @@ def test_a_fold_on_a_running_cell_as_on_a_real_one(tmp_path):
     watcher.start()
     out = tmp_path / "episode"
     try:
-        wait_for_master(port)
+        # Started at once, as a user types one command after the other: ros-fold waits for the
+        # cell's master, and its nodes' settings (global /foldbot/… parameters) must not reach
+        # the cell's sim node, which may read its own after them (it then became a lockstep
+        # cell that streamed no frames: the fold waited 300 s for one, in 2 of 2 tries).
         proc = foldbot(
             "ros-fold", "--cell", "real", "--resolution", "8", "--video-fps", "2",
             "--recipe", "diagonal", "--seed", "1", "--out", str(out), "--port", str(port),

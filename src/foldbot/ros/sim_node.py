@@ -20,6 +20,7 @@ from __future__ import annotations
 import queue
 import sys
 import time
+from typing import Any
 
 import numpy as np
 import rospy
@@ -466,18 +467,27 @@ class SimNode:
             rospy.signal_shutdown("the simulation diverged")
 
 
+def node_param(name: str, default: Any = None) -> Any:
+    """The sim node's setting `name` (a /foldbot/… parameter): its private one (~fold_args, …)
+    where set, else the global one. A running cell (cell.launch) sets its own privately: a fold
+    launched on the same master sets the global ones for its nodes, and a cell whose sim node read
+    them (a fold started while the cell was still coming up) became the fold's, lockstep cell."""
+    private = "~" + name.rsplit("/", 1)[-1]
+    if rospy.has_param(private):
+        return rospy.get_param(private)
+    return rospy.get_param(name) if default is None else rospy.get_param(name, default)
+
+
 def main(argv: list[str] | None = None) -> int:
     rospy.init_node("foldbot_sim", argv=argv if argv is not None else sys.argv)
     node = SimNode(
-        rospy.get_param(FOLD_ARGS_PARAM),
-        float(rospy.get_param(CAMERA_RATE_PARAM, 10.0)),
-        rospy.get_param(ARM_INTERFACE_PARAM, "topics"),
-        float(rospy.get_param(REAL_TIME_FACTOR_PARAM, 1.0)),
-        board_arm
-        if (board_arm := int(rospy.get_param(CALIBRATION_BOARD_PARAM, -1))) >= 0
-        else None,
-        bool(rospy.get_param(PUBLISH_CAMERA_POSE_PARAM, True)),
-        str(rospy.get_param(CALIBRATION_BOARD_PATTERN_PARAM, "chessboard")),
+        node_param(FOLD_ARGS_PARAM),
+        float(node_param(CAMERA_RATE_PARAM, 10.0)),
+        node_param(ARM_INTERFACE_PARAM, "topics"),
+        float(node_param(REAL_TIME_FACTOR_PARAM, 1.0)),
+        board_arm if (board_arm := int(node_param(CALIBRATION_BOARD_PARAM, -1))) >= 0 else None,
+        bool(node_param(PUBLISH_CAMERA_POSE_PARAM, True)),
+        str(node_param(CALIBRATION_BOARD_PATTERN_PARAM, "chessboard")),
     )
     try:
         node.spin()
