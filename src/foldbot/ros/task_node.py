@@ -522,8 +522,9 @@ class RosCell(FoldCell):
                         self.rest_stamp = found
                     break
             # The frame or its perception was lost (the topics are latched, so a late subscriber
-            # gets the newest; a lost message is rarer): the resting cell publishes it again at the same stamp (a zero-second wait); a cell
-            # that streams (the actions interface) gives the next frame.
+            # gets the newest; a lost message is rarer): the resting cell publishes it again at
+            # the same stamp (a zero-second wait); a cell that streams (the actions interface)
+            # gives the next frame.
             rospy.logwarn(
                 "no perception of the frame at t = %.3f s within %.0f s; asking for another",
                 self.rest_stamp,
