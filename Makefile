@@ -10,11 +10,19 @@ $(VENV)/bin/activate:
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 
+# An editable install leaves foldbot's own modules uncompiled, and where PYTHONDONTWRITEBYTECODE is
+# set (as on this workplace's machines) every process, each ROS node among them, compiled them
+# again: 0.22 s of the 1.15 s a fold's process took to start. Compiled once here, they are read
+# from __pycache__ (a file edited since is compiled again in memory, as usual).
+COMPILE := $(PY) -m compileall -q src ros
+
 install: $(VENV)/bin/activate
 	$(PY) -m pip install --quiet -c constraints.txt -e .
+	$(COMPILE)
 
 install-test: $(VENV)/bin/activate
 	$(PY) -m pip install --quiet -c constraints.txt -e ".[test]"
+	$(COMPILE)
 
 ## demo: install, then fold a 30 cm towel headless and write the episode folder to $(OUT)
 demo: install
@@ -40,3 +48,4 @@ lint: install-test
 
 clean:
 	rm -rf $(VENV) runs .pytest_cache .ruff_cache src/*.egg-info
+	find src ros tests -name __pycache__ -prune -exec rm -rf {} +
