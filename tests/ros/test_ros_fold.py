@@ -11,10 +11,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from calibration_files import write_calibration
 from ros_helpers import free_port, requires_ros, start_cell, stop_cell, wait_for_master
 
 from foldbot.garments import GARMENT_KEYPOINTS
 from foldbot.io.episode import REQUIRED_RESULT_KEYS, rescore
+from foldbot.ros import CAMERA_FRAME
 from foldbot.sim.cloth import MAX_SLIDE_SPEED
 
 pytestmark = [requires_ros, pytest.mark.slow]
@@ -764,7 +766,9 @@ def test_two_arms_fold_over_topics(tmp_path):
     """`--arms 2`: each arm's joints and base frame named left_/right_, a pair of corners moved
     on one clock by one trajectory, each gripper commanded by its arm. `--cloth
     margin_divisor=6` reaches the sim node's cloth: the layer thickness it reports (cloth.npz)
-    is a third of a mesh edge, and result.json names the option."""
+    is a third of a mesh edge, and result.json names the option. `--camera-pose` reaches it
+    too: the sim node gives the calibration's pose (1.4 mm off) on /tf_static, as a calibrated
+    real cell does, and the perception node sees the corners from there."""
     import rosbag
 
     from foldbot.cli import build_parser
@@ -772,7 +776,9 @@ def test_two_arms_fold_over_topics(tmp_path):
     from foldbot.garments.towel import make_towel
 
     out, bag_path = tmp_path / "episode", tmp_path / "run.bag"
+    true, found = write_calibration(tmp_path / "calibration.json", shift=(0.001, -0.001, 0.0))
     episode = ["--arms", "2", "--resolution", "8", "--cloth", "margin_divisor=6"]
+    episode += ["--camera-pose", str(tmp_path / "calibration.json")]
     proc = foldbot(
         "ros-fold", *episode, "--video-fps", "0", "--camera-rate", "2",
         "--out", str(out), "--record", str(bag_path), "--port", str(free_port()),
@@ -794,19 +800,24 @@ def test_two_arms_fold_over_topics(tmp_path):
     assert all(a["together"] and a["grasp_success"] for a in actions)
     assert result["fold_error_mm"] <= 10.0
     assert rescore(out).fold_error_mm == pytest.approx(result["fold_error_mm"])
+    camera = result["camera"]
+    np.testing.assert_allclose(camera["T_world_camera"], true)
+    np.testing.assert_allclose(camera["reported_T_world_camera"], found)
+    assert camera["calibration_error_mm"] == pytest.approx(np.sqrt(2))
+    seen = result["first_frame_keypoint_error_mm"]  # 0.1–0.2 mm from the true pose
+    assert all(1.0 < e < 2.0 for e in seen.values()), seen
     with rosbag.Bag(str(bag_path)) as bag:
         joints = next(m for _t, m, _ in bag.read_messages(topics=["/joint_states"]))
-        bases = {
-            t.child_frame_id: t.transform.translation.y
-            for _t, m, _ in bag.read_messages(topics=["/tf_static"])
-            for t in m.transforms
-        }
+        statics = [t for _t, m, _ in bag.read_messages(topics=["/tf_static"]) for t in m.transforms]
+        bases = {t.child_frame_id: t.transform.translation.y for t in statics}
         trajectories = [m for _t, m, _ in bag.read_messages(topics=["/arm/joint_trajectory"])]
         grippers = [m.data for _t, m, _ in bag.read_messages(topics=["/gripper/command"])]
         grasps = [json.loads(m.data) for _t, m, _ in bag.read_messages(topics=["/gripper/grasp"])]
     assert len(joints.name) == 16 and len(joints.position) == 16
     assert joints.name[0] == "left_shoulder_pan_joint" and joints.name[8].startswith("right_")
     assert bases["left_base_link"] == pytest.approx(0.3) and bases["right_base_link"] < 0
+    (cam,) = [t.transform.translation for t in statics if t.child_frame_id == CAMERA_FRAME]
+    np.testing.assert_allclose([cam.x, cam.y, cam.z], found[:3, 3], atol=1e-9)
     both = [m for m in trajectories if len(m.joint_names) == 12]
     assert both and all(len(p.positions) == 12 for m in both for p in m.points)
     assert both[0].joint_names[:6] == list(joints.name[:6])
