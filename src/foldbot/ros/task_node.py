@@ -198,7 +198,8 @@ class RosCell(FoldCell):
         """With the actions interface: how far ahead of the cell's clock (s) a motion several
         arms make together is stamped to start."""
         self.rest_stamp: float | None = 0.0
-        """The stamp of the frame the cell rests in (None: the next frame after _frame_after)."""
+        """The stamp of the frame the cell rests in (None: a streaming cell's next frame after
+        _frame_after; the lockstep sim node's, asked for by a zero-second wait)."""
         self._frame_after = 0.0
         self.truth = _Inbox()
         self.mesh = _Inbox()
@@ -368,7 +369,8 @@ class RosCell(FoldCell):
 
     def _at_rest(self, reply: dict) -> None:
         """Where a sim node's report left the cell: its frame, every arm's joints, its clock."""
-        self.rest_stamp = float(reply["frame_stamp"])
+        stamp = reply["frame_stamp"]  # None: no frame rendered (observe asks for one)
+        self.rest_stamp = None if stamp is None else float(stamp)
         self.rest_qs = [np.array(q, dtype=float) for q in reply.get("qs", [reply["q"]])]
         if len(self.rest_qs) != self.arms:
             raise errors.FoldbotError(
@@ -502,6 +504,8 @@ class RosCell(FoldCell):
         return None
 
     def observe(self) -> tuple[ClothState, Observation]:
+        if self.rest_stamp is None and not self.drivers:
+            self.wait(0.0)  # the lockstep sim node renders the resting frame when asked
         if self.rest_stamp is None:  # the actions interface: the first frame since the rest
             self.rest_stamp = self._first_frame_after(self._frame_after)
         key = round(self.rest_stamp, 6)
