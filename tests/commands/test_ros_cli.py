@@ -18,8 +18,15 @@ from foldbot.commands.ros_fold import add_arguments, fold_args_text
         (["ros-fold", "--out", "{tmp}/e", "--record", "{tmp}/run.txt"], "must name a .bag"),
         (["ros-fold", "--out", "{tmp}/e", "--resolution", "2"], "resolution"),
         (["ros-fold", "--out", "{tmp}/e", "--port", "0"], "--port"),
-        (["ros-fold", "--out", "{tmp}/e", "--video-fps", "0"], "pass --camera-rate N"),
-        (["ros-fold", "--out", "{tmp}/e", "--camera-rate", "0"], "--camera-rate must be > 0"),
+        (["ros-fold", "--out", "{tmp}/e", "--camera-rate", "-1"], "must be ≥ 0 frames per"),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--camera-rate", "0"],
+            "--camera-rate 0 streams no frames for the video (--video-fps 10)",
+        ),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--video-fps", "0", "--arm-interface", "actions"],
+            "--arm-interface actions folds from the camera's stream",
+        ),
         (
             ["ros-fold", "--out", "{tmp}/e", "--start", "crumpled", "--garment", "pants"],
             "start 'crumpled' is for towels",

@@ -617,8 +617,7 @@ def crumpled_over_topics(episode: list[str], tmp_path) -> tuple[object, dict]:
     sim node crumpled the towel exactly as an in-process fold of that seed does."""
     out = tmp_path / "episode"
     proc = foldbot(
-        "ros-fold", *episode, "--camera-rate", "2", "--out", str(out),
-        "--port", str(free_port()),
+        "ros-fold", *episode, "--out", str(out), "--port", str(free_port()),
     )  # fmt: skip
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     result = json.loads((out / "result.json").read_text())
@@ -768,7 +767,9 @@ def test_two_arms_fold_over_topics(tmp_path):
     margin_divisor=6` reaches the sim node's cloth: the layer thickness it reports (cloth.npz)
     is a third of a mesh edge, and result.json names the option. `--camera-pose` reaches it
     too: the sim node gives the calibration's pose (1.4 mm off) on /tf_static, as a calibrated
-    real cell does, and the perception node sees the corners from there."""
+    real cell does, and the perception node sees the corners from there. No video, so no camera
+    stream (the camera rate defaults to --video-fps): the only frames are the resting ones the
+    fold looked at."""
     import rosbag
 
     from foldbot.cli import build_parser
@@ -780,8 +781,8 @@ def test_two_arms_fold_over_topics(tmp_path):
     episode = ["--arms", "2", "--resolution", "8", "--cloth", "margin_divisor=6"]
     episode += ["--camera-pose", str(tmp_path / "calibration.json")]
     proc = foldbot(
-        "ros-fold", *episode, "--video-fps", "0", "--camera-rate", "2",
-        "--out", str(out), "--record", str(bag_path), "--port", str(free_port()),
+        "ros-fold", *episode, "--video-fps", "0", "--out", str(out),
+        "--record", str(bag_path), "--port", str(free_port()),
     )  # fmt: skip
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     result = json.loads((out / "result.json").read_text())
@@ -813,6 +814,14 @@ def test_two_arms_fold_over_topics(tmp_path):
         trajectories = [m for _t, m, _ in bag.read_messages(topics=["/arm/joint_trajectory"])]
         grippers = [m.data for _t, m, _ in bag.read_messages(topics=["/gripper/command"])]
         grasps = [json.loads(m.data) for _t, m, _ in bag.read_messages(topics=["/gripper/grasp"])]
+        replies = [json.loads(m.data) for _t, m, _ in bag.read_messages(topics=["/sim/result"])]
+        frames = [
+            round(m.header.stamp.to_sec(), 6)
+            for _t, m, _ in bag.read_messages(topics=["/camera/color/image_raw"])
+        ]
+    rested = [round(r["frame_stamp"], 6) for r in replies if r["frame_stamp"] is not None]
+    assert frames and set(frames) <= set(rested)  # every frame a resting one a reply named
+    assert len(rested) < len(replies)  # none after a motion or a grip
     assert len(joints.name) == 16 and len(joints.position) == 16
     assert joints.name[0] == "left_shoulder_pan_joint" and joints.name[8].startswith("right_")
     assert bases["left_base_link"] == pytest.approx(0.3) and bases["right_base_link"] < 0

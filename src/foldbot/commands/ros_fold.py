@@ -80,7 +80,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--camera-rate",
         type=float,
         default=None,
-        help="camera frames per simulated second during motions (default: --video-fps)",
+        help="camera frames per simulated second during motions (default: --video-fps); 0: "
+        "no stream, only the resting frames the fold looks at (the lockstep cell, no video)",
     )
     add_master_port(parser, "started if none runs there")
     parser.add_argument(
@@ -395,14 +396,18 @@ def run(args: argparse.Namespace) -> int:
     rate = args.video_fps if args.camera_rate is None else args.camera_rate
     if real:
         rate = 0.0  # the cell's camera streams at its own rate
-    elif not rate > 0 and args.camera_rate is None:
+    elif not (math.isfinite(rate) and rate >= 0):
+        raise ConfigError(f"--camera-rate must be ≥ 0 frames per simulated s, got {rate!r}")
+    elif rate == 0 and interface == "actions":
         raise ConfigError(
-            f"--video-fps {args.video_fps!r} leaves the camera without a frame rate over ROS "
-            "(--camera-rate defaults to --video-fps); pass --camera-rate N, N > 0 frames per "
-            "simulated s (e.g. --video-fps 0 --camera-rate 2: no video)"
+            "--arm-interface actions folds from the camera's stream, as on a real cell: "
+            "--camera-rate must be > 0 (it defaults to --video-fps)"
         )
-    elif not rate > 0:
-        raise ConfigError(f"--camera-rate must be > 0 frames per s, got {rate!r}")
+    elif rate == 0 and args.video_fps > 0:
+        raise ConfigError(
+            f"--camera-rate 0 streams no frames for the video (--video-fps {args.video_fps:g}); "
+            "pass --video-fps 0, or a camera rate > 0"
+        )
     out = Path(args.out)
     if out.exists() and any(out.iterdir()) and not args.overwrite:
         raise OutputError(f"{out} already exists and is not empty; pass --overwrite to replace it")

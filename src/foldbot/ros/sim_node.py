@@ -115,6 +115,10 @@ class SimNode:
             )
         if not (np.isfinite(real_time_factor) and real_time_factor > 0):
             raise FoldbotError(f"real_time_factor must be > 0, got {real_time_factor!r}")
+        if not (np.isfinite(camera_rate) and camera_rate >= 0):
+            raise FoldbotError(f"camera_rate must be ≥ 0 frames per s, got {camera_rate!r}")
+        if camera_rate == 0 and arm_interface == "actions":
+            raise FoldbotError("the actions interface needs a camera stream: camera_rate > 0")
         self.arm_interface = arm_interface
         self.real_time_factor = real_time_factor
         self._pace_origin: tuple[float, float] | None = None
@@ -157,10 +161,12 @@ class SimNode:
         self.arm_joints = arm_joint_names(self.robot.ARM_JOINT_NAMES, arms)
         self.finger_joints = arm_joint_names(self.robot.FINGER_JOINT_NAMES, arms)
         self.camera_period = 1.0 / camera_rate if camera_rate > 0 else float("inf")
+        """Between the camera's streamed frames (s); inf: none streamed, a lockstep cell's
+        frames only after its waits (the resting frames a fold looks at)."""
         self.commands: queue.Queue = queue.Queue()
         self._next_clock = 0.0
         self._next_joints = 0.0
-        self._next_frame = 0.0
+        self._next_frame = 0.0 if camera_rate > 0 else float("inf")
         latch = {"queue_size": 1, "latch": True}
         # The camera's topics are latched too: a subscriber that connects after a frame (the
         # task node, launched with the perception node, often connected a moment after the
