@@ -447,7 +447,8 @@ class SimNode:
             # A frame where the task node may look: after a wait, the cell at rest (a zero-second
             # wait is how it asks for one). After the other commands none: the task node looks
             # after few of them, and each frame is a render here and an estimate in the
-            # perception node (13 of a two-arm half fold's 30 frames went unseen).
+            # perception node (a two-arm half fold published 13 frames after its commands and
+            # looked at the 3 after its waits).
             stamp = self.publish_frame() if kind == "wait" else None
             self.report({"command": kind, "ok": True, **out, "frame_stamp": stamp})
 
