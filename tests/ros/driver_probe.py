@@ -60,24 +60,31 @@ out["tight_path"] = follow(names, [point(q0, 1.0)], path_tolerance=tight)
 w0, c0 = time.monotonic(), cell.clock
 time.sleep(2.0)
 out["rate"] = (cell.clock - c0) / (time.monotonic() - w0)
-for name, position in (("close", 0.0), ("open", 0.085), ("bad", -1.0)):
+fingers = list(robot_class("ur5").FINGER_JOINT_NAMES)
+
+
+def jaws_at_rest() -> float:
+    """Wait for the fingers to stop (a gripper goal ends after its settling time, the fingers a
+    few millimetres short of their gap and still moving); their gap (m): 2 mm closed."""
+    deadline = time.monotonic() + 60
+    while True:
+        f_then = [joints[n] for n in fingers]
+        time.sleep(0.2)
+        if np.abs(np.array([joints[n] for n in fingers]) - f_then).max() < 1e-5:
+            return 0.002 + sum(joints[n] for n in fingers)
+        assert time.monotonic() < deadline, "the jaws never came to rest"
+
+
+for name, position in (("close", 0.0), ("part", 0.06), ("open", 0.085), ("bad", -1.0)):
     goal = msg.GripperCommandGoal()
     goal.command.position = position
     gripper.send_goal(goal)
     gripper.wait_for_result()
     r = gripper.get_result()
     out[name] = [gripper.get_state(), r.stalled, r.reached_goal, gripper.get_goal_status_text()]
+    if name != "bad":
+        out[name].append(jaws_at_rest())
 # A gripper goal sent while the arm moves waits for the motion's end (one goal at a time).
-fingers = list(robot_class("ur5").FINGER_JOINT_NAMES)
-# The jaws at rest first: the open goal ends after its settling time, the fingers a few
-# millimetres short of their open gap and still opening.
-deadline = time.monotonic() + 60
-while True:
-    f_then = [joints[n] for n in fingers]
-    time.sleep(0.2)
-    if np.abs(np.array([joints[n] for n in fingers]) - f_then).max() < 1e-5:
-        break
-    assert time.monotonic() < deadline, "the jaws never came to rest"
 q1 = np.array([joints[n] for n in names])
 away = q1 + np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.2])
 arm.send_goal(msg.FollowJointTrajectoryGoal(trajectory=JointTrajectory(

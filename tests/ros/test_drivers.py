@@ -45,6 +45,10 @@ def test_the_sim_node_answers_as_a_real_arms_drivers(tmp_path):
     # The jaws closed on nothing above the table: no stall, the goal reached; open likewise.
     assert out["close"][:3] == [ok, False, True]
     assert out["open"][:3] == [ok, False, True]
+    # The jaws come to the gap asked for: shut, 60 mm, and their largest (80 mm) for 85 mm.
+    assert out["close"][4] == pytest.approx(0.002, abs=1e-3)
+    assert out["part"][:3] == [ok, False, True] and out["part"][4] == pytest.approx(0.06, abs=2e-3)
+    assert out["open"][4] == pytest.approx(0.08, abs=2e-3)
     assert out["bad"][0] != ok and "must be a gap" in out["bad"][3]
     # A close sent while the arm moves (as the task node sends it, --gripper-lead) starts as
     # the motion ends, not before and not a round trip later (/joint_states every 0.02 s).

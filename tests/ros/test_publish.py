@@ -91,3 +91,43 @@ def test_no_subscriber_is_an_error_naming_the_topic(master):
     said, _ = talker.communicate(timeout=90)
     assert talker.returncode == 3
     assert said.strip() == "error: nothing subscribed to /request within 0.5 s"
+
+
+GATE = textwrap.dedent(
+    """
+    import rosgraph
+    import rospy
+    from std_msgs.msg import String
+    from foldbot.ros.publish import wait_for_listed_subscribers
+
+    rospy.init_node("gate", disable_signals=True)
+    pub = rospy.Publisher("request", String, queue_size=1, latch=True)
+    print("missing", wait_for_listed_subscribers([pub], timeout_s=60.0), flush=True)
+    # The first report reaches the listener, though the next replaces it as the latched one at
+    # once (as the sim node's ready report is replaced by its first command's).
+    pub.publish(String(data="ready"))
+    pub.publish(String(data="moved"))
+    rospy.sleep(1.0)
+    # A subscriber the master lists that never connects (a node gone without unregistering):
+    # the wait ends at its timeout and names it.
+    rosgraph.Master("/ghost").registerSubscriber("/request", "std_msgs/String", "http://localhost:9/")
+    print("missing", wait_for_listed_subscribers([pub], timeout_s=0.5), flush=True)
+    """
+)
+
+
+def test_a_start_waits_for_the_listed_subscribers_to_connect(master):
+    import rosgraph
+
+    listener = python(LISTENER, env=master)
+    deadline = time.monotonic() + 60
+    while "/request" not in dict(
+        rosgraph.Master("/t", master["ROS_MASTER_URI"]).getSystemState()[1]
+    ):
+        assert time.monotonic() < deadline, "the listener never subscribed"
+        time.sleep(0.05)
+    gate = python(GATE, env=master)
+    said, _ = gate.communicate(timeout=90)
+    heard, _ = listener.communicate(timeout=90)
+    assert said.splitlines() == ["missing []", "missing ['/ghost on /request']"]
+    assert heard.strip() == "got ready"

@@ -41,7 +41,9 @@ LATE_START_S = 0.05
 """A goal that reaches the sim's driver this long (s) after its stamped start is logged (it
 starts on arrival): two arms' goals meant to start together would not."""
 CLOSE_BELOW = 0.5
-"""A GripperCommand position under this fraction of the jaws' largest gap closes them."""
+"""A GripperCommand position under this fraction of the jaws' largest gap closes them (a grasp:
+the sim's jaws close fully and hold what lies between them); from there up, the jaws open to
+the gap asked for, at most their largest."""
 OPEN_GAP_M = 0.085
 """The gap the task node commands to open the jaws (a Robotiq 2F-85's full stroke); a driver
 clamps it to its own gripper's largest, as the sim node does."""
@@ -361,7 +363,8 @@ class SimDrivers:
             )
             handover.text = g.reason
         else:
-            grasp.open()
+            # To the gap asked for, up to the jaws' largest (a driver clamps to its stroke).
+            grasp.open(min(float(position), robot.max_opening))
             handover.result = result(position=robot.gripper_opening(), reached_goal=True)
         handover.succeeded = True
 

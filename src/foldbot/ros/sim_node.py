@@ -53,6 +53,7 @@ from foldbot.ros.node_args import (
     REAL_TIME_FACTOR_PARAM,
     parse_fold_args,
 )
+from foldbot.ros.publish import wait_for_listed_subscribers
 from foldbot.sim.cloth import settle
 from foldbot.sim.rest import RestWatch
 from foldbot.sim.world import SimWorld
@@ -415,6 +416,11 @@ class SimNode:
             return
         self.publish_ground_truth()
         self.wait_for_camera_subscribers()
+        # Every node subscribed by now (the task node, a recorder) connected first, so the
+        # ready report and the first frame reach them all, and a bag holds the run from its start.
+        missing = wait_for_listed_subscribers(list(self.pub.values()))
+        if missing:
+            rospy.logwarn("publishing the ready report with %s not connected", ", ".join(missing))
         self.report({"command": "ready", "ok": True, "frame_stamp": self.publish_frame()})
         if self.drivers is not None:
             self.drivers.start()

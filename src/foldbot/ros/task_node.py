@@ -76,7 +76,7 @@ from foldbot.ros.node_args import (
     TOGETHER_LEAD_S,
     parse_fold_args,
 )
-from foldbot.ros.publish import publish_when_heard
+from foldbot.ros.publish import publish_when_heard, wait_for_listed_subscribers
 from foldbot.sim.layout import CellLayout
 from foldbot.sim.robots import robot_class
 from foldbot.types import GraspResult, Observation
@@ -467,7 +467,18 @@ class RosCell(FoldCell):
         self._at_rest(reply)
         for driver in self.drivers:
             driver.wait_for_servers()
+        self._wait_for_listeners()
         return reply
+
+    def _wait_for_listeners(self) -> None:
+        """Before the first command: every node subscribed to the task's topics by now (the sim
+        node, a recorder) connected, so a bag holds the fold's first request and command."""
+        pubs = [self.pub_plan]
+        if self.cell == "sim":
+            pubs += [self.pub_traj, self.pub_gripper, self.pub_wait, self.pub_truth]
+        missing = wait_for_listed_subscribers(pubs)
+        if missing:
+            rospy.logwarn("starting the fold with %s not connected", ", ".join(missing))
 
     def wait_for_real_cell(self) -> None:
         """A real cell (no ready report): wait for every arm's drivers' action servers and the
@@ -475,6 +486,7 @@ class RosCell(FoldCell):
         frame to observe is the first the camera streams after."""
         for driver in self.drivers:
             driver.wait_for_servers()
+        self._wait_for_listeners()
         while rospy.get_time() <= 0.0:  # /use_sim_time set: no /clock received yet
             if rospy.is_shutdown():
                 raise errors.FoldbotError("shut down before the cell's clock started")
