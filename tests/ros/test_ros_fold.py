@@ -111,14 +111,17 @@ def test_bag_holds_the_topics_with_ros_conventions(ros_run):
         info = by_topic["/camera/color/camera_info"][stamp]
         kp = next(m for _t, m, _ in bag.read_messages(topics=["/cloth/keypoints"]))
         reports = [json.loads(m.data) for _t, m, _ in bag.read_messages(topics=["/sim/result"])]
+        seen = [m.header.stamp for _t, m, _ in bag.read_messages(topics=["/cloth/keypoints"])]
         commands = [m for _t, m, _ in bag.read_messages(topics=["/arm/joint_trajectory"])]
-    # The sim and task nodes wait for the recorder's connections before the fold starts: the
-    # bag holds the run from the ready report (and the frame it names) and the first command.
+    # The sim, perception and task nodes wait for the recorder's connections before the fold
+    # starts: the bag holds the run from the ready report, the frame it names and that frame's
+    # corners, and every command.
     assert reports[0]["command"] == "ready"
     assert round(reports[0]["frame_stamp"], 6) in {
         round(s.to_sec(), 6) for s in by_topic["/camera/color/image_raw"]
     }
     assert len(commands) == sum(r["command"] == "trajectory" for r in reports)
+    assert round(reports[0]["frame_stamp"], 6) in {round(s.to_sec(), 6) for s in seen}
     assert color.encoding == "rgb8" and depth.encoding == "32FC1"
     assert color.header.frame_id == info.header.frame_id == "camera_color_optical_frame"
     assert kp.header.frame_id == "world" and len(kp.poses) == 4

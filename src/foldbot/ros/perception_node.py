@@ -23,6 +23,7 @@ from foldbot.perception.fallback import vision_estimator
 from foldbot.ros import CAMERA_FRAME, SYNC_SLOP_S, TOPICS, WORLD_FRAME, convert
 from foldbot.ros.frames import StaticFrames
 from foldbot.ros.node_args import FOLD_ARGS_PARAM, parse_fold_args
+from foldbot.ros.publish import wait_for_listed_subscribers
 from foldbot.types import Observation
 
 
@@ -51,6 +52,9 @@ class PerceptionNode:
         )
         self.pub_mask = rospy.Publisher(TOPICS["mask"], Image, queue_size=50, latch=True)
         self.pub_state = rospy.Publisher(TOPICS["state"], String, queue_size=50, latch=True)
+        self._listeners_connected = False
+        """Whether the first estimate has waited for its listed subscribers (a recorder among
+        them) to connect, so a bag holds it too (foldbot.ros.publish)."""
         rospy.Subscriber(TOPICS["tf_static"], TFMessage, self._on_tf)
         rospy.Subscriber(TOPICS["depth_info"], CameraInfo, self._on_depth_info, queue_size=5)
         subs = [
@@ -138,6 +142,14 @@ class PerceptionNode:
             stamp=stamp,
         )
         state = self.estimator.estimate(obs)
+        if not self._listeners_connected:
+            pubs = [self.pub_mask, self.pub_state, self.pub_keypoints]
+            missing = wait_for_listed_subscribers(pubs)
+            if missing:
+                rospy.logwarn(
+                    "publishing the first estimate with %s not connected", ", ".join(missing)
+                )
+            self._listeners_connected = True
         self.pub_mask.publish(
             convert.image_msg(
                 state.mask.astype(np.uint8) * 255, "mono8", stamp, color.header.frame_id
