@@ -102,7 +102,7 @@ GATE = textwrap.dedent(
 
     rospy.init_node("gate", disable_signals=True)
     pub = rospy.Publisher("request", String, queue_size=1, latch=True)
-    print("missing", wait_for_listed_subscribers([pub], timeout_s=60.0), flush=True)
+    print("missing", wait_for_listed_subscribers([pub], "reporting", timeout_s=60.0), flush=True)
     # The first report reaches the listener, though the next replaces it as the latched one at
     # once (as the sim node's ready report is replaced by its first command's).
     pub.publish(String(data="ready"))
@@ -111,7 +111,7 @@ GATE = textwrap.dedent(
     # A subscriber the master lists that never connects (a node gone without unregistering):
     # the wait ends at its timeout and names it.
     rosgraph.Master("/ghost").registerSubscriber("/request", "std_msgs/String", "http://localhost:9/")
-    print("missing", wait_for_listed_subscribers([pub], timeout_s=0.5), flush=True)
+    print("missing", wait_for_listed_subscribers([pub], "reporting", timeout_s=0.5), flush=True)
     """
 )
 

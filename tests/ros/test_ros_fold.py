@@ -109,9 +109,8 @@ def test_bag_holds_the_topics_with_ros_conventions(ros_run):
         color = by_topic["/camera/color/image_raw"][stamp]
         depth = by_topic["/camera/depth/image_raw"][stamp]
         info = by_topic["/camera/color/camera_info"][stamp]
-        kp = next(m for _t, m, _ in bag.read_messages(topics=["/cloth/keypoints"]))
+        keypoints = [m for _t, m, _ in bag.read_messages(topics=["/cloth/keypoints"])]
         reports = [json.loads(m.data) for _t, m, _ in bag.read_messages(topics=["/sim/result"])]
-        seen = [m.header.stamp for _t, m, _ in bag.read_messages(topics=["/cloth/keypoints"])]
         commands = [m for _t, m, _ in bag.read_messages(topics=["/arm/joint_trajectory"])]
     # The sim, perception and task nodes wait for the recorder's connections before the fold
     # starts: the bag holds the run from the ready report, the frame it names and that frame's
@@ -121,10 +120,12 @@ def test_bag_holds_the_topics_with_ros_conventions(ros_run):
         round(s.to_sec(), 6) for s in by_topic["/camera/color/image_raw"]
     }
     assert len(commands) == sum(r["command"] == "trajectory" for r in reports)
-    assert round(reports[0]["frame_stamp"], 6) in {round(s.to_sec(), 6) for s in seen}
+    assert round(reports[0]["frame_stamp"], 6) in {
+        round(m.header.stamp.to_sec(), 6) for m in keypoints
+    }
     assert color.encoding == "rgb8" and depth.encoding == "32FC1"
     assert color.header.frame_id == info.header.frame_id == "camera_color_optical_frame"
-    assert kp.header.frame_id == "world" and len(kp.poses) == 4
+    assert keypoints[0].header.frame_id == "world" and len(keypoints[0].poses) == 4
     z = np.frombuffer(depth.data, np.float32)
     assert 0.5 < np.nanmedian(z[z > 0]) < 2.0  # metres
 

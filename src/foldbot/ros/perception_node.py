@@ -144,11 +144,7 @@ class PerceptionNode:
         state = self.estimator.estimate(obs)
         if not self._listeners_connected:
             pubs = [self.pub_mask, self.pub_state, self.pub_keypoints]
-            missing = wait_for_listed_subscribers(pubs)
-            if missing:
-                rospy.logwarn(
-                    "publishing the first estimate with %s not connected", ", ".join(missing)
-                )
+            wait_for_listed_subscribers(pubs, "publishing the first estimate")
             self._listeners_connected = True
         self.pub_mask.publish(
             convert.image_msg(

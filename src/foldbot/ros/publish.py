@@ -30,13 +30,14 @@ def publish_when_heard(pub: rospy.Publisher, msg: Any, timeout_s: float) -> None
 
 
 def wait_for_listed_subscribers(
-    publishers: list[rospy.Publisher], timeout_s: float = LISTED_WAIT_S
+    publishers: list[rospy.Publisher], before: str, timeout_s: float = LISTED_WAIT_S
 ) -> list[str]:
     """Wait until every node the master lists as subscribing to these publishers' topics is
-    connected to them, so what is published next reaches it (seen once: rosbag, subscribed
-    but not yet connected to the sim node's /sim/result, missed the ready report, a newer one
-    having replaced the latched message by the time it connected). Returns what is still not
-    connected after `timeout_s` seconds (wall time), as "NODE on TOPIC"; empty once all are."""
+        connected to them, so what is published next reaches it (seen once: rosbag, subscribed
+        but not yet connected to the sim node's /sim/result, missed the ready report, a newer one
+        having replaced the latched message by the time it connected). Returns what is still not
+        connected after `timeout_s` seconds (wall time), as "NODE on TOPIC", and logs it as a warning
+    naming what goes out `before` them; empty once all are."""
     import rosgraph
 
     me = rospy.get_name()
@@ -51,5 +52,7 @@ def wait_for_listed_subscribers(
             if node != me and not pub.impl.has_connection(node)
         ]
         if not missing or time.monotonic() > deadline or rospy.is_shutdown():
+            if missing:
+                rospy.logwarn("%s with %s not connected", before, ", ".join(missing))
             return missing
         time.sleep(0.02)

@@ -418,9 +418,7 @@ class SimNode:
         self.wait_for_camera_subscribers()
         # Every node subscribed by now (the task node, a recorder) connected first, so the
         # ready report and the first frame reach them all, and a bag holds the run from its start.
-        missing = wait_for_listed_subscribers(list(self.pub.values()))
-        if missing:
-            rospy.logwarn("publishing the ready report with %s not connected", ", ".join(missing))
+        wait_for_listed_subscribers(list(self.pub.values()), "publishing the ready report")
         self.report({"command": "ready", "ok": True, "frame_stamp": self.publish_frame()})
         if self.drivers is not None:
             self.drivers.start()

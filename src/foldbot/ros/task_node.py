@@ -476,9 +476,7 @@ class RosCell(FoldCell):
         pubs = [self.pub_plan]
         if self.cell == "sim":
             pubs += [self.pub_traj, self.pub_gripper, self.pub_wait, self.pub_truth]
-        missing = wait_for_listed_subscribers(pubs)
-        if missing:
-            rospy.logwarn("starting the fold with %s not connected", ", ".join(missing))
+        wait_for_listed_subscribers(pubs, "starting the fold")
 
     def wait_for_real_cell(self) -> None:
         """A real cell (no ready report): wait for every arm's drivers' action servers and the
