@@ -72,6 +72,7 @@ def test_episode_folder_follows_the_contract(half_fold_episode):
     stored = json.loads((out / "result.json").read_text())
     assert set(REQUIRED_RESULT_KEYS) <= stored.keys()
     assert stored["grasp_points_source"] == "vision"
+    assert "faults" not in stored  # none injected
     # This process imported foldbot before numpy and cv2 (tests/conftest.py): the cap held.
     assert stored["simd_uncapped"] == []
     # The corners the fold was planned from, against the towel's own (README: p95 ≤ 8 mm).
@@ -159,6 +160,28 @@ def test_failed_grasp_is_retried_after_reobserving(tmp_path):
     # The retry does not repeat the miss: it closes the jaws at the (perceived) table.
     table = cfg.sim.layout.table_height
     assert first["attempts"][1]["grasp"][2] <= table + cfg.motion.stack_grasp_height + 0.002
+
+
+@pytest.mark.slow
+def test_a_grasp_that_slips_in_the_carry_is_seen_and_grasped_again(tmp_path):
+    """Inject a slip a third of the way through the first carry: the gripper reports it lost
+    its hold, the arm lets go and lifts, and the loop re-observes and grasps the corner afresh
+    where it fell (not at the table, as after a miss), then folds."""
+    cfg = EpisodeConfig(
+        recipe="diagonal", towel=TowelSpec(0.24, 0.24, 10), fault_slip=0.3, video_fps=0
+    )
+    result = run_episode(cfg, tmp_path / "ep", log=lambda *_: None)
+    assert result["faults"] == {"grasp_offset_m": 0.0, "slip_fraction": 0.3, "slipped": True}
+    first = result["actions"][0]
+    slipped, again = first["attempts"]
+    assert slipped["grasp_success"] is False and slipped["slipped"] is True
+    assert "slipped from the jaws in the carry" in slipped["grasp_reason"]
+    assert again["grasp_success"] is True and "slipped" not in again
+    assert first["retries"] == 1 and first["grasp_success"] is True
+    # The corner fell back about where it lay, and the retry aimed at it as seen there (a
+    # miss's retry would close 1 cm inside it, at the table).
+    np.testing.assert_allclose(again["grasp"], slipped["grasp"], atol=0.005)
+    assert result["success"] is True
 
 
 @pytest.mark.slow

@@ -51,11 +51,14 @@ def execute_action(cell: FoldCell, action: FoldAction) -> dict:
         raise UnreachableTargetError(
             f"action '{action.label}' is infeasible (nothing moved): {exc}"
         ) from exc
-    grasp_result, max_err = None, 0.0
+    grasp_result, max_err, slipped = None, 0.0, False
     for step in steps:
         step_log = cell.run_step(step)
         max_err = max(max_err, step_log.max_tracking_error)
         if step_log.grasp is not None:
+            # A failed grasp after one that held: the cloth slipped from the jaws (the cell's
+            # gripper reports it lost its hold).
+            slipped = bool(grasp_result and grasp_result.success and not step_log.grasp.success)
             grasp_result = step_log.grasp
             if not grasp_result.success:
                 cell.release_and_lift()
@@ -66,6 +69,7 @@ def execute_action(cell: FoldCell, action: FoldAction) -> dict:
         "grasp_reason": grasp_result.reason if grasp_result else "no grasp attempted",
         "grasped_vertices": list(grasp_result.vertex_ids) if grasp_result else [],
         "max_tracking_error": max_err,
+        "slipped": slipped,
     }
 
 

@@ -593,7 +593,13 @@ def closed_loop_action(
         # Earlier actions move the cloth: grasp the corner where it is now. A corner placed off
         # is picked where it was seen to lie: after a fold, the labels that the corner detector
         # gives the new outline's corners need not match the plan's.
-        last_failed = bool(attempts) and not attempts[-1]["grasp_success"]
+        # A grasp that held and then slipped is aimed afresh at the corner where it fell; one
+        # that closed on no cloth closes at the table inside the corner (aim_grasp).
+        last_failed = (
+            bool(attempts)
+            and not attempts[-1]["grasp_success"]
+            and not attempts[-1].get("slipped", False)
+        )
         action = aim_grasp(
             cfg,
             state,
@@ -623,6 +629,7 @@ def closed_loop_action(
                 "grasp_success": outcome["grasp_success"],
                 "grasp_reason": outcome["grasp_reason"],
                 "placed_error_m": placed_error,
+                **({"slipped": True} if outcome.get("slipped") else {}),
             }
         )
         if ok or retries >= cfg.retries:

@@ -51,7 +51,7 @@ from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState
 from foldbot.planning.actions import FoldAction
 from foldbot.planning.garment_recipes import GARMENT_RECIPES
-from foldbot.planning.motion import MotionConfig, action_segments
+from foldbot.planning.motion import MotionConfig, Segment, action_segments
 from foldbot.planning.recipes import RECIPES, folded_as
 from foldbot.planning.spread import SpreadAction, motion_segments
 from foldbot.sim.camera import CameraConfig, RGBDCamera, camera_for_layout
@@ -65,7 +65,7 @@ from foldbot.sim.oracle import GroundTruthOracle, OracleEstimator
 from foldbot.sim.robots import ROBOT_NAMES, check_workspace_reach, make_robot
 from foldbot.sim.world import SimConfig, SimWorld
 from foldbot.simd import late_libraries
-from foldbot.types import Observation
+from foldbot.types import GraspResult, Observation
 
 GARMENTS = ("towel", *GARMENT_RECIPES)
 """Garment kinds: the towel (planning.recipes) and the garments of planning.garment_recipes."""
@@ -134,6 +134,10 @@ class EpisodeConfig:
     fault_grasp_offset: float = 0.0
     """Fault injection: the episode's first grasp is aimed this far (m) outward from the perceived
     corner, onto bare table, to exercise the failure → re-observe → retry path."""
+    fault_slip: float = 0.0
+    """Fault injection: the episode's first carry (a fold's or a flattening pull's) loses its
+    cloth this fraction of the way along (0: never), as a grasp that slips; the gripper reports
+    it lost its hold and the loop lets go, re-observes and grasps again."""
     verify_iou: float = 0.8
     """A stage is verified when the perceived mask matches the predicted outline this well."""
     closed_loop: bool = True
@@ -226,6 +230,11 @@ class EpisodeConfig:
         require(
             0.0 <= self.fault_grasp_offset <= 0.2,
             f"fault_grasp_offset must be in [0, 0.2] m, got {self.fault_grasp_offset!r}",
+        )
+        require(
+            0.0 <= self.fault_slip < 1.0,
+            f"fault_slip must be in [0, 1) (the fraction of the first carry done when its "
+            f"grasp slips; 0: none), got {self.fault_slip!r}",
         )
         require(self.video_fps >= 0, f"video_fps must be ≥ 0, got {self.video_fps!r}")
         require(
@@ -335,6 +344,11 @@ def seeded_pose(
     return (center[0] + float(dx), center[1] + float(dy)), yaw
 
 
+def segment_of(step: PlannedSegment | Segment) -> Segment:
+    """The motion segment a step runs (a planned one's, or the step itself)."""
+    return step.segment if isinstance(step, PlannedSegment) else step
+
+
 class SimCell(FoldCell):
     """The in-process cell: PyBullet world, arm, gripper, camera and an estimator, driven by
     direct calls (the ROS nodes offer the same cell over topics)."""
@@ -364,6 +378,11 @@ class SimCell(FoldCell):
             e.robot.out_of_view_q if park == "out_of_view" else e.robot.home_q
             for e in self.executors
         )
+        self.slip_fraction = 0.0
+        """Fault injection (EpisodeConfig.fault_slip): the first carry's grasp slips this far
+        along it (0: never)."""
+        self.slipped = False
+        """Whether the injected slip has happened."""
 
     @property
     def executor(self) -> ArmExecutor:
@@ -403,8 +422,63 @@ class SimCell(FoldCell):
         return plans
 
     def run_together(self, steps: list[tuple[int, PlannedSegment]]) -> list[StepLog]:
-        logs = run_together([(self.executors[arm], step) for arm, step in steps])
-        return [StepLog(g.name, g.max_tracking_error, g.grasp) for g in logs]
+        return self._run_checked([(self.executors[arm], step) for arm, step in steps])
+
+    def _run_checked(self, steps: list[tuple[ArmExecutor, PlannedSegment]]) -> list[StepLog]:
+        """Run steps on one clock; a gripper that held cloth before its step and no longer
+        holds what it grasped after it (ClothGrasp.holds_what_it_grasped), though the step did
+        not open it, reports the grasp as slipped: a failed GraspResult, which the loops treat
+        as a missed grasp (let go, lift, re-observe, retry)."""
+        before = [ex.grasp.held for ex, _ in steps]
+        hook = self._slip_hook(steps)
+        try:
+            logs = run_together(steps)
+        finally:
+            if hook is not None:
+                self.world.remove_step_hook(hook)
+        out = []
+        for (ex, step), held, log in zip(steps, before, logs, strict=True):
+            grasp = log.grasp
+            if (
+                held
+                and grasp is None
+                and segment_of(step).gripper != "open"
+                and not ex.grasp.holds_what_it_grasped()
+            ):
+                grasp = GraspResult(
+                    False,
+                    (),
+                    f"the cloth slipped from the jaws in the {log.name} ({len(held)} vertices "
+                    "were held; the gripper holds none of them now)",
+                )
+            out.append(StepLog(log.name, log.max_tracking_error, grasp))
+        return out
+
+    def _slip_hook(self, steps: list[tuple[ArmExecutor, PlannedSegment]]):
+        """The injected slip (slip_fraction), on the first carry that holds cloth: a step hook
+        that lets the cloth slip once the TCP has come that far from the carry's start toward
+        its end (in the table's plane); None when no slip is due."""
+        if self.slip_fraction <= 0.0 or self.slipped:
+            return None
+        carrying = [
+            (ex, s) for ex, s in steps if segment_of(s).name == "carry" and ex.grasp.holding
+        ]
+        if not carrying:
+            return None
+        ex, step = carrying[0]
+        start, end = np.asarray(step.points)[0, :2], np.asarray(step.points)[-1, :2]
+        span = float(np.dot(end - start, end - start))
+
+        def slip_once(world: SimWorld) -> None:
+            if self.slipped:
+                return
+            done = np.dot(ex.robot.tcp_pose()[0][:2] - start, end - start) / max(span, 1e-12)
+            if done >= self.slip_fraction:
+                self.slipped = True
+                ex.grasp.slip()
+
+        self.world.add_step_hook(slip_once)
+        return slip_once
 
     @property
     def sim_time(self) -> float:
@@ -439,8 +513,7 @@ class SimCell(FoldCell):
         return plan
 
     def run_step(self, step: PlannedSegment) -> StepLog:
-        seg_log = self.executor.run(step)
-        return StepLog(seg_log.name, seg_log.max_tracking_error, seg_log.grasp)
+        return self._run_checked([(self.executor, step)])[0]
 
     def release_and_lift(self) -> None:
         self.executor.grasp.open()
@@ -736,6 +809,7 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
             park=cfg.park,
             more_executors=parts.more_executors,
         )
+        cell.slip_fraction = cfg.fault_slip
         flattened = None
         if cfg.start == "crumpled":
             flattened = crumple_and_flatten(cfg, parts, cell, writer, log)
@@ -766,6 +840,12 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
         if flattened is not None:
             result["flatten"] = flattened
         result["cloth_fastest_slide_mps"] = parts.monitor.fastest_slide
+        if cfg.fault_grasp_offset > 0 or cfg.fault_slip > 0:
+            result["faults"] = {
+                "grasp_offset_m": cfg.fault_grasp_offset,
+                "slip_fraction": cfg.fault_slip,
+                "slipped": cell.slipped,
+            }
         if parts.guard is not None:
             result["crossing_guard_restored"] = parts.guard.restored
         result["first_frame_keypoint_error_mm"] = first_frame_keypoint_errors(

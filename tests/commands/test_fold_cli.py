@@ -95,6 +95,8 @@ def test_subcommand_help(cmd, capsys):
         ),
         (["--episode", "towel-half-vision-open-s0000"], "give --suite too"),
         (["--layout", "nothere.toml"], "layout file 'nothere.toml' does not exist"),
+        (["--fault-slip", "1"], "fault_slip must be in [0, 1)"),
+        (["--fault-grasp-offset", "0.5"], "fault_grasp_offset must be in [0, 0.2] m, got 0.5"),
         (["--suite", "smoke", "--layout", "layouts/pedestal.toml"], "drop --layout"),
     ],
 )
@@ -338,6 +340,28 @@ def test_a_suite_episode_takes_options_over_the_suites_own_as_bench_does():
     flat = ["--out", "x", "--suite", "towel_loop", "--seed", "4", "--recipe", "thirds"]
     with pytest.raises(ConfigError, match="finish_coverage"):
         config_from_args(parser.parse_args([*flat, "--flatten-option", "finish_coverage=0.99"]))
+
+
+def test_faults_reach_the_episode_alone_or_with_a_suite_and_not_over_ros():
+    """--fault-slip and --fault-grasp-offset set the in-process cell's injected faults, also on
+    a suite's episode (a trial of the loop's recovery); ros-fold has no such options."""
+    from foldbot.bench.suite import load_suite
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    cfg = config_from_args(parser.parse_args(["--out", "x"]))
+    assert (cfg.fault_slip, cfg.fault_grasp_offset) == (0.0, 0.0)
+    args = ["--out", "x", "--fault-slip", "0.3", "--fault-grasp-offset", "0.06"]
+    cfg = config_from_args(parser.parse_args(args))
+    assert (cfg.fault_slip, cfg.fault_grasp_offset) == (0.3, 0.06)
+    cfg = config_from_args(parser.parse_args([*args, "--suite", "towel_loop", "--seed", "4",
+                                              "--recipe", "thirds"]))  # fmt: skip
+    (spec,) = [e for e in load_suite("towel_loop").episodes if (e.seed, e.recipe) == (4, "thirds")]
+    assert cfg == dataclasses.replace(
+        spec.to_config(), fault_slip=0.3, fault_grasp_offset=0.06, video_fps=10.0
+    )
+    with pytest.raises(SystemExit):
+        main(["ros-fold", "--out", "x", "--fault-slip", "0.3"])
 
 
 def test_a_suite_episode_for_a_seed_the_suite_does_not_list():

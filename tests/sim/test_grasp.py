@@ -43,6 +43,28 @@ def test_grasp_lifts_corner_far_edge_stays_down_and_release(cell):
     assert robot.gripper_opening() > 0.07
 
 
+def test_a_slipped_grasp_drops_the_cloth_and_the_gripper_can_tell(cell):
+    """slip() (fault injection) lets the lifted corner fall out of the closed jaws; the hold
+    the gripper reports (holds_what_it_grasped) is there while the corner rises with the jaws
+    and gone once it has slipped."""
+    world, robot, cloth = cell
+    grasp = ClothGrasp(world, robot, cloth)
+    table = world.layout.table_height
+    corner_id = cloth.mesh.keypoints["corner_00"]
+    corner = cloth.sim_vertices()[corner_id]
+    _move(world, robot, corner + [0, 0, 0.06])
+    _move(world, robot, corner + [0, 0, 0.004], 0.5)
+    assert not grasp.holds_what_it_grasped()  # nothing grasped yet
+    held = grasp.close().vertex_ids
+    _move(world, robot, corner + [0, 0, 0.12])
+    assert grasp.holds_what_it_grasped()
+    assert grasp.slip() == held and not grasp.holding and grasp.held == ()
+    world.step(round(0.8 / world.time_step))
+    assert not grasp.holds_what_it_grasped()
+    assert cloth.sim_vertices()[corner_id, 2] - table < 0.03, "the slipped corner fell"
+    assert robot.gripper_opening() < 0.01, "the jaws stay closed, on nothing"
+
+
 def test_grasp_over_empty_table_fails_and_attaches_nothing(cell):
     world, robot, cloth = cell
     grasp = ClothGrasp(world, robot, cloth)

@@ -100,12 +100,18 @@ def add_flatten_option(parser: argparse.ArgumentParser, where: str) -> None:
 
 
 def add_arguments(
-    parser: argparse.ArgumentParser, output: bool = True, camera_pose: bool = True
+    parser: argparse.ArgumentParser,
+    output: bool = True,
+    camera_pose: bool = True,
+    faults: bool = True,
 ) -> None:
     """Options of `foldbot fold`: an episode's, and `--suite` (`output` False: without the
     episode folder's --out and --overwrite, or --gui; `camera_pose` False: without
-    --camera-pose, which `ros-fold` defines its own way)."""
+    --camera-pose, which `ros-fold` defines its own way; `faults` False: without the injected
+    faults, which only the in-process cell makes)."""
     add_episode_arguments(parser, output)
+    if faults:
+        add_fault_options(parser)
     if camera_pose:
         add_camera_pose_option(
             parser,
@@ -156,9 +162,36 @@ SUITE_FREE = ("video_fps", "out", "overwrite", "gui")
 """With --suite, the options that do not change the episode's physics or plan."""
 SUITE_CAMERA = ("camera_calibration",)
 """With --suite, the camera a calibration found (--camera-pose) in place of the exact one."""
+SUITE_FAULTS = ("fault_grasp_offset", "fault_slip")
+"""With --suite, the faults injected into its episode (a trial of the loop's recovery)."""
 SUITE_OVER = ("loop_option", "cloth", "flatten_option")
 """With --suite, the options set over the suite's own tables, as `foldbot bench --suite` sets
 them: a trial of one of its episodes."""
+
+
+def add_fault_options(parser: argparse.ArgumentParser) -> None:
+    """Faults the simulated cell injects, to watch the closed loop recover
+    (EpisodeConfig.fault_grasp_offset and fault_slip; result.json's `faults`)."""
+    parser.add_argument(
+        "--fault-slip",
+        type=float,
+        default=0.0,
+        metavar="FRACTION",
+        help="the episode's first carry loses its cloth this fraction of the way along it, as a "
+        "grasp that slips (0 < FRACTION < 1, e.g. 0.3; default 0: none): the gripper reports "
+        "the lost hold, the arm lets go, and the loop re-observes and grasps again. Late in "
+        "the carry the cloth falls from its highest and can sink through the table, which is "
+        "reported as a divergence",
+    )
+    parser.add_argument(
+        "--fault-grasp-offset",
+        type=float,
+        default=0.0,
+        metavar="M",
+        help="the episode's first grasp is aimed this far (m, at most 0.2) outward from the "
+        "perceived corner, onto bare table (default 0: none): the jaws close on nothing and "
+        "the loop re-observes and retries",
+    )
 
 
 def add_episode_arguments(parser: argparse.ArgumentParser, output: bool = True) -> None:
@@ -343,7 +376,14 @@ def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
         video_fps=args.video_fps,
         loop_options=loop_options_from_args(args.loop_option),
         flatten_options=flatten_options_from_args(args.flatten_option),
+        **faults_from_args(args),
     )
+
+
+def faults_from_args(args: argparse.Namespace) -> dict[str, float]:
+    """The EpisodeConfig fault fields --fault-slip and --fault-grasp-offset set (none where the
+    command has no such options)."""
+    return {name: getattr(args, name) for name in SUITE_FAULTS if hasattr(args, name)}
 
 
 def calibrated_camera(
@@ -411,6 +451,7 @@ def suite_episode_config(args: argparse.Namespace) -> EpisodeConfig:
     cfg = pick_suite_episode(args).to_config()
     return dataclasses.replace(
         cfg,
+        **faults_from_args(args),
         video_fps=args.video_fps,
         sim=dataclasses.replace(cfg.sim, gui=args.gui),
         camera=calibrated_camera(args, cfg.camera, cfg.sim.layout),
@@ -427,15 +468,15 @@ def pick_suite_episode(args: argparse.Namespace) -> EpisodeSpec:
     given = [
         "--" + name.replace("_", "-")
         for name, default in vars(defaults.parse_args(["--out", "-"])).items()
-        if name not in SUITE_PICKS + SUITE_FREE + SUITE_OVER + SUITE_CAMERA
+        if name not in SUITE_PICKS + SUITE_FREE + SUITE_OVER + SUITE_CAMERA + SUITE_FAULTS
         and getattr(args, name, default) != default
     ]
     if given:
         raise ConfigError(
             f"--suite {args.suite} sets the episode; drop {', '.join(given)} (beside --suite only "
             "--seed, --replicate, --recipe, --perception, --video-fps, --out, --overwrite, "
-            "--gui, --camera-pose, and --loop-option, --cloth and --flatten-option over the suite's "
-            "own, are allowed)"
+            "--gui, --camera-pose, --fault-slip, --fault-grasp-offset, and --loop-option, "
+            "--cloth and --flatten-option over the suite's own, are allowed)"
         )
     return _picked(args, defaults).with_options(
         loop_options_from_args(args.loop_option),

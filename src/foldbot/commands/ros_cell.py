@@ -47,7 +47,7 @@ def _interrupt(signum: int, frame: object) -> None:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """`foldbot fold`'s options that lay the cloth (no --out), the camera's rate, the master's
     port and the pace."""
-    fold.add_arguments(parser, output=False)
+    fold.add_arguments(parser, output=False, faults=False)
     parser.add_argument(
         "--camera-rate",
         type=float,

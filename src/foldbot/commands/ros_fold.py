@@ -74,7 +74,7 @@ def ros_env(port: int | None) -> dict[str, str]:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """`foldbot fold`'s options (`--suite` among them), plus the ROS ones."""
-    fold.add_arguments(parser, camera_pose=False)
+    fold.add_arguments(parser, camera_pose=False, faults=False)
     parser.add_argument("--record", type=Path, default=None, help="record the run to this .bag")
     parser.add_argument(
         "--camera-rate",

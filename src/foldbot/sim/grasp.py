@@ -28,6 +28,11 @@ SURFACE_SAMPLES = 8
 pads: samples 1/8 of an edge apart, ≤ 3.4 mm on a 2.7 cm mesh, finer than the 2 cm pads."""
 
 
+HOLD_REACH = 0.06
+"""A held point further than this (m) from the TCP has not risen with the jaws: the pads reach
+5 cm below the TCP and 4 cm either side of it."""
+
+
 class ClothGrasp:
     """Close/open the gripper of `robot` on `cloth`, anchoring what lies between the jaws."""
 
@@ -68,6 +73,26 @@ class ClothGrasp:
     @property
     def holding(self) -> bool:
         return bool(self._anchors)
+
+    def holds_what_it_grasped(self) -> bool:
+        """What the gripper can tell of its hold, as a real one's object detection does: the
+        jaws hold cloth, and what they grasped rose with them (every held point still within
+        HOLD_REACH of the TCP). False once a grasp has slipped (slip)."""
+        if not self._anchors:
+            return False
+        tcp = self.robot.tcp_pose()[0]
+        held = self.cloth.sim_vertices()[list(self.held)]
+        return bool(np.all(np.linalg.norm(held - tcp, axis=1) <= HOLD_REACH))
+
+    def slip(self) -> tuple[int, ...]:
+        """Fault injection: the cloth slips out of the closed jaws (every anchor released, the
+        fingers left closed, as a grasp that loses its cloth in a carry); the vertices it held."""
+        lost = self.held
+        for anchor in self._anchors:
+            self.cloth.release(anchor)
+        self._anchors.clear()
+        self.held = ()
+        return lost
 
     def vertices_between_jaws(self, gap: float | None = None) -> np.ndarray:
         """Indices of cloth vertices inside the volume between the finger pads (mesh order)."""

@@ -117,6 +117,12 @@ class SimWorld:
         if on_idle:
             self._idle_hooks.append(hook)
 
+    def remove_step_hook(self, hook) -> None:
+        """Stop calling `hook` (added by add_step_hook)."""
+        self._step_hooks.remove(hook)
+        if hook in self._idle_hooks:
+            self._idle_hooks.remove(hook)
+
     def step(self, n: int = 1) -> None:
         """Advance the physics by n steps and run the hooks."""
         for _ in range(n):
