@@ -70,6 +70,8 @@ class LoopConfig:
 
     recipe: str = "half"
     retries: int = 1
+    """How often a failed grasp or an off placement is redone per action (a grasp that slipped
+    in its carry once more besides)."""
     place_tolerance: float = 0.03
     regrasp_radius: float = 0.06
     regrasp_label_radius: float = 0.25
@@ -593,13 +595,10 @@ def closed_loop_action(
         # Earlier actions move the cloth: grasp the corner where it is now. A corner placed off
         # is picked where it was seen to lie: after a fold, the labels that the corner detector
         # gives the new outline's corners need not match the plan's.
-        # A grasp that held and then slipped is aimed afresh at the corner where it fell; one
-        # that closed on no cloth closes at the table inside the corner (aim_grasp).
-        last_failed = (
-            bool(attempts)
-            and not attempts[-1]["grasp_success"]
-            and not attempts[-1].get("slipped", False)
-        )
+        # After a grasp that closed on no cloth, or one that slipped (the corner fell onto
+        # itself: the top of the heap the camera sees has no cloth between the jaws), the jaws
+        # close at the table inside the corner (aim_grasp).
+        last_failed = bool(attempts) and not attempts[-1]["grasp_success"]
         action = aim_grasp(
             cfg,
             state,
@@ -632,7 +631,9 @@ def closed_loop_action(
                 **({"slipped": True} if outcome.get("slipped") else {}),
             }
         )
-        if ok or retries >= cfg.retries:
+        # The first slip is retried beyond the budget: the grasp had found the cloth.
+        slips = any(a.get("slipped", False) for a in attempts)
+        if ok or retries >= cfg.retries + int(slips):
             break
         retries += 1
         replacing = bool(outcome["grasp_success"])
