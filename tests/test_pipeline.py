@@ -165,8 +165,8 @@ def test_failed_grasp_is_retried_after_reobserving(tmp_path):
 @pytest.mark.slow
 def test_a_grasp_that_slips_in_the_carry_is_seen_and_grasped_again(tmp_path):
     """Inject a slip a third of the way through the first carry: the gripper reports it lost
-    its hold, the arm lets go and lifts, and the loop re-observes and grasps the corner where it
-    fell, at the table under it as after a miss, then folds."""
+    its hold, the arm lets go and lifts, and the loop re-observes and grasps the corner afresh
+    where it fell (not at the table inside it, as after a miss), then folds."""
     cfg = EpisodeConfig(
         recipe="diagonal", towel=TowelSpec(0.24, 0.24, 10), fault_slip=0.3, video_fps=0
     )
@@ -178,8 +178,9 @@ def test_a_grasp_that_slips_in_the_carry_is_seen_and_grasped_again(tmp_path):
     assert "slipped from the jaws in the carry" in slipped["grasp_reason"]
     assert again["grasp_success"] is True and "slipped" not in again
     assert first["retries"] == 1 and first["grasp_success"] is True
-    table = cfg.sim.layout.table_height
-    assert again["grasp"][2] <= table + cfg.motion.stack_grasp_height + 0.002
+    # The corner fell back about where it lay, and the retry aimed at it as seen there (a
+    # miss's retry closes 1 cm inside it, at the table).
+    np.testing.assert_allclose(again["grasp"], slipped["grasp"], atol=0.005)
     assert result["success"] is True
 
 

@@ -595,10 +595,14 @@ def closed_loop_action(
         # Earlier actions move the cloth: grasp the corner where it is now. A corner placed off
         # is picked where it was seen to lie: after a fold, the labels that the corner detector
         # gives the new outline's corners need not match the plan's.
-        # After a grasp that closed on no cloth, or one that slipped (the corner fell onto
-        # itself: the top of the heap the camera sees has no cloth between the jaws), the jaws
-        # close at the table inside the corner (aim_grasp).
-        last_failed = bool(attempts) and not attempts[-1]["grasp_success"]
+        # After a grasp that closed on no cloth the jaws close at the table inside the corner
+        # (aim_grasp); after one that slipped, at the corner where it is now seen, as a first
+        # grasp (at the table the jaws take the fallen flap by its fold, and lay it folded).
+        last_failed = (
+            bool(attempts)
+            and not attempts[-1]["grasp_success"]
+            and not attempts[-1].get("slipped", False)
+        )
         action = aim_grasp(
             cfg,
             state,

@@ -28,9 +28,9 @@ SURFACE_SAMPLES = 8
 pads: samples 1/8 of an edge apart, ≤ 3.4 mm on a 2.7 cm mesh, finer than the 2 cm pads."""
 
 
-HOLD_REACH = 0.06
-"""A held point further than this (m) from the TCP has not risen with the jaws: the pads reach
-5 cm below the TCP and 4 cm either side of it."""
+HOLD_SLACK = 0.03
+"""A held point this much (m) further from the TCP than when it was grasped has not risen with
+the jaws (an anchored point keeps its distance to the millimetre)."""
 
 
 class ClothGrasp:
@@ -62,6 +62,8 @@ class ClothGrasp:
         the cloth surface between them."""
         self._anchors: list[int] = []
         self.held: tuple[int, ...] = ()
+        self._grasped_at = np.zeros(0)
+        """The held points' distances from the TCP when grasped (m)."""
         # Finger pads squeezing cloth nodes through rigid–soft contact blows the cloth up; the pads'
         # hold is modelled by the anchors instead, so pad–cloth contact is filtered out. The palm
         # and the arm still collide with the cloth.
@@ -74,15 +76,18 @@ class ClothGrasp:
     def holding(self) -> bool:
         return bool(self._anchors)
 
+    def _held_distances(self) -> np.ndarray:
+        """Each held point's distance (m) from the TCP, in `held` order."""
+        tcp = self.robot.tcp_pose()[0]
+        return np.linalg.norm(self.cloth.sim_vertices()[list(self.held)] - tcp, axis=1)
+
     def holds_what_it_grasped(self) -> bool:
         """What the gripper can tell of its hold, as a real one's object detection does: the
-        jaws hold cloth, and what they grasped rose with them (every held point still within
-        HOLD_REACH of the TCP). False once a grasp has slipped (slip)."""
+        jaws hold cloth, and what they grasped moved with them (no held point more than
+        HOLD_SLACK further from the TCP than when grasped). False once a grasp has slipped."""
         if not self._anchors:
             return False
-        tcp = self.robot.tcp_pose()[0]
-        held = self.cloth.sim_vertices()[list(self.held)]
-        return bool(np.all(np.linalg.norm(held - tcp, axis=1) <= HOLD_REACH))
+        return bool(np.all(self._held_distances() <= self._grasped_at + HOLD_SLACK))
 
     def slip(self) -> tuple[int, ...]:
         """Fault injection: the cloth slips out of the closed jaws (every anchor released, the
@@ -166,6 +171,7 @@ class ClothGrasp:
             link = left if side_y >= 0 else right
             self._anchors.append(self.cloth.anchor(int(v), self.robot.body_id, link))
         self.held = tuple(int(v) for v in caught)
+        self._grasped_at = self._held_distances()
         return GraspResult(True, self.held, f"{len(caught)} vertices {between}")
 
     def open(self, width: float | None = None, settle_time: float = 0.3) -> None:
