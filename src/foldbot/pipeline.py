@@ -51,7 +51,7 @@ from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState
 from foldbot.planning.actions import FoldAction
 from foldbot.planning.garment_recipes import GARMENT_RECIPES
-from foldbot.planning.motion import MotionConfig, Segment, action_segments
+from foldbot.planning.motion import MotionConfig, action_segments
 from foldbot.planning.recipes import RECIPES, folded_as
 from foldbot.planning.spread import SpreadAction, motion_segments
 from foldbot.sim.camera import CameraConfig, RGBDCamera, camera_for_layout
@@ -344,11 +344,6 @@ def seeded_pose(
     return (center[0] + float(dx), center[1] + float(dy)), yaw
 
 
-def segment_of(step: PlannedSegment | Segment) -> Segment:
-    """The motion segment a step runs (a planned one's, or the step itself)."""
-    return step.segment if isinstance(step, PlannedSegment) else step
-
-
 class SimCell(FoldCell):
     """The in-process cell: PyBullet world, arm, gripper, camera and an estimator, driven by
     direct calls (the ROS nodes offer the same cell over topics)."""
@@ -442,7 +437,7 @@ class SimCell(FoldCell):
             if (
                 held
                 and grasp is None
-                and segment_of(step).gripper != "open"
+                and step.segment.gripper != "open"
                 and not ex.grasp.holds_what_it_grasped()
             ):
                 grasp = GraspResult(
@@ -460,13 +455,11 @@ class SimCell(FoldCell):
         its end (in the table's plane); None when no slip is due."""
         if self.slip_fraction <= 0.0 or self.slipped:
             return None
-        carrying = [
-            (ex, s) for ex, s in steps if segment_of(s).name == "carry" and ex.grasp.holding
-        ]
+        carrying = [(ex, s) for ex, s in steps if s.segment.name == "carry" and ex.grasp.holding]
         if not carrying:
             return None
         ex, step = carrying[0]
-        start, end = np.asarray(step.points)[0, :2], np.asarray(step.points)[-1, :2]
+        start, end = step.points[0, :2], step.points[-1, :2]
         span = float(np.dot(end - start, end - start))
 
         def slip_once(world: SimWorld) -> None:

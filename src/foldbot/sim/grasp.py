@@ -90,8 +90,8 @@ class ClothGrasp:
         return bool(np.all(self._held_distances() <= self._grasped_at + HOLD_SLACK))
 
     def slip(self) -> tuple[int, ...]:
-        """Fault injection: the cloth slips out of the closed jaws (every anchor released, the
-        fingers left closed, as a grasp that loses its cloth in a carry); the vertices it held."""
+        """Every anchor released with the fingers left closed: as a fault injected, a grasp that
+        loses its cloth in a carry (open() lets go so before opening); the vertices it held."""
         lost = self.held
         for anchor in self._anchors:
             self.cloth.release(anchor)
@@ -176,9 +176,6 @@ class ClothGrasp:
 
     def open(self, width: float | None = None, settle_time: float = 0.3) -> None:
         """Release every anchor and open the fingers."""
-        for anchor in self._anchors:
-            self.cloth.release(anchor)
-        self._anchors.clear()
-        self.held = ()
+        self.slip()  # let go of the cloth, then open
         self.robot.set_gripper_opening(self.robot.max_opening if width is None else width)
         self.world.step(max(1, round(settle_time / self.world.time_step)))
