@@ -163,12 +163,51 @@ def test_failed_grasp_is_retried_after_reobserving(tmp_path):
 
 
 @pytest.mark.slow
-def test_a_grasp_that_slips_in_the_carry_is_seen_and_grasped_again(tmp_path):
+def test_a_corner_that_slips_is_laid_back_and_the_stage_planned_again(tmp_path):
     """Inject a slip a third of the way through the first carry: the gripper reports it lost
-    its hold, the arm lets go and lifts, and the loop re-observes and grasps the corner afresh
-    where it fell (not at the table inside it, as after a miss), then folds."""
+    its hold, the arm lets go and lifts; the corner that fell is picked at the table inside it,
+    lifted and laid back where it was grasped, and the stage is planned again from a fresh
+    observation and folds."""
     cfg = EpisodeConfig(
         recipe="diagonal", towel=TowelSpec(0.24, 0.24, 10), fault_slip=0.3, video_fps=0
+    )
+    lines: list[str] = []
+    result = run_episode(cfg, tmp_path / "ep", log=lines.append)
+    assert result["faults"]["slipped"] is True
+    first, again = result["actions"][:2]
+    (slipped,) = first["attempts"]
+    assert slipped["slipped"] is True and first["grasp_success"] is False
+    assert first["plan_again"] is True and "plan_again" not in again
+    laid = slipped["laid_back"]
+    assert laid["grasp_success"] is True
+    # Grasped at the table, 1 cm inside the corner (stack_inset), and that point released where
+    # the slipped grasp had held the cloth: the corner itself lands 1 cm beyond
+    # (loop.LAY_BACK_OUTWARD against the inset), about where it lay before the carry.
+    table = cfg.sim.layout.table_height
+    assert laid["grasp"][2] <= table + cfg.motion.stack_grasp_height + 0.002
+    assert np.linalg.norm(np.subtract(laid["place"][:2], slipped["grasp"][:2])) < 0.002
+    assert any("planned again from a fresh observation" in line for line in lines)
+    # The stage planned again carries the same corner, from where it was laid, and folds.
+    assert again["label"] == first["label"] and again["grasp_success"] is True
+    assert np.linalg.norm(np.subtract(again["grasp"][:2], laid["place"][:2])) < 0.03
+    # Scored against the goal planned before the first action; the stage's entry has the line
+    # it was planned again with.
+    (stage,) = result["stages"]
+    assert len(result["fold_lines"]) == 1 and stage["fold_line"] != result["fold_lines"][0]
+    assert result["success"] is True
+
+
+@pytest.mark.slow
+def test_without_laying_back_a_slipped_corner_is_seen_and_grasped_again(tmp_path):
+    """With the lay-back off (LoopConfig.slip_lay_back; as for a stage's later carries), the
+    loop re-observes and grasps the corner afresh where it fell (not at the table inside it, as
+    after a miss), then folds."""
+    cfg = EpisodeConfig(
+        recipe="diagonal",
+        towel=TowelSpec(0.24, 0.24, 10),
+        fault_slip=0.3,
+        video_fps=0,
+        loop_options={"slip_lay_back": False},
     )
     result = run_episode(cfg, tmp_path / "ep", log=lambda *_: None)
     assert result["faults"] == {"grasp_offset_m": 0.0, "slip_fraction": 0.3, "slipped": True}

@@ -59,6 +59,9 @@ STACK_EDGE_LAYERS = 2
 """Layers at the middle of the edge of quarter's stack that one arm carries (stack_edge): both
 layers' free edges lie there one over the other, and the jaws close at the table, under both
 (grasped at the stack's top, 4 of 18 such grasps missed and 2 of 20 folds diverged, against 1)."""
+LAY_BACK_OUTWARD = 0.01
+"""A corner that slipped is laid back this far (m) beyond where it was grasped, away from the
+cloth's centre, so the edge it hung from comes down taut."""
 MAX_CLOTH_CREASE_ROOM = 0.02
 """Cap (m) on a crease room taken from the cloth: a laid layer seen rising more than this is
 bunched cloth, not one layer (and a coarse mesh's layer thickness can exceed it)."""
@@ -133,6 +136,15 @@ class LoopConfig:
     two corners sags between them, and brought down along the arc the middle of its edge touched
     down short of its place (docs/experiments.md, Coming straight down onto the place). None: as
     one arm carries (MotionConfig.place_height). Garment pairs keep the arc (pants fold worse)."""
+    slip_lay_back: bool = True
+    """When one arm's first carry of a stage slips: the corner that fell is laid back where it was
+    grasped (lay_back_slipped_corner) and the stage is planned again from a fresh observation,
+    once per stage. The fall bunches the edge the corner hung from; carried on from where it fell,
+    the bunch is folded in (docs/experiments.md, Laying a slipped corner back). False: the corner
+    is grasped again where it is seen and carried on."""
+    slip_lay_back_lift: float = 0.05
+    """How high (m) a slipped corner is lifted as it is laid back (0: the motion's lowest carry
+    arc, 5 cm). Lifted 15 cm, it dragged the whole towel 3–5 cm (docs/experiments.md)."""
     stack_edge_carry: bool = True
     """A stage that carries a folded stack (recipes.carries_stack: quarter's second) is one carry
     by one arm, in either cell: its edge grasped once, midway between the two corners, at the
@@ -280,57 +292,81 @@ def run_fold(
         # settled) is where this stage starts, unless the cell asks for a fresh one.
         if stage > 0 and cell.start_stage(stage):
             state, obs = cell.observe()
-        if not state.detected:
-            raise FoldbotError(f"no cloth found before fold stage {stage + 1}: {state.reason}")
-        if cfg.require_full_view:
-            require_in_view(state)
-        latest, stage_state, stage_obs = state, state, obs
-        corners = corners_of(state)
-        room = stage_crease_room(cfg, layer_rise)
-        plan, predicted = cell.plan_stage(cfg.recipe, stage, corners, cfg.place_lift, room)
-        rec.fold_lines.append(plan.fold_lines[0])
-        if stage == 0:
-            rec.initial_overlay = plan_overlay(obs, state, plan, cell.table_height)
-            rec.initial_state = state
-        corner_places = outline_corners(np.asarray(predicted, dtype=float).reshape(-1, 3))
-        # A folded stack goes over by its edge's middle, one arm, in either cell (stack_edge).
-        edge_of = stack_edge(cfg, stage, plan.actions)
-        together = (
-            cell.arms > 1
-            and edge_of is None
-            and len(plan.actions) == 2
-            and arms_apart(plan.actions)
-        )
-        carried = plan.actions if edge_of is None else (edge_middle(edge_of, STACK_EDGE_LAYERS),)
-        if stage > 0:
-            rec.plan_overlays.append(plan_overlay(obs, state, plan, cell.table_height, carried))
-        if together:
-            log(f"stage {stage + 1}: {' and '.join(a.label for a in plan.actions)} together")
-            entries, latest = two_arm_actions(
-                cfg,
-                cell,
-                plan.actions,
-                latest,
-                log,
-                inject_fault=cfg.fault_grasp_offset > 0 and not rec.actions,
-                predicted_corners=corner_places,
-                re_place=not carries_stack(cfg.recipe, stage),
+        planned_again = False
+        while True:
+            if not state.detected:
+                raise FoldbotError(f"no cloth found before fold stage {stage + 1}: {state.reason}")
+            if cfg.require_full_view:
+                require_in_view(state)
+            latest, stage_state, stage_obs = state, state, obs
+            corners = corners_of(state)
+            room = stage_crease_room(cfg, layer_rise)
+            plan, predicted = cell.plan_stage(cfg.recipe, stage, corners, cfg.place_lift, room)
+            if not planned_again:
+                # The goal stays the one planned before the first action (metrics.md); a stage
+                # planned again records its own line in its stage entry.
+                rec.fold_lines.append(plan.fold_lines[0])
+            if stage == 0 and not planned_again:
+                rec.initial_overlay = plan_overlay(obs, state, plan, cell.table_height)
+                rec.initial_state = state
+            corner_places = outline_corners(np.asarray(predicted, dtype=float).reshape(-1, 3))
+            # A folded stack goes over by its edge's middle, one arm, in either cell (stack_edge).
+            edge_of = stack_edge(cfg, stage, plan.actions)
+            together = (
+                cell.arms > 1
+                and edge_of is None
+                and len(plan.actions) == 2
+                and arms_apart(plan.actions)
             )
-            rec.actions.extend(entries)
-        else:
-            for i, planned in enumerate(carried):
-                log(f"stage {stage + 1}, action {i + 1}/{len(carried)}: {planned.label} → place")
-                entry, latest = single_arm_action(
+            carried = (
+                plan.actions if edge_of is None else (edge_middle(edge_of, STACK_EDGE_LAYERS),)
+            )
+            if stage > 0 and not planned_again:
+                rec.plan_overlays.append(plan_overlay(obs, state, plan, cell.table_height, carried))
+            slipped_first = False
+            if together:
+                log(f"stage {stage + 1}: {' and '.join(a.label for a in plan.actions)} together")
+                entries, latest = two_arm_actions(
                     cfg,
                     cell,
-                    planned,
+                    plan.actions,
                     latest,
                     log,
                     inject_fault=cfg.fault_grasp_offset > 0 and not rec.actions,
                     predicted_corners=corner_places,
-                    edge_of=edge_of,
+                    re_place=not carries_stack(cfg.recipe, stage),
                 )
-                rec.actions.append(entry)
+                rec.actions.extend(entries)
+            else:
+                for i, planned in enumerate(carried):
+                    log(
+                        f"stage {stage + 1}, action {i + 1}/{len(carried)}: {planned.label} → place"
+                    )
+                    entry, latest = single_arm_action(
+                        cfg,
+                        cell,
+                        planned,
+                        latest,
+                        log,
+                        inject_fault=cfg.fault_grasp_offset > 0 and not rec.actions,
+                        predicted_corners=corner_places,
+                        edge_of=edge_of,
+                        lay_back_slip=cfg.slip_lay_back and i == 0 and not planned_again,
+                    )
+                    rec.actions.append(entry)
+                    if entry.get("plan_again"):
+                        slipped_first = True
+                        break
+            if slipped_first:
+                # The stage's first carry slipped and its corner was laid back: plan the stage
+                # again from where the cloth lies now (once).
+                log(f"stage {stage + 1}: planned again from a fresh observation")
+                planned_again = True
+                cell.park()
+                cell.wait(settle_s)
+                state, obs = cell.observe()
+                continue
+            break
         cell.park()
         cell.wait(settle_s)
         state, obs = cell.observe()
@@ -577,12 +613,15 @@ def closed_loop_action(
     predicted_corners: np.ndarray | None = None,
     replacing: bool = False,
     edge_of: tuple[FoldAction, FoldAction] | None = None,
+    lay_back_slip: bool = False,
 ) -> tuple[dict, ClothState]:
     """Execute one pick-and-place, re-observing to grasp the corner where it now is, and
     verifying the placement; a failed grasp or an off placement is redone (bounded). With
     `replacing`, `planned` re-places a corner that was placed off: its grasp is where it was seen.
     With `edge_of`, `planned` carries the middle of those two corners' edge (edge_middle): it is
-    grasped midway between where the two are seen.
+    grasped midway between where the two are seen. With `lay_back_slip`, a carry that slips ends
+    the action: the corner is laid back (lay_back_slipped_corner) and the entry says
+    `plan_again`, for the caller to plan the stage again from `state`.
 
     `latest` is the state of the newest observation (taken after the cloth last moved);
     `predicted_corners` are the corners of the outline the stage should leave: a placement is
@@ -635,6 +674,14 @@ def closed_loop_action(
                 **({"slipped": True} if outcome.get("slipped") else {}),
             }
         )
+        if outcome.get("slipped") and lay_back_slip:
+            log(f"  grasp failed ({outcome['grasp_reason']}); laying the corner back")
+            attempts[-1]["laid_back"] = lay_back_slipped_corner(
+                cfg, cell, state, planned.label, action.grasp
+            )
+            cell.park()
+            state, _obs = cell.observe()
+            break
         # The first slip is retried beyond the budget: the grasp had found the cloth.
         slips = any(a.get("slipped", False) for a in attempts)
         if ok or retries >= cfg.retries + int(slips):
@@ -661,7 +708,55 @@ def closed_loop_action(
         "max_tracking_error_m": outcome["max_tracking_error"],
         "sim_seconds": cell.sim_time - t_sim,
         "wall_seconds": time.perf_counter() - t_wall,
+        **({"plan_again": True} if "laid_back" in attempts[-1] else {}),
     }, state
+
+
+def lay_back_slipped_corner(
+    cfg: LoopConfig, cell: FoldCell, state: ClothState, label: str, was_at: np.ndarray
+) -> dict:
+    """Lay the corner `label`, which slipped from the jaws, back where it was grasped (`was_at`),
+    LAY_BACK_OUTWARD beyond. The fall bunches the edge the corner hung from; carried on from
+    where it fell, the bunch is folded in. The corner is looked for by its label near `was_at`
+    (else the keypoint nearest it), grasped at the table `cfg.stack_inset` inside it as after a
+    missed grasp (it may lie on a fold of its own edge), lifted `cfg.slip_lay_back_lift` straight
+    up, and laid down (a stadium carry); the grasped point is released so that the corner lands
+    on its place (shifted_grasp), i.e. with the default inset about where it lay before the carry.
+    Returns what was done, for the attempt's record."""
+    was_at = np.asarray(was_at, dtype=float)
+    seen = None
+    if state.detected and label in state.keypoints:
+        xyz = np.asarray(state.keypoints[label][0], dtype=float)
+        if np.linalg.norm(xyz[:2] - was_at[:2]) <= cfg.regrasp_label_radius:
+            seen = xyz
+    if seen is None:
+        seen = nearest_keypoint(state, was_at, cfg.regrasp_radius)
+    if seen is None:
+        return {
+            "grasp_success": False,
+            "grasp_reason": f"corner {label} not seen within {cfg.regrasp_label_radius} m of "
+            "where it was grasped; left where it fell",
+        }
+    outward = was_at[:2] - state.keypoint_array()[:, :2].mean(axis=0)
+    outward = outward / max(float(np.linalg.norm(outward)), 1e-9)
+    place = np.array([*(was_at[:2] + outward * LAY_BACK_OUTWARD), was_at[2] + cfg.place_lift])
+    action = FoldAction(
+        grasp=stack_grasp_point(state, seen, cfg.stack_grasp_height),
+        place=place,
+        fold_line=(float(seen[0]), float(seen[1]), float(outward[0]), float(outward[1])),
+        label=f"lay back {label}",
+        carry="stadium",
+        lift=cfg.slip_lay_back_lift or None,
+    )
+    action = inset_grasp(state, action, seen, cfg.stack_inset)
+    show_action(cell, state, action)
+    outcome = execute_action(cell, action)
+    return {
+        "grasp": [float(v) for v in action.grasp],
+        "place": [float(v) for v in action.place],
+        "grasp_success": outcome["grasp_success"],
+        "grasp_reason": outcome["grasp_reason"],
+    }
 
 
 def aim_grasp(

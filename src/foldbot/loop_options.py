@@ -32,6 +32,8 @@ LOOP_OPTION_KINDS: dict[str, str] = {
     "top_layer_first": "switch",
     "pair_descent": "length or none",
     "stack_edge_carry": "switch",
+    "slip_lay_back": "switch",
+    "slip_lay_back_lift": "length",
 }
 """Option name → kind: switch (true/false), count (an integer in [0, MAX_COUNT]), length (m, in
 [0, MAX_LENGTH]), or length or none (None: the field's documented fallback)."""

@@ -117,3 +117,24 @@ def test_an_actions_carry_travels_with_it_and_is_checked():
     assert "carry" not in ACTION.as_dict() and FoldAction.from_dict(ACTION.as_dict()).carry == "arc"
     with pytest.raises(ConfigError, match="carry must be 'arc' or 'stadium', got 'loop'"):
         dataclasses.replace(ACTION, carry="loop")
+
+
+def test_an_actions_own_lift_raises_its_carry_and_travels_with_it():
+    """A slipped corner laid back (LoopConfig.slip_lay_back_lift) goes up that high, both paths."""
+    cfg = MotionConfig()
+    lifted = dataclasses.replace(RELAY, lift=0.15)
+    start_z = RELAY.grasp[2] + cfg.grasp_depth
+    for carry in ("stadium", "arc"):
+        points = action_segments(dataclasses.replace(lifted, carry=carry), START, cfg)[2].points
+        assert points[:, 2].max() == pytest.approx(start_z + 0.15, abs=5e-4)
+    # A long carry still rises in proportion to its length (above a lift that is lower).
+    long_low = action_segments(dataclasses.replace(ACTION, lift=0.01), START, cfg)[2].points
+    np.testing.assert_array_equal(long_low, action_segments(ACTION, START, cfg)[2].points)
+    assert FoldAction.from_dict(lifted.as_dict()).lift == 0.15
+    assert "lift" not in RELAY.as_dict() and FoldAction.from_dict(RELAY.as_dict()).lift is None
+
+
+@pytest.mark.parametrize("lift", [0.0, -0.1, 0.6, float("nan")])
+def test_a_lift_that_is_no_height_is_refused(lift):
+    with pytest.raises(ConfigError, match=r"lift must be a height in \(0, 0.5\] m or None"):
+        dataclasses.replace(ACTION, lift=lift)

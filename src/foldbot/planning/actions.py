@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,11 +31,20 @@ class FoldAction:
     """The carry's path (planning.motion.CARRY_PATHS): "arc", the half-sine arc; "stadium",
     straight up, a half circle over, straight down (a carry of a few mm: the loop's relays with
     LoopConfig.relay_stadium)."""
+    lift: float | None = None
+    """Lowest peak (m) of the carry above its start; None: the motion's
+    `MotionConfig.min_arc_height`. A corner that slipped is laid back lifted this high, so its
+    bunched edge hangs out straight (LoopConfig.slip_lay_back_lift)."""
 
     def __post_init__(self) -> None:
         if self.carry not in ("arc", "stadium"):
             raise ConfigError(
                 f"action '{self.label}': carry must be 'arc' or 'stadium', got {self.carry!r}"
+            )
+        if self.lift is not None and not (math.isfinite(self.lift) and 0.0 < self.lift <= 0.5):
+            raise ConfigError(
+                f"action '{self.label}': lift must be a height in (0, 0.5] m or None, "
+                f"got {self.lift!r}"
             )
 
     def as_dict(self) -> dict:
@@ -49,6 +59,8 @@ class FoldAction:
             d["descent"] = float(self.descent)
         if self.carry != "arc":
             d["carry"] = self.carry
+        if self.lift is not None:
+            d["lift"] = float(self.lift)
         return d
 
     @classmethod
@@ -62,6 +74,7 @@ class FoldAction:
             layers=int(d.get("layers", 1)),
             descent=None if d.get("descent") is None else float(d["descent"]),
             carry=str(d.get("carry", "arc")),
+            lift=None if d.get("lift") is None else float(d["lift"]),
         )
 
 

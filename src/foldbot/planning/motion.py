@@ -77,17 +77,27 @@ def line_path(a: np.ndarray, b: np.ndarray, step: float = 0.01) -> np.ndarray:
     return a + (b - a) * np.linspace(0.0, 1.0, n)[:, None]
 
 
-def carry_arc(start: np.ndarray, end: np.ndarray, cfg: MotionConfig) -> np.ndarray:
+def carry_height(dist: float, cfg: MotionConfig, lift: float | None = None) -> float:
+    """Peak height (m) of a carry over `dist` metres: in proportion to the distance, and at least
+    `lift` (the action's own, else `cfg.min_arc_height`)."""
+    return max(cfg.min_arc_height if lift is None else lift, cfg.arc_height_ratio * dist)
+
+
+def carry_arc(
+    start: np.ndarray, end: np.ndarray, cfg: MotionConfig, lift: float | None = None
+) -> np.ndarray:
     """A half-sine arc from start to end, high enough that the carried cloth hangs clear."""
     dist = float(np.linalg.norm(end[:2] - start[:2]))
-    height = max(cfg.min_arc_height, cfg.arc_height_ratio * dist)
+    height = carry_height(dist, cfg, lift)
     t = np.linspace(0.0, 1.0, cfg.arc_points)
     pts = start + (end - start) * t[:, None]
     pts[:, 2] += height * np.sin(np.pi * t)
     return pts
 
 
-def stadium_arc(start: np.ndarray, end: np.ndarray, cfg: MotionConfig) -> np.ndarray:
+def stadium_arc(
+    start: np.ndarray, end: np.ndarray, cfg: MotionConfig, lift: float | None = None
+) -> np.ndarray:
     """As high as `carry_arc`, but straight up, a half circle as wide as the carry, straight
     down: over a carry of a few mm the half-sine's tip turns on a radius of a fraction of a mm
     (d²/(π²h)), which caps the whole motion's speed (a relay's 8 mm carry took 77 s); the half
@@ -95,7 +105,7 @@ def stadium_arc(start: np.ndarray, end: np.ndarray, cfg: MotionConfig) -> np.nda
     dist = float(np.linalg.norm(end[:2] - start[:2]))
     if dist < 1e-6:
         return line_path(start, end)
-    height = max(cfg.min_arc_height, cfg.arc_height_ratio * dist)
+    height = carry_height(dist, cfg, lift)
     radius = dist / 2
     top = max(float(start[2]), float(end[2])) + height
     along = (end[:2] - start[:2]) / dist
@@ -137,7 +147,11 @@ def action_segments(action: FoldAction, current: np.ndarray, cfg: MotionConfig) 
     segments = [
         Segment("approach", line_path(current, pre_grasp), cfg.free_speed),
         Segment("descend", line_path(pre_grasp, grasp_tcp, 0.005), cfg.free_speed / 3, "close"),
-        Segment("carry", CARRY_PATHS[action.carry](grasp_tcp, pre_place, cfg), cfg.cartesian_speed),
+        Segment(
+            "carry",
+            CARRY_PATHS[action.carry](grasp_tcp, pre_place, cfg, action.lift),
+            cfg.cartesian_speed,
+        ),
     ]
     if slide > 0:
         segments += [
