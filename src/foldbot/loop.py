@@ -734,7 +734,8 @@ def lay_back_slipped_corner(
     if seen is None:
         return {
             "grasp_success": False,
-            "grasp_reason": f"corner {label} not seen within {cfg.regrasp_label_radius} m of "
+            "grasp_reason": f"corner {label} not seen (by its label within "
+            f"{cfg.regrasp_label_radius} m, or any corner within {cfg.regrasp_radius} m) near "
             "where it was grasped; left where it fell",
         }
     outward = was_at[:2] - state.keypoint_array()[:, :2].mean(axis=0)
