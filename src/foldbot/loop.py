@@ -724,13 +724,7 @@ def lay_back_slipped_corner(
     on its place (shifted_grasp), i.e. with the default inset about where it lay before the carry.
     Returns what was done, for the attempt's record."""
     was_at = np.asarray(was_at, dtype=float)
-    seen = None
-    if state.detected and label in state.keypoints:
-        xyz = np.asarray(state.keypoints[label][0], dtype=float)
-        if np.linalg.norm(xyz[:2] - was_at[:2]) <= cfg.regrasp_label_radius:
-            seen = xyz
-    if seen is None:
-        seen = nearest_keypoint(state, was_at, cfg.regrasp_radius)
+    seen = regrasp_point(state, label, was_at, cfg.regrasp_radius, cfg.regrasp_label_radius)
     if seen is None:
         return {
             "grasp_success": False,
