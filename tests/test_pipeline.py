@@ -343,8 +343,8 @@ def test_one_arm_carries_quarters_stack_by_the_middle_of_its_edge(tmp_path):
 def test_a_loop_option_switches_the_stack_carry_back_to_corner_after_corner(tmp_path):
     """`--loop-option stack_edge_carry=false`: quarter's stack is carried by its two corners,
     one after the other, as before the edge carry (the test above); result.json says so."""
-    args = ["fold", "--recipe", "quarter", "--width", "0.3", "--height", "0.3"]
-    args += ["--loop-option", "stack_edge_carry=false", "--resolution", "11"]
+    args = ["fold", "--recipe", "quarter", "--width", "0.24", "--height", "0.24"]
+    args += ["--loop-option", "stack_edge_carry=false", "--resolution", "8"]
     run_cli(*args, "--video-fps", "0", "--out", str(tmp_path / "ep"))
     result = json.loads((tmp_path / "ep" / "result.json").read_text())
     assert result["loop_options"] == {"stack_edge_carry": False}

@@ -60,7 +60,7 @@ from foldbot.sim.crossing_guard import CrossingGuard
 from foldbot.sim.crumple import crumple
 from foldbot.sim.flatten_oracle import CornerPullOracle
 from foldbot.sim.garment_oracle import GarmentOracleEstimator
-from foldbot.sim.grasp import JAW_CATCHES, ClothGrasp
+from foldbot.sim.grasp import JAW_CATCHES, ClothGrasp, SlipFault
 from foldbot.sim.oracle import GroundTruthOracle, OracleEstimator
 from foldbot.sim.robots import ROBOT_NAMES, check_workspace_reach, make_robot
 from foldbot.sim.world import SimConfig, SimWorld
@@ -373,11 +373,9 @@ class SimCell(FoldCell):
             e.robot.out_of_view_q if park == "out_of_view" else e.robot.home_q
             for e in self.executors
         )
-        self.slip_fraction = 0.0
-        """Fault injection (EpisodeConfig.fault_slip): the first carry's grasp slips this far
-        along it (0: never)."""
-        self.slipped = False
-        """Whether the injected slip has happened."""
+        self.slip_fault = SlipFault()
+        """Fault injection (EpisodeConfig.fault_slip): the first carry's grasp slips part of
+        the way along it (none by default)."""
 
     @property
     def executor(self) -> ArmExecutor:
@@ -434,44 +432,23 @@ class SimCell(FoldCell):
         out = []
         for (ex, step), held, log in zip(steps, before, logs, strict=True):
             grasp = log.grasp
-            if (
-                held
-                and grasp is None
-                and step.segment.gripper != "open"
-                and not ex.grasp.holds_what_it_grasped()
-            ):
-                grasp = GraspResult(
-                    False,
-                    (),
-                    f"the cloth slipped from the jaws in the {log.name} ({len(held)} vertices "
-                    "were held; the gripper holds none of them now)",
-                )
+            if grasp is None and step.segment.gripper != "open":
+                lost = ex.grasp.lost_hold(held, log.name)
+                grasp = None if lost is None else GraspResult(False, (), lost)
             out.append(StepLog(log.name, log.max_tracking_error, grasp))
         return out
 
     def _slip_hook(self, steps: list[tuple[ArmExecutor, PlannedSegment]]):
-        """The injected slip (slip_fraction), on the first carry that holds cloth: a step hook
-        that lets the cloth slip once the TCP has come that far from the carry's start toward
-        its end (in the table's plane); None when no slip is due."""
-        if self.slip_fraction <= 0.0 or self.slipped:
-            return None
+        """The injected slip (slip_fault), on the first carry that holds cloth, added as a step
+        hook; None when no slip is due."""
         carrying = [(ex, s) for ex, s in steps if s.segment.name == "carry" and ex.grasp.holding]
         if not carrying:
             return None
         ex, step = carrying[0]
-        start, end = step.points[0, :2], step.points[-1, :2]
-        span = float(np.dot(end - start, end - start))
-
-        def slip_once(world: SimWorld) -> None:
-            if self.slipped:
-                return
-            done = np.dot(ex.robot.tcp_pose()[0][:2] - start, end - start) / max(span, 1e-12)
-            if done >= self.slip_fraction:
-                self.slipped = True
-                ex.grasp.slip()
-
-        self.world.add_step_hook(slip_once)
-        return slip_once
+        hook = self.slip_fault.hook(ex.grasp, step.points[0], step.points[-1])
+        if hook is not None:
+            self.world.add_step_hook(hook)
+        return hook
 
     @property
     def sim_time(self) -> float:
@@ -802,7 +779,7 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
             park=cfg.park,
             more_executors=parts.more_executors,
         )
-        cell.slip_fraction = cfg.fault_slip
+        cell.slip_fault = SlipFault(cfg.fault_slip)
         flattened = None
         if cfg.start == "crumpled":
             flattened = crumple_and_flatten(cfg, parts, cell, writer, log)
@@ -837,7 +814,7 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
             result["faults"] = {
                 "grasp_offset_m": cfg.fault_grasp_offset,
                 "slip_fraction": cfg.fault_slip,
-                "slipped": cell.slipped,
+                "slipped": cell.slip_fault.slipped,
             }
         if parts.guard is not None:
             result["crossing_guard_restored"] = parts.guard.restored

@@ -342,9 +342,10 @@ def test_a_suite_episode_takes_options_over_the_suites_own_as_bench_does():
         config_from_args(parser.parse_args([*flat, "--flatten-option", "finish_coverage=0.99"]))
 
 
-def test_faults_reach_the_episode_alone_or_with_a_suite_and_not_over_ros():
-    """--fault-slip and --fault-grasp-offset set the in-process cell's injected faults, also on
-    a suite's episode (a trial of the loop's recovery); ros-fold has no such options."""
+def test_faults_reach_the_episode_alone_or_with_a_suite_and_not_a_running_cell():
+    """--fault-slip and --fault-grasp-offset set the simulated cell's injected faults, also on
+    a suite's episode (a trial of the loop's recovery); `ros-fold` hands them to its nodes
+    (tests/commands/test_ros_cli.py), a running cell (`ros-cell`) has no such options."""
     from foldbot.bench.suite import load_suite
 
     parser = argparse.ArgumentParser()
@@ -361,7 +362,7 @@ def test_faults_reach_the_episode_alone_or_with_a_suite_and_not_over_ros():
         spec.to_config(), fault_slip=0.3, fault_grasp_offset=0.06, video_fps=10.0
     )
     with pytest.raises(SystemExit):
-        main(["ros-fold", "--out", "x", "--fault-slip", "0.3"])
+        main(["ros-cell", "--fault-slip", "0.3"])
 
 
 def test_a_suite_episode_for_a_seed_the_suite_does_not_list():

@@ -107,6 +107,15 @@ from foldbot.commands.ros_fold import add_arguments, fold_args_text
         (["ros-cell", "--real-time-factor", "-1"], "--real-time-factor must be > 0, got -1.0"),
         (["ros-cell", "--port", "0"], "--port must be in 1–65535, got 0"),
         (
+            ["ros-fold", "--out", "{tmp}/e", "--fault-slip", "0.3", "--arm-interface", "actions"],
+            "--fault-slip: faults are the simulated cell's, injected on the lockstep cell",
+        ),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--cell", "real", "--fault-grasp-offset", "0.05"],
+            "got --cell real --arm-interface actions",
+        ),
+        (["ros-fold", "--out", "{tmp}/e", "--fault-slip", "1.5"], "fault_slip must be in [0, 1)"),
+        (
             ["ros-cell", "--calibration-board", "right"],
             "--calibration-board right is for a two-arm cell (--arms 2)",
         ),
@@ -220,10 +229,12 @@ def test_ros_fold_hands_the_nodes_every_option_that_shapes_the_episode(tmp_path)
             *("--jaw-catch", "surface", "--video-fps", "0"),
             *("--loop-option", "stack_edge_carry=false", "--loop-option", "pair_descent=0.02"),
             *("--cloth", "friction=0.8", "--cloth", "margin_divisor=6.5"),
+            *("--fault-slip", "0.3", "--fault-grasp-offset", "0.05"),
         ]
     )
     _node_args, node_cfg = parse_fold_args(ros_fold.fold_args_text(args))
     assert node_cfg == fold.config_from_args(args)
+    assert (node_cfg.fault_slip, node_cfg.fault_grasp_offset) == (0.3, 0.05)
     assert node_cfg.replicate == 3 and node_cfg.jaw_catch == "surface"
     assert node_cfg.towel.max_vertices == 100
     assert node_cfg.loop_options == {"stack_edge_carry": False, "pair_descent": 0.02}
@@ -290,6 +301,11 @@ def test_ros_fold_hands_the_nodes_a_suite_episode(tmp_path, monkeypatch):
                               "towel-half-vision-open-s0000", "--video-fps", "2"])  # fmt: skip
     _node_args, node_cfg = parse_fold_args(ros_fold.fold_args_text(args))
     assert node_cfg == fold.config_from_args(args) and not node_cfg.closed_loop
+    # So do the faults a suite's episode is tried with.
+    args = parser.parse_args(["--out", out, "--suite", "towel_loop", "--seed", "3", "--recipe", "half",
+                              "--fault-slip", "0.3"])  # fmt: skip
+    _node_args, node_cfg = parse_fold_args(ros_fold.fold_args_text(args))
+    assert node_cfg == fold.config_from_args(args) and node_cfg.fault_slip == 0.3
     # Options set over the suite's own reach the nodes too.
     args = parser.parse_args(["--out", out, "--suite", "towel_crumpled_two_arms", "--seed", "5",
                               "--flatten-option", "spread_hang_time=0.8"])  # fmt: skip

@@ -162,6 +162,32 @@ def test_a_relays_few_mm_carry_is_timed_in_seconds_over_a_stadium_not_a_minute(e
     assert durations["stadium"] < 10.0 < 30.0 < durations["arc"], durations
 
 
+def test_a_corner_laid_back_a_fraction_of_a_mm_goes_up_and_down_in_seconds(executor):
+    # A slipped corner that fell where it lay is laid back 0.3 mm over, lifted 5 cm
+    # (LoopConfig.slip_lay_back_lift): a half circle that narrow turned on 0.15 mm, and the
+    # lay-back took 90 s. Under STADIUM_MIN_WIDTH the carry goes straight up and down, coming to
+    # rest at the top (control.trajectory's cusps).
+    from foldbot.planning.actions import FoldAction
+    from foldbot.planning.motion import STADIUM_MIN_WIDTH, MotionConfig, action_segments
+
+    z = executor.world.layout.table_height
+    x, y = executor.world.layout.workspace_center_xy
+    lay_back = FoldAction(
+        grasp=np.array([x, y, z]),
+        place=np.array([x - 0.0003, y, z + 0.004]),
+        fold_line=(x, y - 0.2, 0.0, 0.4),
+        carry="stadium",
+        lift=0.05,
+    )
+    segs = action_segments(lay_back, executor.robot.tcp_pose()[0], MotionConfig())
+    carry = segs[2].points
+    assert np.ptp(carry[:, 0]) < STADIUM_MIN_WIDTH and np.ptp(carry[:, 1]) < 1e-9
+    assert carry[:, 2].max() == pytest.approx(max(carry[0, 2], carry[-1, 2]) + 0.05, abs=1e-4)
+    planned = executor.plan(segs)[2]
+    traj = executor.trajectory_for(planned.joint_path, planned.points, planned.segment.speed)
+    assert traj.duration < 10.0, traj.duration
+
+
 def test_a_tilted_tool_is_lifted_as_it_is_held_in_a_second(executor):
     """After a failed grasp with the tool tilted 20° and turned 109° about the vertical (a
     spread's lean away from the other corner), the lift keeps the tool as it is: righting it

@@ -270,6 +270,37 @@ def test_pants_replay_gives_the_live_keypoints(ros_pants):
     assert "same keypoints as the live run" in proc.stdout
 
 
+def test_a_miss_and_a_slip_are_seen_and_recovered_over_topics(tmp_path):
+    """The faults `foldbot fold` injects, on the sim node's cell: the task node's loop aims the
+    first grasp 6 cm off the cloth, and the retried grasp lets its cloth go a third of the way
+    through the carry. The gripper reports the miss, the motion's reply the lost hold; the loop
+    retries, lays the corner back where it was grasped, plans the stage again from a fresh view
+    and folds, as `foldbot fold` does with the same options (the same attempts, 4.9 mm)."""
+    out = tmp_path / "episode"
+    proc = foldbot(
+        "ros-fold", "--recipe", "diagonal", "--width", "0.24", "--height", "0.24",
+        "--resolution", "10", "--fault-grasp-offset", "0.06", "--fault-slip", "0.3",
+        "--video-fps", "0", "--out", str(out), "--port", str(free_port()),
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    result = json.loads((out / "result.json").read_text())
+    assert result["transport"] == "ros"
+    assert result["faults"] == {"grasp_offset_m": 0.06, "slip_fraction": 0.3, "slipped": True}
+    first, again = result["actions"]
+    missed, slipped = first["attempts"]
+    assert missed["grasp_success"] is False and "no cloth" in missed["grasp_reason"]
+    assert slipped["slipped"] is True
+    assert "slipped from the jaws in the carry" in slipped["grasp_reason"]
+    assert slipped["laid_back"]["grasp_success"] is True
+    assert first["plan_again"] is True
+    assert again["label"] == first["label"] and again["grasp_success"] is True
+    # The corner fell about where it lay, so its lay-back went up and down in place: seconds
+    # (a half circle 0.3 mm wide took 90 s; planning.motion.STADIUM_MIN_WIDTH).
+    assert first["sim_seconds"] < 30.0
+    assert result["success"] is True
+    assert rescore(out).fold_error_mm == pytest.approx(result["fold_error_mm"])
+
+
 def test_a_fold_through_a_real_arms_driver_interface(tmp_path):
     # The arm through control_msgs/FollowJointTrajectory, the gripper through GripperCommand,
     # the cell running on at real-time pace between goals and read back from /joint_states and

@@ -108,7 +108,7 @@ def add_arguments(
     """Options of `foldbot fold`: an episode's, and `--suite` (`output` False: without the
     episode folder's --out and --overwrite, or --gui; `camera_pose` False: without
     --camera-pose, which `ros-fold` defines its own way; `faults` False: without the injected
-    faults, which only the in-process cell makes)."""
+    faults, which only a lockstep simulated cell makes: in process, or over ROS topics)."""
     add_episode_arguments(parser, output)
     if faults:
         add_fault_options(parser)
@@ -179,9 +179,10 @@ def add_fault_options(parser: argparse.ArgumentParser) -> None:
         metavar="FRACTION",
         help="the episode's first carry loses its cloth this fraction of the way along it, as a "
         "grasp that slips (0 < FRACTION < 1, e.g. 0.3; default 0: none): the gripper reports "
-        "the lost hold, the arm lets go, and the loop re-observes and grasps again. Late in "
+        "the lost hold, the arm lets go, and the loop lays the corner back and plans the stage "
+        "again (--loop-option slip_lay_back=false: re-observes and grasps again). Late in "
         "the carry the cloth falls from its highest and can sink through the table, which is "
-        "reported as a divergence",
+        "reported as a divergence. Over ROS (`ros-fold`), the sim node's cell slips",
     )
     parser.add_argument(
         "--fault-grasp-offset",

@@ -74,7 +74,7 @@ def ros_env(port: int | None) -> dict[str, str]:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """`foldbot fold`'s options (`--suite` among them), plus the ROS ones."""
-    fold.add_arguments(parser, camera_pose=False, faults=False)
+    fold.add_arguments(parser, camera_pose=False)
     parser.add_argument("--record", type=Path, default=None, help="record the run to this .bag")
     parser.add_argument(
         "--camera-rate",
@@ -277,7 +277,7 @@ def fold_args_text(args: argparse.Namespace) -> str:
     if args.mass is not None:
         words += ["--mass", repr(args.mass)]
     words += ["--time-step", repr(args.time_step)]
-    words += option_words(args)
+    words += option_words(args) + fault_words(args)
     if args.garment_edge_length is not None:
         words += ["--garment-edge-length", repr(args.garment_edge_length)]
     words += ["--garment-yaw", repr(args.garment_yaw)]
@@ -312,6 +312,17 @@ def option_words(args: argparse.Namespace) -> list[str]:
     return words
 
 
+def fault_words(args: argparse.Namespace) -> list[str]:
+    """The faults the simulated cell is to inject (--fault-slip, --fault-grasp-offset), where
+    given."""
+    words = []
+    for name in fold.SUITE_FAULTS:
+        value = getattr(args, name, 0.0)
+        if value:
+            words += ["--" + name.replace("_", "-"), repr(value)]
+    return words
+
+
 def suite_args_words(args: argparse.Namespace) -> list[str]:
     """`--suite PATH --episode ID` (the episode the options pick), the loop, cloth and flatten
     options set over the suite's own, the video rate and output folder."""
@@ -319,6 +330,7 @@ def suite_args_words(args: argparse.Namespace) -> list[str]:
 
     words = ["--suite", str(resolve_suite_path(args.suite).resolve())]
     words += ["--episode", fold.pick_suite_episode(args).id, *option_words(args)]
+    words += fault_words(args)
     words += camera_words(args)
     words += ["--video-fps", repr(args.video_fps), "--out", str(Path(args.out).resolve())]
     if args.overwrite:
@@ -361,6 +373,13 @@ def run(args: argparse.Namespace) -> int:
     interface = args.arm_interface or ("actions" if real else "topics")
     if real:
         check_real_cell(args, cfg, interface)
+    faulty = [f"--{n.replace('_', '-')}" for n in fold.SUITE_FAULTS if getattr(cfg, n) > 0]
+    if faulty and interface != "topics":
+        raise ConfigError(
+            f"{' and '.join(faulty)}: faults are the simulated cell's, injected on the lockstep "
+            "cell the topics interface drives (--cell sim --arm-interface topics, the default); "
+            f"got --cell {args.cell} --arm-interface {interface}"
+        )
     check_real_time_factor(args.real_time_factor)
     check_port(args.port)
     wait = args.master_wait

@@ -95,19 +95,29 @@ def carry_arc(
     return pts
 
 
+STADIUM_MIN_WIDTH = 0.005
+"""A stadium carry narrower than this (m) goes straight up to its height and straight down: a
+half circle that narrow turns too tightly (a lay-back of a corner 0.3 mm from where it was to
+be laid took 90 s), while a path that turns back comes to rest there and is timed in two parts
+(control.trajectory)."""
+
+
 def stadium_arc(
     start: np.ndarray, end: np.ndarray, cfg: MotionConfig, lift: float | None = None
 ) -> np.ndarray:
     """As high as `carry_arc`, but straight up, a half circle as wide as the carry, straight
     down: over a carry of a few mm the half-sine's tip turns on a radius of a fraction of a mm
     (d²/(π²h)), which caps the whole motion's speed (a relay's 8 mm carry took 77 s); the half
-    circle's radius is half the carry."""
+    circle's radius is half the carry. Under STADIUM_MIN_WIDTH, up and down."""
     dist = float(np.linalg.norm(end[:2] - start[:2]))
-    if dist < 1e-6:
+    if dist < 1e-6 and lift is None:
         return line_path(start, end)
     height = carry_height(dist, cfg, lift)
-    radius = dist / 2
     top = max(float(start[2]), float(end[2])) + height
+    if dist < STADIUM_MIN_WIDTH:
+        apex = np.array([*(start[:2] + end[:2]) / 2, top])
+        return np.vstack([line_path(start, apex, 0.005), line_path(apex, end, 0.005)[1:]])
+    radius = dist / 2
     along = (end[:2] - start[:2]) / dist
     middle = (start[:2] + end[:2]) / 2
     rise = np.array([*start[:2], max(top - radius, float(start[2]))])

@@ -60,7 +60,7 @@ ERROR_FILE_PARAM = "/foldbot/error_file"
 
 def fold_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="foldbot ros-fold", add_help=False)
-    fold.add_arguments(parser, faults=False)
+    fold.add_arguments(parser)
     return parser
 
 

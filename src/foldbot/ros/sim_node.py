@@ -55,6 +55,7 @@ from foldbot.ros.node_args import (
 )
 from foldbot.ros.publish import wait_for_listed_subscribers
 from foldbot.sim.cloth import settle
+from foldbot.sim.grasp import SlipFault
 from foldbot.sim.rest import RestWatch
 from foldbot.sim.world import SimWorld
 
@@ -120,6 +121,14 @@ class SimNode:
             raise FoldbotError(f"camera_rate must be ≥ 0 frames per s, got {camera_rate!r}")
         if camera_rate == 0 and arm_interface == "actions":
             raise FoldbotError("the actions interface needs a camera stream: camera_rate > 0")
+        if self.cfg.fault_slip > 0 and arm_interface != "topics":
+            raise FoldbotError(
+                "an injected slip (--fault-slip) is reported with the motion's reply, which only "
+                f"the topics interface has; got arm interface {arm_interface!r}"
+            )
+        self.slip_fault = SlipFault(self.cfg.fault_slip)
+        """The injected slip, if any (EpisodeConfig.fault_slip): on the first carry, as in
+        process."""
         self.arm_interface = arm_interface
         self.real_time_factor = real_time_factor
         self._pace_origin: tuple[float, float] | None = None
@@ -313,6 +322,8 @@ class SimNode:
         payload.setdefault("cloth_fastest_slide_mps", self.parts.monitor.fastest_slide)
         if self.parts.guard is not None:  # the crossing guard's count, likewise
             payload.setdefault("crossing_guard_restored", self.parts.guard.restored)
+        if self.slip_fault.fraction > 0:  # whether the injected slip happened (result.json)
+            payload.setdefault("fault_slipped", self.slip_fault.slipped)
         self.pub["result"].publish(convert.string_msg(payload))
 
     # ------------------------------------------------------------------ commands
@@ -339,23 +350,52 @@ class SimNode:
             for k in check
         }
         max_err = [0.0] * len(moved)
-        for k in range(n):
-            for ex, cols in moved:
-                ex.robot.command_joint_positions(q_cmd[k, cols], v_cmd[k, cols])
-            self.world.step()
-            if k in check:
-                for i, (ex, _cols) in enumerate(moved):
-                    err = float(np.linalg.norm(ex.robot.tcp_pose()[0] - tcp_ref[i, k]))
-                    max_err[i] = max(max_err[i], err)
-                if on_check is not None:
-                    q_now = np.concatenate([ex.robot.joint_positions() for ex, _c in moved])
-                    on_check(k, (k + 1) * dt, q_cmd[k], q_now)
+        held = [ex.grasp.held for ex, _cols in moved]
+        hook = self._slip_hook(moved, q_cmd)
+        try:
+            for k in range(n):
+                for ex, cols in moved:
+                    ex.robot.command_joint_positions(q_cmd[k, cols], v_cmd[k, cols])
+                self.world.step()
+                if k in check:
+                    for i, (ex, _cols) in enumerate(moved):
+                        err = float(np.linalg.norm(ex.robot.tcp_pose()[0] - tcp_ref[i, k]))
+                        max_err[i] = max(max_err[i], err)
+                    if on_check is not None:
+                        q_now = np.concatenate([ex.robot.joint_positions() for ex, _c in moved])
+                        on_check(k, (k + 1) * dt, q_cmd[k], q_now)
+        finally:
+            if hook is not None:
+                self.world.remove_step_hook(hook)
+        # A gripper that held cloth as the motion began and no longer holds what it grasped
+        # (no command opened it: that is a gripper command) reports the lost hold, as the
+        # in-process cell does (SimCell._run_checked): each such arm and how much it held.
+        slipped = [
+            {"arm": arm, "vertices_held": len(h)}
+            for (ex, _cols), arm, h in zip(moved, arms, held, strict=True)
+            if ex.grasp.lost_hold(h, "motion") is not None
+        ]
         return {
             "duration": float(times[-1]),
             "max_tracking_error": max(max_err),
             "arms": arms,
             "tracking_errors": max_err,
+            "slipped": slipped,
         }
+
+    def _slip_hook(self, moved: list, q_cmd: np.ndarray):
+        """The injected slip (EpisodeConfig.fault_slip), on the first motion of an arm that
+        holds cloth (a carry: the gripper closes at the end of the descent before it), from the
+        motion's commanded start toward its end; added as a step hook, None when none is due."""
+        carrying = [(ex, cols) for ex, cols in moved if ex.grasp.holding]
+        if self.slip_fault.fraction <= 0.0 or not carrying or not len(q_cmd):
+            return None
+        ex, cols = carrying[0]
+        start, end = (ex.model.fk_tcp(q_cmd[k, cols])[0] for k in (0, -1))
+        hook = self.slip_fault.hook(ex.grasp, start, end)
+        if hook is not None:
+            self.world.add_step_hook(hook)
+        return hook
 
     def execute(self, kind: str, msg) -> dict:
         if kind == "trajectory":

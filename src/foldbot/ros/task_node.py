@@ -77,6 +77,7 @@ from foldbot.ros.node_args import (
     parse_fold_args,
 )
 from foldbot.ros.publish import publish_when_heard, wait_for_listed_subscribers
+from foldbot.sim.grasp import slip_reason
 from foldbot.sim.layout import CellLayout
 from foldbot.sim.robots import robot_class
 from foldbot.types import GraspResult, Observation
@@ -167,6 +168,8 @@ class RosCell(FoldCell):
         """The sim node's divergence monitor's fastest cloth slide (m/s), from its last report."""
         self.guard_restored: int | None = None
         """The sim node's crossing guard's count of mesh points put back (None: no guard)."""
+        self.fault_slipped = False
+        """Whether the sim node's injected slip (EpisodeConfig.fault_slip) has happened."""
         self.rest_qs = [np.zeros(0)] * arms
         """Every arm's joints where the last command left it (the sim node's report)."""
         self._lock = threading.Lock()
@@ -379,6 +382,7 @@ class RosCell(FoldCell):
         self._clock = float(reply["sim_time"])
         self.fastest_slide = float(reply.get("cloth_fastest_slide_mps", 0.0))
         self.guard_restored = reply.get("crossing_guard_restored")
+        self.fault_slipped = bool(reply.get("fault_slipped", False))
 
     def _plan(self, kind: str, **payload: Any) -> dict:
         rid = next(self._ids)
@@ -652,6 +656,7 @@ class RosCell(FoldCell):
         traj = self._plan("time_together", name=steps[0][1]["name"], steps=timed)["trajectory"]
         reply = self._follow(traj)
         errs = dict(zip(reply["arms"], reply["tracking_errors"], strict=True))
+        lost = self._lost_holds(reply, steps[0][1]["name"])
         grips = [(arm, step["gripper"]) for arm, step in steps if step["gripper"]]
         if self.drivers and len(grips) > 1:
             held = self._grip_together(grips)
@@ -663,8 +668,20 @@ class RosCell(FoldCell):
             grasp = None
             if g is not None:
                 grasp = GraspResult(bool(g["success"]), tuple(g["vertex_ids"]), g["reason"])
+            elif arm in lost and step["gripper"] != "open":
+                grasp = lost[arm]
             logs.append(StepLog(step["name"], float(errs[arm]), grasp))
         return logs
+
+    @staticmethod
+    def _lost_holds(reply: dict, motion: str) -> dict[int, GraspResult]:
+        """The grasps the sim node reports lost in a motion's reply (its gripper no longer holds
+        what it grasped), by arm: failed GraspResults, which the loops treat as the in-process
+        cell's slips (carry.execute_action)."""
+        return {
+            int(s["arm"]): GraspResult(False, (), slip_reason(motion, int(s["vertices_held"])))
+            for s in reply.get("slipped", ())
+        }
 
     def _grip_together(self, grips: list[tuple[int, str]]) -> dict[int, dict | None]:
         """Several arms' gripper events through their drivers at once, as a bimanual cell's
@@ -850,6 +867,10 @@ class RosCell(FoldCell):
             # tracking error), then follow it and apply the step's gripper event.
             reply = self._follow(self._time_step(step, self.joint_positions()))
             err = float(reply["max_tracking_error"])
+            if step["gripper"] != "open" and self.active in (
+                lost := self._lost_holds(reply, step["name"])
+            ):
+                return StepLog(step["name"], err, lost[self.active])
         grasp = None
         if id(step) in self._gripped:  # sent ahead of the motion's end (the actions interface)
             held, text = self._gripped.pop(id(step))
@@ -1101,6 +1122,12 @@ def run_task(
             result["cloth_fastest_slide_mps"] = cell.fastest_slide
             if cell.guard_restored is not None:
                 result["crossing_guard_restored"] = int(cell.guard_restored)
+            if cfg.fault_grasp_offset > 0 or cfg.fault_slip > 0:  # as in process
+                result["faults"] = {
+                    "grasp_offset_m": cfg.fault_grasp_offset,
+                    "slip_fraction": cfg.fault_slip,
+                    "slipped": cell.fault_slipped,
+                }
             result["first_frame_keypoint_error_mm"] = first_frame_keypoint_errors(
                 cfg, seeded_garment(cfg)[1], initial, record.initial_state
             )

@@ -33,6 +33,15 @@ HOLD_SLACK = 0.03
 the jaws (an anchored point keeps its distance to the millimetre)."""
 
 
+def slip_reason(motion: str, held: int) -> str:
+    """The gripper's report of a grasp that let go of its cloth in `motion` (its name), having
+    held `held` vertices: the failed grasp the loops see (a cell over ROS words it so too)."""
+    return (
+        f"the cloth slipped from the jaws in the {motion} ({held} vertices were held; the "
+        "gripper holds none of them now)"
+    )
+
+
 class ClothGrasp:
     """Close/open the gripper of `robot` on `cloth`, anchoring what lies between the jaws."""
 
@@ -88,6 +97,14 @@ class ClothGrasp:
         if not self._anchors:
             return False
         return bool(np.all(self._held_distances() <= self._grasped_at + HOLD_SLACK))
+
+    def lost_hold(self, held_before: tuple[int, ...], motion: str) -> str | None:
+        """Why a grasp that held `held_before` as a motion began, and was not opened by it, no
+        longer holds what it grasped (holds_what_it_grasped) after `motion`: the gripper's report
+        of a slip; None while it holds, or where it held nothing."""
+        if not held_before or self.holds_what_it_grasped():
+            return None
+        return slip_reason(motion, len(held_before))
 
     def slip(self) -> tuple[int, ...]:
         """Every anchor released with the fingers left closed: as a fault injected, a grasp that
@@ -179,3 +196,34 @@ class ClothGrasp:
         self.slip()  # let go of the cloth, then open
         self.robot.set_gripper_opening(self.robot.max_opening if width is None else width)
         self.world.step(max(1, round(settle_time / self.world.time_step)))
+
+
+class SlipFault:
+    """A fault injected to watch the loop recover (EpisodeConfig.fault_slip): the first carry
+    that holds cloth lets it go `fraction` of the way from its start toward its end, in the
+    table's plane, the jaws left closed (ClothGrasp.slip); once per episode."""
+
+    def __init__(self, fraction: float = 0.0) -> None:
+        require(0.0 <= fraction < 1.0, f"slip fraction must be in [0, 1), got {fraction!r}")
+        self.fraction = fraction
+        self.slipped = False
+        """Whether the slip has happened."""
+
+    def hook(self, grasp: ClothGrasp, start_xy: np.ndarray, end_xy: np.ndarray):
+        """A step hook for a carry by `grasp`'s arm from `start_xy` to `end_xy` (m): it slips
+        once the TCP has come `fraction` of the way; None when no slip is due (none injected,
+        already slipped, or the gripper holds nothing)."""
+        if self.fraction <= 0.0 or self.slipped or not grasp.holding:
+            return None
+        start = np.asarray(start_xy, dtype=float)[:2]
+        way = np.asarray(end_xy, dtype=float)[:2] - start
+        span = max(float(way @ way), 1e-12)
+
+        def slip_once(_world) -> None:
+            if not self.slipped and (grasp.robot.tcp_pose()[0][:2] - start) @ way / span >= (
+                self.fraction
+            ):
+                self.slipped = True
+                grasp.slip()
+
+        return slip_once
