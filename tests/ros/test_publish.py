@@ -101,7 +101,10 @@ GATE = textwrap.dedent(
     from foldbot.ros.publish import wait_for_listed_subscribers
 
     rospy.init_node("gate", disable_signals=True)
-    pub = rospy.Publisher("request", String, queue_size=1, latch=True)
+    # Room for both reports below: published back to back, with a queue of one rospy drops the
+    # first when the second comes before its writer thread has sent it (seen once in CI, on a
+    # loaded machine). The sim node reports once per command sent to it, a round trip apart.
+    pub = rospy.Publisher("request", String, queue_size=2, latch=True)
     print("missing", wait_for_listed_subscribers([pub], "reporting", timeout_s=60.0), flush=True)
     # The first report reaches the listener, though the next replaces it as the latched one at
     # once (as the sim node's ready report is replaced by its first command's).
