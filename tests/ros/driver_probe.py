@@ -7,26 +7,27 @@ import time
 
 import numpy as np
 import rospy
-from actionlib import SimpleActionClient
 from actionlib_msgs.msg import GoalStatus
 from probe_cell import CellListener
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from foldbot.ros import TOPICS
 from foldbot.ros.control_msgs import msg
+from foldbot.ros.goal_client import GoalClient
 from foldbot.sim.robots import robot_class
 
 rospy.init_node("driver_probe")
 cell = CellListener()
 joints, history = cell.joints, cell.history
-arm = SimpleActionClient(TOPICS["trajectory_action"], msg.FollowJointTrajectoryAction)
-gripper = SimpleActionClient(TOPICS["gripper_action"], msg.GripperCommandAction)
+arm = GoalClient(TOPICS["trajectory_action"], msg.FollowJointTrajectoryAction)
+gripper = GoalClient(TOPICS["gripper_action"], msg.GripperCommandAction)
 deadline = time.monotonic() + 240
 while not (
     arm.wait_for_server(rospy.Duration(0.2)) and gripper.wait_for_server(rospy.Duration(0.2))
 ):
     assert time.monotonic() < deadline, "no action servers"
 while not joints:
+    assert time.monotonic() < deadline, "no /joint_states"
     time.sleep(0.05)
 names = list(robot_class("ur5").ARM_JOINT_NAMES)
 out: dict = {}
@@ -38,7 +39,7 @@ def follow(joint_names, points, **goal_fields):
         trajectory=JointTrajectory(joint_names=joint_names, points=points), **goal_fields
     )
     arm.send_goal(goal, feedback_cb=feedback.append)
-    arm.wait_for_result()
+    arm.wait_done("the trajectory goal", 120)
     result = arm.get_result()
     return arm.get_state(), result.error_code, result.error_string, len(feedback)
 
@@ -79,7 +80,7 @@ for name, position in (("close", 0.0), ("part", 0.06), ("open", 0.085), ("bad", 
     goal = msg.GripperCommandGoal()
     goal.command.position = position
     gripper.send_goal(goal)
-    gripper.wait_for_result()
+    gripper.wait_done(f"the gripper goal {name!r}", 60)
     r = gripper.get_result()
     out[name] = [gripper.get_state(), r.stalled, r.reached_goal, gripper.get_goal_status_text()]
     if name != "bad":
@@ -99,7 +100,8 @@ sent = cell.clock
 close = msg.GripperCommandGoal()
 close.command.position = 0.0
 gripper.send_goal(close)
-assert arm.wait_for_result(rospy.Duration(60)) and gripper.wait_for_result(rospy.Duration(60))
+arm.wait_done("the trajectory goal ahead of the gripper's", 60)
+gripper.wait_done("the gripper goal sent while the arm moved", 60)
 time.sleep(0.3)
 after = [(t, h) for t, h in history if t >= sent]
 f0 = np.array([after[0][1][n] for n in fingers])

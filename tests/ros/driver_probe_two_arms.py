@@ -7,7 +7,6 @@ import time
 
 import numpy as np
 import rospy
-from actionlib import SimpleActionClient
 from actionlib_msgs.msg import GoalStatus
 from probe_cell import CellListener
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
@@ -15,6 +14,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from foldbot.ros import arm_joint_names, driver_actions
 from foldbot.ros.control_msgs import msg
 from foldbot.ros.drivers import OPEN_GAP_M
+from foldbot.ros.goal_client import GoalClient
 from foldbot.sim.robots import robot_class
 
 rospy.init_node("driver_probe_two_arms")
@@ -22,13 +22,14 @@ cell = CellListener()
 joints, history = cell.joints, cell.history
 names = arm_joint_names(robot_class("ur5").ARM_JOINT_NAMES, 2)
 fingers = arm_joint_names(robot_class("ur5").FINGER_JOINT_NAMES, 2)
-arms = [SimpleActionClient(a, msg.FollowJointTrajectoryAction) for a, _ in driver_actions(2)]
-grippers = [SimpleActionClient(g, msg.GripperCommandAction) for _, g in driver_actions(2)]
+arms = [GoalClient(a, msg.FollowJointTrajectoryAction) for a, _ in driver_actions(2)]
+grippers = [GoalClient(g, msg.GripperCommandAction) for _, g in driver_actions(2)]
 deadline = time.monotonic() + 240
 for client in (*arms, *grippers):
     while not client.wait_for_server(rospy.Duration(0.2)):
         assert time.monotonic() < deadline, "no action servers"
 while not all(n in joints for n in names[0] + names[1]) or cell.clock <= 0.0:
+    assert time.monotonic() < deadline, "no /joint_states naming both arms, or no /clock"
     time.sleep(0.05)
 out: dict = {"actions": driver_actions(2)}
 
@@ -45,7 +46,7 @@ def goal(joint_names, points, stamp=0.0):
 
 # The left arm's driver sent the right arm's joints: refused, nothing moves.
 arms[0].send_goal(goal(names[1], [point([joints[n] for n in names[1]], 1.0)]))
-arms[0].wait_for_result()
+arms[0].wait_done("the left arm's goal of the right arm's joints", 60)
 r = arms[0].get_result()
 out["crossed"] = [arms[0].get_state(), r.error_code, r.error_string]
 # Both arms, one goal each, stamped to start together 0.5 s from now: each turns its base.
@@ -55,8 +56,8 @@ turn = np.array([0.15, 0.0, 0.0, 0.0, 0.0, 0.0])
 for client, arm_names, q in zip(arms, names, q0, strict=True):
     client.send_goal(goal(arm_names, [point(q + turn, 1.0)], start))
     time.sleep(0.1)  # the second goal leaves later, and still starts with the first
-for client in arms:
-    assert client.wait_for_result(rospy.Duration(120))
+for side, client in zip(("left", "right"), arms, strict=True):
+    client.wait_done(f"the {side} arm's goal", 120)
 time.sleep(0.3)
 out["together"] = [[c.get_state(), c.get_result().error_code] for c in arms]
 out["start"] = start
@@ -71,7 +72,7 @@ f0 = {n: joints[n] for n in fingers[0] + fingers[1]}
 close = msg.GripperCommandGoal()
 close.command.position = 0.0
 grippers[0].send_goal(close)
-grippers[0].wait_for_result()
+grippers[0].wait_done("the left gripper's close", 60)
 time.sleep(0.3)
 out["left_close"] = [grippers[0].get_state(), grippers[0].get_result().reached_goal]
 out["fingers_moved"] = [max(abs(joints[n] - f0[n]) for n in arm_fingers) for arm_fingers in fingers]
@@ -81,8 +82,8 @@ opening = msg.GripperCommandGoal()
 opening.command.position = OPEN_GAP_M
 grippers[1].send_goal(close)
 grippers[0].send_goal(opening)
-for client in grippers:
-    assert client.wait_for_result(rospy.Duration(60))
+for side, client in zip(("left", "right"), grippers, strict=True):
+    client.wait_done(f"the {side} gripper's goal of the pair", 60)
 time.sleep(0.3)
 out["both"] = [client.get_state() for client in grippers]
 out["both_moved"] = [max(abs(joints[n] - f1[n]) for n in arm_fingers) for arm_fingers in fingers]

@@ -1,10 +1,13 @@
 """ROS 1 availability for the tests under tests/ros (they skip, with the reason, without it)."""
 
+import contextlib
 import os
 import signal
 import socket
 import subprocess
 import sys
+import time
+from collections.abc import Iterator
 
 import pytest
 
@@ -23,10 +26,31 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
+@contextlib.contextmanager
+def private_master() -> Iterator[dict[str, str]]:
+    """A private roscore on a free port, up until the block ends; the environment that reaches
+    it."""
+    import rosgraph
+
+    port = free_port()
+    uri = f"http://localhost:{port}"
+    env = {**os.environ, "ROS_MASTER_URI": uri, "ROS_HOSTNAME": "localhost"}
+    core = subprocess.Popen(
+        ["roscore", "-p", str(port)], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
+    try:
+        deadline = time.monotonic() + 60
+        while not rosgraph.is_master_online(uri):
+            assert time.monotonic() < deadline, f"roscore did not come up on port {port}"
+            time.sleep(0.2)
+        yield env
+    finally:
+        core.terminate()
+        core.wait(timeout=30)
+
+
 def wait_for_master(port: int, timeout_s: float = 60.0) -> None:
     """Wait until the ROS master on `port` answers (a cell started in the background)."""
-    import time
-
     import rosgraph
 
     master = rosgraph.Master("/test_wait", master_uri=f"http://localhost:{port}")
@@ -90,9 +114,20 @@ def probe_drivers(tmp_path, probe: str, fold_args: str = "") -> dict:
             [sys.executable, str(Path(__file__).with_name(probe))],
             env=env, capture_output=True, text=True, timeout=300, check=False,
         )  # fmt: skip
+        stdout, stderr = run.stdout, run.stderr
+    except subprocess.TimeoutExpired as exc:  # what the probe and the cell said, to see why
+        stdout = f"{probe} ran past {exc.timeout} s\n" + _text(exc.stdout)
+        stderr = _text(exc.stderr)
     finally:
         os.killpg(sim.pid, signal.SIGINT)
         log = sim.communicate(timeout=60)[0]
-    lines = [ln for ln in run.stdout.splitlines() if ln.startswith("PROBE ")]
-    assert lines, run.stdout[-2000:] + run.stderr[-3000:] + log[-3000:]
+    lines = [ln for ln in stdout.splitlines() if ln.startswith("PROBE ")]
+    assert lines, stdout[-2000:] + stderr[-3000:] + log[-3000:]
     return json.loads(lines[0][len("PROBE ") :])
+
+
+def _text(output: bytes | str | None) -> str:
+    """A timed-out subprocess's captured output as text (TimeoutExpired holds bytes)."""
+    if isinstance(output, bytes):
+        return output.decode(errors="replace")
+    return output or ""

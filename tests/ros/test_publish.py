@@ -2,14 +2,13 @@
 still reaches it (a plain publish is dropped), and no subscriber at all is an error naming the
 topic."""
 
-import os
 import subprocess
 import sys
 import textwrap
 import time
 
 import pytest
-from ros_helpers import free_port, requires_ros
+from ros_helpers import private_master, requires_ros
 
 pytestmark = requires_ros
 
@@ -51,23 +50,8 @@ LISTENER = textwrap.dedent(
 @pytest.fixture()
 def master():
     """A private roscore; yields the environment that reaches it."""
-    import rosgraph
-
-    port = free_port()
-    uri = f"http://localhost:{port}"
-    env = {**os.environ, "ROS_MASTER_URI": uri, "ROS_HOSTNAME": "localhost"}
-    core = subprocess.Popen(
-        ["roscore", "-p", str(port)], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
-    )
-    try:
-        deadline = time.monotonic() + 60
-        while not rosgraph.is_master_online(uri):
-            assert time.monotonic() < deadline, f"roscore did not come up on port {port}"
-            time.sleep(0.2)
+    with private_master() as env:
         yield env
-    finally:
-        core.terminate()
-        core.wait(timeout=30)
 
 
 def python(code: str, *args: str, env: dict) -> subprocess.Popen:

@@ -29,6 +29,7 @@ from foldbot.control.trajectory import commands_at_steps, thin_samples
 from foldbot.errors import FoldbotError
 from foldbot.ros import TOPICS, convert, driver_actions
 from foldbot.ros.control_msgs import msg as control_msgs
+from foldbot.ros.goal_client import GoalClient
 
 DRIVER_PERIOD_S = 0.02
 """Least spacing of a trajectory goal's points (about 45 Hz at the 1/360 s step): the planner's
@@ -413,10 +414,8 @@ class ActionArm:
         self.joints: np.ndarray | None = None
         self.joints_stamp = -1.0
         self._lock = threading.Lock()
-        self.trajectory = actionlib.SimpleActionClient(
-            actions[0], control_msgs.FollowJointTrajectoryAction
-        )
-        self.gripper = actionlib.SimpleActionClient(actions[1], control_msgs.GripperCommandAction)
+        self.trajectory = GoalClient(actions[0], control_msgs.FollowJointTrajectoryAction)
+        self.gripper = GoalClient(actions[1], control_msgs.GripperCommandAction)
         self._served = False
         """Whether both servers have been found (from then on, one that goes away is an error)."""
         rospy.Subscriber(TOPICS["joint_states"], JointState, self._on_joints, queue_size=10)
@@ -478,13 +477,13 @@ class ActionArm:
         self._served = True
 
     def _wait(
-        self, client: actionlib.SimpleActionClient, what: str, timeout_s: float,
+        self, client: GoalClient, what: str, timeout_s: float,
         meanwhile: Callable[[], None] | None = None,
     ) -> None:  # fmt: skip
         deadline = time.monotonic() + timeout_s
         # Done once the result has come (the goal's status may say SUCCEEDED before it), timed
         # on the wall clock: a cell that stops also stops its clock.
-        while client.simple_state != actionlib.SimpleGoalState.DONE:
+        while not client.done:
             self.failure()
             self.check_servers()
             if meanwhile is not None:
@@ -538,8 +537,7 @@ class ActionArm:
         def grip_when_due() -> None:
             due = float(times[-1]) - lead_s
             if not gripping[0] and (
-                (following.stamps and following.stamps[-1] >= due)
-                or self.trajectory.simple_state == actionlib.SimpleGoalState.DONE
+                (following.stamps and following.stamps[-1] >= due) or self.trajectory.done
             ):
                 self.gripper.send_goal(_gripper_goal(bool(then_grip)))
                 gripping[0] = True
