@@ -37,11 +37,11 @@ ros-demo: install install-ros
 	$(VENV)/bin/foldbot ros-fold --garment towel --out $(OUT)-ros --record $(OUT)-ros.bag --overwrite
 
 ## test: install the test dependencies and ROS 1, lint, and run the whole suite (one pytest
-## worker per core; a module's tests stay on one worker, in order)
+## worker per core; a module's tests stay on one worker, in order; the 20 slowest named at the end)
 test: install-test install-ros
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
-	$(PY) -m pytest -q -n auto --dist loadscope
+	$(PY) -m pytest -q -n auto --dist loadscope --durations=20
 
 lint: install-test
 	$(VENV)/bin/ruff check . && $(VENV)/bin/ruff format --check .

@@ -275,14 +275,25 @@ def test_a_miss_and_a_slip_are_seen_and_recovered_over_topics(tmp_path):
     first grasp 6 cm off the cloth, and the retried grasp lets its cloth go a third of the way
     through the carry. The gripper reports the miss, the motion's reply the lost hold; the loop
     retries, lays the corner back where it was grasped, plans the stage again from a fresh view
-    and folds, as `foldbot fold` does with the same options (the same attempts, 4.9 mm)."""
-    out = tmp_path / "episode"
+    and folds, as `foldbot fold` does with the same options (the same attempts, 4.9 mm). The
+    recording holds the lost hold on gripper/grasp, between the grasps."""
+    from rosbags.highlevel import AnyReader
+
+    out, bag = tmp_path / "episode", tmp_path / "run.bag"
     proc = foldbot(
         "ros-fold", "--recipe", "diagonal", "--width", "0.24", "--height", "0.24",
         "--resolution", "10", "--fault-grasp-offset", "0.06", "--fault-slip", "0.3",
-        "--video-fps", "0", "--out", str(out), "--port", str(free_port()),
+        "--video-fps", "0", "--out", str(out), "--port", str(free_port()), "--record", str(bag),
     )  # fmt: skip
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    with AnyReader([bag]) as reader:
+        conns = [c for c in reader.connections if c.topic == "/gripper/grasp"]
+        grips = [json.loads(reader.deserialize(raw, c.msgtype).data)
+                 for c, _t, raw in reader.messages(connections=conns)]  # fmt: skip
+    # The miss, the grasp that held, its loss in the carry, the lay-back's, the stage's again.
+    assert [g["success"] for g in grips[:3]] == [False, True, False]
+    assert grips[2]["lost_hold"] is True and "slipped from the jaws" in grips[2]["reason"]
+    assert all(g["success"] for g in grips[3:]) and len(grips) >= 5
     result = json.loads((out / "result.json").read_text())
     assert result["transport"] == "ros"
     assert result["faults"] == {"grasp_offset_m": 0.06, "slip_fraction": 0.3, "slipped": True}

@@ -191,7 +191,8 @@ class SimNode:
             "depth": rospy.Publisher(TOPICS["depth"], Image, **frames),
             "depth_info": rospy.Publisher(TOPICS["depth_info"], CameraInfo, **frames),
             "grasp": rospy.Publisher(TOPICS["grasp"], String, queue_size=10),
-            "result": rospy.Publisher(TOPICS["cell_result"], String, **latch),
+            # Reports can leave back to back (a reply, then a divergence's): each is queued.
+            "result": rospy.Publisher(TOPICS["cell_result"], String, queue_size=10, latch=True),
             "truth": rospy.Publisher(TOPICS["ground_truth"], PointCloud2, **latch),
             "mesh": rospy.Publisher(TOPICS["ground_truth_mesh"], String, **latch),
         }
@@ -370,11 +371,20 @@ class SimNode:
         # A gripper that held cloth as the motion began and no longer holds what it grasped
         # (no command opened it: that is a gripper command) reports the lost hold, as the
         # in-process cell does (SimCell._run_checked): each such arm and how much it held.
-        slipped = [
-            {"arm": arm, "vertices_held": len(h)}
-            for (ex, _cols), arm, h in zip(moved, arms, held, strict=True)
-            if ex.grasp.lost_hold(h, "motion") is not None
-        ]
+        slipped = []
+        for (ex, _cols), arm, h in zip(moved, arms, held, strict=True):
+            lost = ex.grasp.lost_hold(h, "motion")
+            if lost is None:
+                continue
+            slipped.append({"arm": arm, "vertices_held": len(h)})
+            # On gripper/grasp too, as a gripper's object detection reports a dropped object
+            # (a recording holds it beside the grasps).
+            self.pub["grasp"].publish(
+                convert.string_msg(
+                    {"success": False, "vertex_ids": [], "reason": lost, "arm": arm,
+                     "lost_hold": True}
+                )
+            )  # fmt: skip
         return {
             "duration": float(times[-1]),
             "max_tracking_error": max(max_err),
