@@ -12,7 +12,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 from calibration_files import write_calibration
-from ros_helpers import free_port, requires_ros, start_cell, stop_cell, wait_for_master
+from ros_helpers import (
+    free_port,
+    private_master,
+    requires_ros,
+    start_cell,
+    stop_cell,
+    wait_for_master,
+)
 
 from foldbot.garments import GARMENT_KEYPOINTS
 from foldbot.io.episode import REQUIRED_RESULT_KEYS, rescore
@@ -194,37 +201,28 @@ def test_exported_bag_plays_back_in_ros(ros_run, tmp_path):
         ["rosbag", "info", str(exported)], capture_output=True, text=True, check=True
     )
     assert "/camera/color/image_raw" in info.stdout and "/task/result" in info.stdout
-    port = free_port()
-    env = {**os.environ, "ROS_MASTER_URI": f"http://localhost:{port}", "ROS_HOSTNAME": "localhost"}
-    core = subprocess.Popen(
-        ["roscore", "-p", str(port)], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
-    )
-    try:
+    with private_master() as env:
         echo = None
-        for _ in range(100):
-            probe = subprocess.run(["rostopic", "list"], env=env, capture_output=True, check=False)
-            if probe.returncode == 0:
-                break
-            time.sleep(0.3)
-        # A subscriber that knows the type (rostopic echo would subscribe only once the topic
-        # is advertised, racing the short playback): the bag plays once it is registered.
-        echo = subprocess.Popen(
-            [sys.executable, "-c", ECHO_ONE], env=env, stdout=subprocess.PIPE, text=True
-        )
-        master = rosgraph.Master("/test_export", master_uri=env["ROS_MASTER_URI"])
-        deadline = time.monotonic() + 60
-        while not any(t == "/task/result" for t, _ in master.getSystemState()[1]):
-            assert time.monotonic() < deadline, "the listener did not subscribe to /task/result"
-            time.sleep(0.2)
-        subprocess.run(
-            ["rosbag", "play", "-q", "-r", "20", str(exported)], env=env, check=True, timeout=120
-        )
-        text, _ = echo.communicate(timeout=60)
-    finally:
-        if echo is not None and echo.poll() is None:
-            echo.kill()
-        core.terminate()
-        core.wait(timeout=30)
+        try:
+            # A subscriber that knows the type (rostopic echo would subscribe only once the
+            # topic is advertised, racing the short playback): the bag plays once it is
+            # registered.
+            echo = subprocess.Popen(
+                [sys.executable, "-c", ECHO_ONE], env=env, stdout=subprocess.PIPE, text=True
+            )
+            master = rosgraph.Master("/test_export", master_uri=env["ROS_MASTER_URI"])
+            deadline = time.monotonic() + 60
+            while not any(t == "/task/result" for t, _ in master.getSystemState()[1]):
+                assert time.monotonic() < deadline, "the listener did not subscribe to /task/result"
+                time.sleep(0.2)
+            subprocess.run(
+                ["rosbag", "play", "-q", "-r", "20", str(exported)], env=env, check=True,
+                timeout=120,
+            )  # fmt: skip
+            text, _ = echo.communicate(timeout=60)
+        finally:
+            if echo is not None and echo.poll() is None:
+                echo.kill()
     assert "fold_error_mm" in text
 
 
