@@ -39,9 +39,10 @@ PROBE = textwrap.dedent(
         return server
 
 
-    def widened(client, until):
+    def widened(client, until, then_s=0.0):
         # The window between a goal leaving and its handle being recorded, held open until
-        # `until(its state machine)` (as on a loaded machine, where the sender is descheduled).
+        # `until(its state machine)`, then `then_s` more (as on a loaded machine, where the
+        # sender is descheduled).
         send = client.action_client.send_goal
 
         def send_and_wait(*args, **kwargs):
@@ -50,29 +51,40 @@ PROBE = textwrap.dedent(
             while not until(gh.comm_state_machine):
                 assert time.monotonic() < deadline, "the server never answered"
                 time.sleep(0.01)
+            time.sleep(then_s)
             return gh
 
         client.action_client.send_goal = send_and_wait
         return client
 
 
-    def answered(csm):
-        # The result has come back (and its transitions have been called).
-        return csm.latest_result is not None
+    def dropped(client):
+        # Until the goal's DONE transition has been handled (by actionlib's client: dropped,
+        # its handle not yet recorded). The result alone is not enough: its transitions run
+        # after it is stored, and a handle recorded meanwhile would take the later ones.
+        handled = []
+        handle = client._handle_transition
+
+        def recording(gh):
+            handle(gh)
+            handled.append((gh.comm_state_machine, gh.get_comm_state()))
+
+        client._handle_transition = recording
+        return lambda csm: any(c is csm and s == CommState.DONE for c, s in handled)
 
 
     def heard(csm):
         # The server's first answer has come back and its transition callback is called (a
-        # GoalClient's waits there until the handle is recorded: its result can come later).
+        # GoalClient's waits there until the handle is recorded; the window is then held open
+        # half a second more, for the rest of the answer to come).
         return csm.state != CommState.WAITING_FOR_GOAL_ACK
 
 
     servers = [serve("stock"), serve("tracked")]
+    stock = actionlib.SimpleActionClient("stock", msg.GripperCommandAction)
     clients = {
-        "stock": widened(
-            actionlib.SimpleActionClient("stock", msg.GripperCommandAction), answered
-        ),
-        "tracked": widened(GoalClient("tracked", msg.GripperCommandAction), heard),
+        "stock": widened(stock, dropped(stock)),
+        "tracked": widened(GoalClient("tracked", msg.GripperCommandAction), heard, 0.5),
     }
     out = {}
     for name, client in clients.items():
