@@ -107,12 +107,12 @@ from foldbot.commands.ros_fold import add_arguments, fold_args_text
         (["ros-cell", "--real-time-factor", "-1"], "--real-time-factor must be > 0, got -1.0"),
         (["ros-cell", "--port", "0"], "--port must be in 1–65535, got 0"),
         (
-            ["ros-fold", "--out", "{tmp}/e", "--fault-slip", "0.3", "--arm-interface", "actions"],
-            "--fault-slip: faults are the simulated cell's, injected on the lockstep cell",
+            ["ros-fold", "--out", "{tmp}/e", "--cell", "real", "--fault-slip", "0.3"],
+            "--fault-slip: faults are the simulated cell's, injected on the cell ros-fold starts",
         ),
         (
             ["ros-fold", "--out", "{tmp}/e", "--cell", "real", "--fault-grasp-offset", "0.05"],
-            "got --cell real --arm-interface actions",
+            "(--cell sim, through either arm interface); got --cell real",
         ),
         (["ros-fold", "--out", "{tmp}/e", "--fault-slip", "1.5"], "fault_slip must be in [0, 1)"),
         (

@@ -46,7 +46,9 @@ def test_grasp_lifts_corner_far_edge_stays_down_and_release(cell):
 def test_a_slipped_grasp_drops_the_cloth_and_the_gripper_can_tell(cell):
     """slip() (fault injection) lets the lifted corner fall out of the closed jaws; the hold
     the gripper reports (holds_what_it_grasped) is there while the corner rises with the jaws
-    and gone once it has slipped."""
+    and gone once it has slipped. The jaws' gap, as a real gripper's encoder reads it, is the
+    cloth's thickness while they hold it and closes once it has slipped (a cell over ROS sees
+    the slip so, on /joint_states)."""
     world, robot, cloth = cell
     grasp = ClothGrasp(world, robot, cloth)
     table = world.layout.table_height
@@ -55,10 +57,18 @@ def test_a_slipped_grasp_drops_the_cloth_and_the_gripper_can_tell(cell):
     _move(world, robot, corner + [0, 0, 0.06])
     _move(world, robot, corner + [0, 0, 0.004], 0.5)
     assert not grasp.holds_what_it_grasped()  # nothing grasped yet
+    assert np.array_equal(grasp.reported_fingers(), robot.finger_positions())
     held = grasp.close().vertex_ids
     _move(world, robot, corner + [0, 0, 0.12])
     assert grasp.holds_what_it_grasped()
+    assert robot.gripper_opening() < 0.003 < cloth.thickness  # the simulated pads pass through
+    assert grasp.jaw_gap() == cloth.thickness
+    stopped = robot.finger_target(cloth.thickness)
+    assert stopped > 0.003 and np.allclose(grasp.reported_fingers(), stopped)
     assert grasp.slip() == held and not grasp.holding and grasp.held == ()
+    assert grasp.jaw_gap() == robot.gripper_opening()
+    assert np.array_equal(grasp.reported_fingers(), robot.finger_positions())
+    assert grasp.reported_fingers().max() < stopped - 0.002  # closed on by over the watch's 2 mm
     world.step(round(0.8 / world.time_step))
     assert not grasp.holds_what_it_grasped()
     assert cloth.sim_vertices()[corner_id, 2] - table < 0.03, "the slipped corner fell"

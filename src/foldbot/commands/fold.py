@@ -182,7 +182,8 @@ def add_fault_options(parser: argparse.ArgumentParser) -> None:
         "the lost hold, the arm lets go, and the loop lays the corner back and plans the stage "
         "again (--loop-option slip_lay_back=false: re-observes and grasps again). Late in "
         "the carry the cloth falls from its highest and can sink through the table, which is "
-        "reported as a divergence. Over ROS (`ros-fold`), the sim node's cell slips",
+        "reported as a divergence. Over ROS (`ros-fold`), the sim node's cell slips (through "
+        "the drivers' actions the task node sees it on /joint_states, the fingers closing on)",
     )
     parser.add_argument(
         "--fault-grasp-offset",

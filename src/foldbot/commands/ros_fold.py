@@ -374,11 +374,10 @@ def run(args: argparse.Namespace) -> int:
     if real:
         check_real_cell(args, cfg, interface)
     faulty = [f"--{n.replace('_', '-')}" for n in fold.SUITE_FAULTS if getattr(cfg, n) > 0]
-    if faulty and interface != "topics":
+    if faulty and real:
         raise ConfigError(
-            f"{' and '.join(faulty)}: faults are the simulated cell's, injected on the lockstep "
-            "cell the topics interface drives (--cell sim --arm-interface topics, the default); "
-            f"got --cell {args.cell} --arm-interface {interface}"
+            f"{' and '.join(faulty)}: faults are the simulated cell's, injected on the cell "
+            "ros-fold starts (--cell sim, through either arm interface); got --cell real"
         )
     check_real_time_factor(args.real_time_factor)
     check_port(args.port)

@@ -48,6 +48,10 @@ the gap asked for, at most their largest."""
 OPEN_GAP_M = 0.085
 """The gap the task node commands to open the jaws (a Robotiq 2F-85's full stroke); a driver
 clamps it to its own gripper's largest, as the sim node does."""
+SLIP_FINGER_TRAVEL = 0.002
+"""How far a finger joint may move (in its own units: m for the simulated gripper's prismatic
+fingers), with no gripper goal sent since the jaws stalled on cloth, before the hold counts as
+lost: a gripper under position control closes on once what it held has slipped out."""
 _STATUS_NAMES = {v: k for k, v in vars(GoalStatus).items() if k.isupper() and isinstance(v, int)}
 
 
@@ -94,6 +98,7 @@ class _Motion:
         self.times, self.pos, self.vel, self.splined = times, pos, vel, splined
         self.path_tol, self.goal_tol, self.goal_time_s = path_tol, goal_tol, goal_time_s
         self.q_cmd = self.v_cmd = np.zeros((0, pos.shape[1]))
+        self.slip_hook = None  # the injected slip's step hook while this motion carries cloth
         self.k = -1  # −1: waiting for its start; then the next step's index
         self.check: set[int] = set()
         self.deadline = 0.0  # when settling must end (simulated s)
@@ -176,6 +181,9 @@ class SimDrivers:
                 )
                 handover.text = f"{type(exc).__name__}: {exc}"
                 handover.done.set()
+            for m in self.motions.values():
+                if m.slip_hook is not None:
+                    self.node.world.remove_step_hook(m.slip_hook)
             self.motions.clear()
             self.grips.clear()
             self.node.fail("driver goal", exc)
@@ -258,6 +266,8 @@ class SimDrivers:
             m.check = set(range(7, n, 8)) | ({n - 1} if n else set())
             m.pos = pos
             m.k = 0
+            ex = node.executors[arm]
+            m.slip_hook = node._slip_hook([(ex, slice(0, pos.shape[1]))], m.q_cmd)
             if n == 0:
                 self._settling(arm, m)
 
@@ -326,7 +336,10 @@ class SimDrivers:
             )
 
     def _end(self, arm: int, code: int, text: str) -> None:
-        handover = self.motions.pop(arm).handover
+        motion = self.motions.pop(arm)
+        if motion.slip_hook is not None:
+            self.node.world.remove_step_hook(motion.slip_hook)
+        handover = motion.handover
         handover.succeeded = code == control_msgs.FollowJointTrajectoryResult.SUCCESSFUL
         handover.result = control_msgs.FollowJointTrajectoryResult(
             error_code=code, error_string=text
@@ -342,7 +355,7 @@ class SimDrivers:
         position = handover.goal.command.position
         result = control_msgs.GripperCommandResult
         if not (np.isfinite(position) and position >= 0.0):
-            handover.result = result(position=robot.gripper_opening())
+            handover.result = result(position=grasp.jaw_gap())
             handover.text = f"command.position must be a gap ≥ 0 m, got {position!r}"
             return
         if position < CLOSE_BELOW * robot.max_opening:
@@ -360,14 +373,23 @@ class SimDrivers:
             # Jaws that stop on the cloth have stalled on it, as a real gripper reports a held
             # object; closed on nothing, they reach the commanded gap.
             handover.result = result(
-                position=robot.gripper_opening(), stalled=g.success, reached_goal=not g.success
+                position=grasp.jaw_gap(), stalled=g.success, reached_goal=not g.success
             )
             handover.text = g.reason
         else:
             # To the gap asked for, up to the jaws' largest (a driver clamps to its stroke).
             grasp.open(min(float(position), robot.max_opening))
-            handover.result = result(position=robot.gripper_opening(), reached_goal=True)
+            handover.result = result(position=grasp.jaw_gap(), reached_goal=True)
         handover.succeeded = True
+
+
+def slip_reason(motion: str, travel: float) -> str:
+    """The task node's word for a hold lost in `motion` (its name), seen on /joint_states as the
+    fingers moving `travel` after the jaws had stalled on the cloth."""
+    return (
+        f"the cloth slipped from the jaws in the {motion} (on /joint_states the fingers closed "
+        f"on by {travel:.4g}, in their joints' units, after they had stalled on it)"
+    )
 
 
 def _gripper_goal(close: bool):
@@ -404,28 +426,81 @@ class ActionArm:
         arm_joints: list[str],
         failure: Callable[[], None],
         actions: tuple[str, str] = (TOPICS["trajectory_action"], TOPICS["gripper_action"]),
+        finger_joints: list[str] | None = None,
+        slip_travel: float = SLIP_FINGER_TRAVEL,
     ) -> None:
         """`failure()` raises when the cell has reported an error (the sim node's divergence),
         so no wait outlasts a cell that has stopped. `actions`: the arm's FollowJointTrajectory
-        and GripperCommand action names (foldbot.ros.driver_actions)."""
+        and GripperCommand action names (foldbot.ros.driver_actions). `finger_joints`: the
+        gripper's joints on /joint_states, watched for a slip (watch_hold); none or absent
+        there, no slip is seen."""
         self.arm_joints = arm_joints
         self.failure = failure
         self.actions = actions
+        self.finger_joints = list(finger_joints or [])
+        self.slip_travel = slip_travel
         self.joints: np.ndarray | None = None
         self.joints_stamp = -1.0
+        self.fingers: np.ndarray | None = None
+        """The finger joints from the newest /joint_states that names them."""
+        self.holding = False
+        """Whether the last gripper goal closed the jaws and they stalled on something."""
+        self._hold_ref: np.ndarray | None = None
+        """The fingers where the jaws hold (watch_hold), while a slip is watched for."""
+        self.lost: tuple[float, float] | None = None
+        """(stamp, travel) of the /joint_states that showed the hold lost (take_lost)."""
         self._lock = threading.Lock()
         self.trajectory = GoalClient(actions[0], control_msgs.FollowJointTrajectoryAction)
         self.gripper = GoalClient(actions[1], control_msgs.GripperCommandAction)
+        self._closing = False
+        """Whether the last gripper goal sent closed the jaws."""
         self._served = False
         """Whether both servers have been found (from then on, one that goes away is an error)."""
         rospy.Subscriber(TOPICS["joint_states"], JointState, self._on_joints, queue_size=10)
 
     def _on_joints(self, msg: JointState) -> None:
         names = list(msg.name)
+        fingers = None
+        if self.finger_joints and all(n in names for n in self.finger_joints):
+            fingers = np.array([msg.position[names.index(n)] for n in self.finger_joints])
         if all(n in names for n in self.arm_joints):
             q = np.array([msg.position[names.index(n)] for n in self.arm_joints])
             with self._lock:
                 self.joints, self.joints_stamp = q, msg.header.stamp.to_sec()
+                if fingers is not None:
+                    self.fingers = fingers
+                    self._check_hold(fingers, self.joints_stamp)
+
+    def _check_hold(self, fingers: np.ndarray, stamp: float) -> None:
+        """A slip, where one is watched for: the fingers moved on from where the jaws held."""
+        if self._hold_ref is None or self.lost is not None:
+            return
+        travel = float(np.abs(fingers - self._hold_ref).max())
+        if travel > self.slip_travel:
+            self.lost = (stamp, travel)
+
+    def watch_hold(self, since: float, timeout_s: float) -> None:
+        """Where the jaws hold cloth (the last gripper goal closed them and they stalled on it)
+        and /joint_states names the fingers: take the fingers from the first /joint_states
+        stamped at or after `since` (s, the cell's clock) as where they hold, and from then on
+        watch for them moving on (a slip; take_lost). A gripper goal sent ends the watch."""
+        with self._lock:
+            self._hold_ref, self.lost = None, None
+        if not self.holding or not self.finger_joints:
+            return
+        self.joints_after(since, timeout_s)
+        with self._lock:
+            if self.fingers is not None:
+                self._hold_ref = self.fingers.copy()
+
+    def take_lost(self) -> tuple[float, float] | None:
+        """(stamp, travel) where the watched hold was seen lost, or None; ends the watch (the
+        jaws hold nothing after a slip)."""
+        with self._lock:
+            lost, self.lost, self._hold_ref = self.lost, None, None
+        if lost is not None:
+            self.holding = False
+        return lost
 
     def joint_positions(self) -> np.ndarray:
         """The arm's newest measured joints (/joint_states)."""
@@ -539,7 +614,7 @@ class ActionArm:
             if not gripping[0] and (
                 (following.stamps and following.stamps[-1] >= due) or self.trajectory.done
             ):
-                self.gripper.send_goal(_gripper_goal(bool(then_grip)))
+                self.send_grip(bool(then_grip))
                 gripping[0] = True
 
         try:
@@ -586,7 +661,11 @@ class ActionArm:
 
     def send_grip(self, close: bool) -> None:
         """Send the gripper goal that closes or opens the jaws, not waiting for it (grip_result
-        does): several arms' grippers then act at once."""
+        does): several arms' grippers then act at once. It ends any watch for a slip."""
+        with self._lock:
+            self._hold_ref = None
+        self.holding = False
+        self._closing = close
         self.gripper.send_goal(_gripper_goal(close))
 
     def grip_result(self, what: str, timeout_s: float) -> tuple[bool, str]:
@@ -599,4 +678,5 @@ class ActionArm:
             raise FoldbotError(
                 f"{what}: the gripper driver ended the goal: {self.gripper.get_goal_status_text()}"
             )
+        self.holding = bool(self._closing and result.stalled)
         return bool(result.stalled), self.gripper.get_goal_status_text()

@@ -121,14 +121,10 @@ class SimNode:
             raise FoldbotError(f"camera_rate must be ≥ 0 frames per s, got {camera_rate!r}")
         if camera_rate == 0 and arm_interface == "actions":
             raise FoldbotError("the actions interface needs a camera stream: camera_rate > 0")
-        if self.cfg.fault_slip > 0 and arm_interface != "topics":
-            raise FoldbotError(
-                "an injected slip (--fault-slip) is reported with the motion's reply, which only "
-                f"the topics interface has; got arm interface {arm_interface!r}"
-            )
         self.slip_fault = SlipFault(self.cfg.fault_slip)
         """The injected slip, if any (EpisodeConfig.fault_slip): on the first carry, as in
-        process."""
+        process. The topics interface reports it with the motion's reply; through the drivers'
+        actions only /joint_states tells it (the jaws close on, as a real gripper's do)."""
         self.arm_interface = arm_interface
         self.real_time_factor = real_time_factor
         self._pace_origin: tuple[float, float] | None = None
@@ -256,7 +252,7 @@ class SimNode:
         ):
             r = ex.robot
             names += [*arm_names, *finger_names]
-            q += [r.joint_positions(), r.finger_positions()]
+            q += [r.joint_positions(), ex.grasp.reported_fingers()]  # stopped on held cloth
             v += [r.joint_velocities(), np.zeros(len(finger_names))]
         self.pub["joints"].publish(
             convert.joint_state_msg(

@@ -140,13 +140,14 @@ class RosCell(FoldCell):
         arm_interface: str = "topics",
         joint_names: tuple[str, ...] = (),
         cell: str = "sim",
+        finger_names: tuple[str, ...] = (),
         gripper_lead: float | None = None,
         together_lead: float = TOGETHER_LEAD_S,
     ) -> None:
         """`arm_interface` "actions" drives the arm through its drivers' actions
         (foldbot.ros.drivers.ActionArm, one per arm: `joint_names` are an arm's, prefixed
         per arm as over topics) and reads where it left the cell from /joint_states and the
-        camera stream; "topics" through the sim node's commands and reports. `cell` "real" (actions only) neither publishes nor
+        camera stream, where the gripper's `finger_names` (prefixed likewise) show a slip; "topics" through the sim node's commands and reports. `cell` "real" (actions only) neither publishes nor
         subscribes to anything of the sim node's own (its reports, commands, clock, ground
         truth): the cell is whatever serves the drivers' actions and the camera."""
         if cell not in CELLS:
@@ -194,6 +195,8 @@ class RosCell(FoldCell):
         """Steps (by id) already moved through in a chain: their tracking error (m)."""
         self._gripped: dict[int, tuple[bool, str]] = {}
         """Steps (by id) whose gripper event went with their chain: (held, the driver's text)."""
+        self._lost: dict[int, GraspResult] = {}
+        """Steps (by id) of a chain in which the jaws were seen to lose their hold."""
         self.gripper_lead = gripper_lead
         """With the actions interface: how long (s) before a chain's end its gripper goal is
         sent (None: after the motion's result, a round trip later)."""
@@ -247,9 +250,12 @@ class RosCell(FoldCell):
             from foldbot.ros.drivers import ActionArm
 
             self.drivers = [
-                ActionArm(names, self.raise_reported_error, actions)
-                for names, actions in zip(
-                    arm_joint_names(joint_names, arms), driver_actions(arms), strict=True
+                ActionArm(names, self.raise_reported_error, actions, fingers)
+                for names, actions, fingers in zip(
+                    arm_joint_names(joint_names, arms),
+                    driver_actions(arms),
+                    arm_joint_names(finger_names, arms),
+                    strict=True,
                 )
             ]
 
@@ -625,7 +631,7 @@ class RosCell(FoldCell):
                 "steps"
             ]
         )
-        self._planned, self._ran, self._gripped = steps, {}, {}  # run in chains (actions)
+        self._planned, self._ran, self._gripped, self._lost = steps, {}, {}, {}  # in chains
         return steps
 
     def plan_together(
@@ -679,7 +685,9 @@ class RosCell(FoldCell):
         what it grasped), by arm: failed GraspResults, which the loops treat as the in-process
         cell's slips (carry.execute_action)."""
         return {
-            int(s["arm"]): GraspResult(False, (), slip_reason(motion, int(s["vertices_held"])))
+            int(s["arm"]): GraspResult(
+                False, (), s.get("reason") or slip_reason(motion, int(s["vertices_held"]))
+            )
             for s in reply.get("slipped", ())
         }
 
@@ -738,13 +746,20 @@ class RosCell(FoldCell):
         moved = self._driver_columns(names)
         if len(moved) == 1:
             arm = moved[0][0]
-            _times, errs, _ = self._follow_through_driver(traj, arm=arm)
+            _times, errs, _, lost = self._follow_through_driver(traj, arm=arm)
             err = float(errs.max(initial=0.0))
-            return {"max_tracking_error": err, "arms": [arm], "tracking_errors": [err]}
+            return {
+                "max_tracking_error": err,
+                "arms": [arm],
+                "tracking_errors": [err],
+                "slipped": self._slips({arm: lost}, traj["name"]),
+            }
         times = np.array(traj["times"])
         pos, vel = np.array(traj["positions"]), np.array(traj["velocities"])
         what = f"trajectory '{traj['name']}'"
         start = self._now() + self.together_lead
+        for arm, _cols in moved:
+            self.drivers[arm].watch_hold(self._now(), REPLY_TIMEOUT_S)
         sent = [
             (arm, self.drivers[arm].send(
                 [names[c] for c in cols], times, pos[:, cols], vel[:, cols], start))
@@ -759,6 +774,7 @@ class RosCell(FoldCell):
             for arm, _following in sent:  # the other arm stops too (a done goal ignores it)
                 self.drivers[arm].trajectory.cancel_goal()
             raise
+        lost = {arm: self.drivers[arm].take_lost() for arm, _cols in moved}
         tracking = [self._tracking(arm, desired, actual) for arm, (_t, desired, actual) in feedback]
         self._settle(start + float(times[-1]))
         errs = [float(e.max(initial=0.0)) for e in tracking]
@@ -766,7 +782,20 @@ class RosCell(FoldCell):
             "max_tracking_error": max(errs),
             "arms": [arm for arm, _ in moved],
             "tracking_errors": errs,
+            "slipped": self._slips(lost, traj["name"]),
         }
+
+    @staticmethod
+    def _slips(lost: dict[int, tuple[float, float] | None], motion: str) -> list[dict]:
+        """The holds the drivers' arms lost in a motion (ActionArm.take_lost), as the sim
+        node's motion reply words them (its "slipped"), each with the task node's reason."""
+        from foldbot.ros.drivers import slip_reason as jaws_slip_reason
+
+        return [
+            {"arm": arm, "vertices_held": 0, "reason": jaws_slip_reason(motion, seen[1])}
+            for arm, seen in lost.items()
+            if seen is not None
+        ]
 
     def _tracking(self, arm: int, desired: np.ndarray, actual: np.ndarray) -> np.ndarray:
         """TCP tracking error (m) per feedback sample, on the planner node's kinematic model."""
@@ -777,18 +806,22 @@ class RosCell(FoldCell):
 
     def _follow_through_driver(
         self, traj: dict, then_grip: bool | None = None, arm: int | None = None
-    ) -> tuple[np.ndarray, np.ndarray, tuple[bool, str] | None]:
+    ) -> tuple[np.ndarray, np.ndarray, tuple[bool, str] | None, tuple[float, float] | None]:
         """One FollowJointTrajectory goal to `arm`'s driver (the active arm's by default); the
         driver's feedback as (time from the start, TCP tracking error on the planner node's
-        kinematic model) per sample, and with `then_grip` (True: close, False: open) the
-        gripper's outcome, its goal sent `gripper_lead` s before the motion's end (None: after
-        the motion's result)."""
+        kinematic model) per sample, with `then_grip` (True: close, False: open) the gripper's
+        outcome, its goal sent `gripper_lead` s before the motion's end (None: after the
+        motion's result), and, where the jaws held cloth and let it go before that goal, (when
+        from the start, how far the fingers closed on) (ActionArm.take_lost)."""
         arm = self.active if arm is None else arm
+        driver = self.drivers[arm]
+        sent = self._now()
+        driver.watch_hold(sent, REPLY_TIMEOUT_S)
         # It ends no sooner than its duration after it was sent (the clock reaching this node
         # may lag the driver's result by a step or two: the arm is all but still then).
         ended = self._now() + float(traj["times"][-1])
         ahead = then_grip is not None and self.gripper_lead is not None
-        times, desired, actual, gripped = self.drivers[arm].follow(
+        times, desired, actual, gripped = driver.follow(
             traj["joint_names"],
             np.array(traj["times"]),
             np.array(traj["positions"]),
@@ -798,9 +831,10 @@ class RosCell(FoldCell):
             then_grip if ahead else None,
             self.gripper_lead or 0.0,
         )
+        lost = driver.take_lost()
         errs = self._tracking(arm, desired, actual)
         self._settle(ended)
-        return times, errs, gripped
+        return times, errs, gripped, None if lost is None else (lost[0] - sent, lost[1])
 
     def _time_step(self, step: dict, start: np.ndarray) -> dict:
         """A planned step's trajectory from joints `start` (the planner node's ruckig)."""
@@ -839,7 +873,7 @@ class RosCell(FoldCell):
             vel += traj["velocities"][1:]
             ends.append(times[-1])
         event = chain[-1]["gripper"]
-        fb_times, errs, gripped = self._follow_through_driver(
+        fb_times, errs, gripped, lost = self._follow_through_driver(
             {
                 "name": " + ".join(t["name"] for t in trajs),
                 "joint_names": trajs[0]["joint_names"],
@@ -855,6 +889,14 @@ class RosCell(FoldCell):
         for s, end in zip(chain, ends, strict=True):
             mine = errs[(fb_times > start - 1e-9) & (fb_times <= end + 1e-9)]
             self._ran[id(s)] = float(mine.max(initial=0.0))
+            if lost is not None and (lost[0] <= end or s is chain[-1]):
+                # The hold was lost in this step (seen on /joint_states): the later steps of
+                # the chain moved empty jaws; the loop lets go and lifts from where they ended.
+                from foldbot.ros.drivers import slip_reason as jaws_slip_reason
+
+                reason = jaws_slip_reason(s["name"], lost[1])
+                self._lost[id(s)] = GraspResult(False, (), reason)
+                lost = None
             start = end
 
     def run_step(self, step: dict) -> StepLog:
@@ -862,6 +904,8 @@ class RosCell(FoldCell):
             if id(step) not in self._ran:
                 self._run_chain(step)
             err = self._ran.pop(id(step))
+            if (lost := self._lost.pop(id(step), None)) is not None and step["gripper"] != "open":
+                return StepLog(step["name"], err, lost)
         else:
             # Time the planned joint path from where the arm really is (it may be off by the
             # tracking error), then follow it and apply the step's gripper event.
@@ -1012,6 +1056,7 @@ def run_real_task(
             "actions",
             robot_class(cfg.robot).ARM_JOINT_NAMES,
             cell="real",
+            finger_names=robot_class(cfg.robot).FINGER_JOINT_NAMES,
             gripper_lead=gripper_lead,
             together_lead=together_lead,
         )
@@ -1070,6 +1115,7 @@ def run_task(
             cfg.arms,
             arm_interface,
             robot_class(cfg.robot).ARM_JOINT_NAMES,
+            finger_names=robot_class(cfg.robot).FINGER_JOINT_NAMES,
             gripper_lead=gripper_lead,
             together_lead=together_lead,
         )

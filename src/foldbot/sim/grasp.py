@@ -28,6 +28,9 @@ SURFACE_SAMPLES = 8
 pads: samples 1/8 of an edge apart, ≤ 3.4 mm on a 2.7 cm mesh, finer than the 2 cm pads."""
 
 
+HELD_GAP_MIN = 0.001
+"""Least gap (m) the jaws report while they hold cloth (a cloth modelled with no thickness)."""
+
 HOLD_SLACK = 0.03
 """A held point this much (m) further from the TCP than when it was grasped has not risen with
 the jaws (an anchored point keeps its distance to the millimetre)."""
@@ -73,6 +76,9 @@ class ClothGrasp:
         self.held: tuple[int, ...] = ()
         self._grasped_at = np.zeros(0)
         """The held points' distances from the TCP when grasped (m)."""
+        self._opening_from: float | None = None
+        """The gap (m) the jaws opened from while holding cloth, until they are past it: a real
+        gripper's fingers open from where the cloth stopped them (reported_fingers)."""
         # Finger pads squeezing cloth nodes through rigid–soft contact blows the cloth up; the pads'
         # hold is modelled by the anchors instead, so pad–cloth contact is filtered out. The palm
         # and the arm still collide with the cloth.
@@ -97,6 +103,30 @@ class ClothGrasp:
         if not self._anchors:
             return False
         return bool(np.all(self._held_distances() <= self._grasped_at + HOLD_SLACK))
+
+    def jaw_gap(self) -> float:
+        """The jaws' gap (m) as a real gripper's encoder reads it: closed on cloth, they stop on
+        it (the cloth's layer thickness, at least HELD_GAP_MIN) while they hold what they
+        grasped, and close on once it has slipped out; else the fingers' measured gap. (The
+        simulated pads pass through the cloth, which the anchors hold instead.)"""
+        gap = self.robot.gripper_opening()
+        if self.holds_what_it_grasped():
+            return max(gap, self.cloth.thickness, HELD_GAP_MIN)
+        return gap
+
+    def reported_fingers(self) -> np.ndarray:
+        """The finger joints (left, right; m) as a real gripper's driver publishes them on
+        /joint_states: stopped on the held cloth (jaw_gap) while the grasp holds, else measured.
+        A cell's task node sees a slip there, as the jaws closing on after they had stalled."""
+        fingers = self.robot.finger_positions()
+        gap = self.jaw_gap()
+        if self._opening_from is not None:  # opened from the cloth: never closer than that
+            if self.robot.gripper_opening() >= self._opening_from:
+                self._opening_from = None
+            gap = max(gap, self._opening_from or 0.0)
+        if gap <= self.robot.gripper_opening():
+            return fingers
+        return np.maximum(fingers, self.robot.finger_target(min(gap, self.robot.max_opening)))
 
     def lost_hold(self, held_before: tuple[int, ...], motion: str) -> str | None:
         """Why a grasp that held `held_before` as a motion began, and was not opened by it, no
@@ -193,6 +223,8 @@ class ClothGrasp:
 
     def open(self, width: float | None = None, settle_time: float = 0.3) -> None:
         """Release every anchor and open the fingers."""
+        if self.holds_what_it_grasped():
+            self._opening_from = self.jaw_gap()
         self.slip()  # let go of the cloth, then open
         self.robot.set_gripper_opening(self.robot.max_opening if width is None else width)
         self.world.step(max(1, round(settle_time / self.world.time_step)))

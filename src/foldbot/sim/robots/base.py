@@ -549,7 +549,9 @@ class Robot(abc.ABC):
         return q
 
     # ------------------------------------------------------------------ gripper
-    def _finger_target(self, width_m: float) -> float:
+    def finger_target(self, width_m: float) -> float:
+        """Each finger joint's position (m) for a gap of `width_m` between the pads (clipped to
+        the stroke); ConfigError outside [0, max_opening]."""
         if not math.isfinite(width_m) or width_m < 0.0 or width_m > self.max_opening + 1e-9:
             raise ConfigError(
                 f"gripper opening {width_m!r} m is outside [0, {self.max_opening:.4g}] m "
@@ -563,7 +565,7 @@ class Robot(abc.ABC):
         Widths below CLOSED_GAP close the joints completely (the gap then stays CLOSED_GAP).
         Takes effect as the simulation steps.
         """
-        target = self._finger_target(float(width_m))
+        target = self.finger_target(float(width_m))
         for j in self.finger_joint_indices:
             p.setJointMotorControl2(
                 self.body_id,
@@ -577,7 +579,7 @@ class Robot(abc.ABC):
 
     def reset_gripper(self, width_m: float) -> None:
         """Teleport the fingers to a gap of `width_m` (m) and hold it there."""
-        target = self._finger_target(float(width_m))
+        target = self.finger_target(float(width_m))
         for j in self.finger_joint_indices:
             p.resetJointState(self.body_id, j, target, 0.0, physicsClientId=self.client)
         self.set_gripper_opening(width_m)
