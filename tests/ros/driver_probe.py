@@ -110,5 +110,22 @@ arrived = next(
 )
 jaws = next(t for t, h in after if np.abs(np.array([h[n] for n in fingers]) - f0).max() > 1e-3)
 out["ahead"] = [sent, arrived, jaws, gripper.get_state()]
+# A goal cancelled mid-motion stops the arm where it is and ends preempted, as a driver does.
+q2 = np.array([joints[n] for n in names])
+far = q2 + np.array([0.0, 0.0, 0.0, 0.0, 0.0, -0.6])
+arm.send_goal(msg.FollowJointTrajectoryGoal(trajectory=JointTrajectory(
+    joint_names=names, points=[point(q2, 0.0), point(far, 3.0)])))  # fmt: skip
+deadline = time.monotonic() + 60
+while abs(joints[names[-1]] - q2[-1]) < 0.05:
+    assert time.monotonic() < deadline, "the arm never moved"
+    time.sleep(0.005)
+arm.cancel_goal()
+arm.wait_done("the cancelled trajectory goal", 60)
+time.sleep(0.5)
+stopped = joints[names[-1]]
+time.sleep(0.5)
+out["cancel"] = [arm.get_state(), arm.get_goal_status_text(), abs(stopped - far[-1]),
+                 abs(joints[names[-1]] - stopped)]  # fmt: skip
 out["succeeded"] = GoalStatus.SUCCEEDED
+out["preempted"] = GoalStatus.PREEMPTED
 print("PROBE " + json.dumps(out), flush=True)

@@ -55,3 +55,7 @@ def test_the_sim_node_answers_as_a_real_arms_drivers(tmp_path):
     sent, arrived, jaws, state = out["ahead"]
     assert state == ok and sent < arrived - 0.1
     assert arrived - 0.03 <= jaws <= arrived + 0.05, (arrived, jaws)
+    # A cancel stops the arm short of its goal, where it stays; the goal ends preempted.
+    state, text, short_of_goal, drift = out["cancel"]
+    assert state == out["preempted"] and "stopped where it was" in text
+    assert short_of_goal > 0.1 and drift < 1e-3, out["cancel"]

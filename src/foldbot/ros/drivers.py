@@ -82,6 +82,8 @@ class _Handover:
         self.arm = arm
         self.done = threading.Event()
         self.succeeded = False
+        self.preempted = False
+        """Ended by its client's cancel (the arm stopped where it was)."""
         self.result = None
         self.text = ""
 
@@ -138,10 +140,16 @@ class SimDrivers:
         server = (self.trajectories if kind == "follow" else self.grippers)[arm]
         handover = _Handover(goal, arm)
         self.node.commands.put((kind, handover))
-        while not handover.done.wait(0.1):
+        cancelled = False
+        while not handover.done.wait(0.02):
             if rospy.is_shutdown():
                 return
-        if handover.succeeded:
+            if not cancelled and server.is_preempt_requested():
+                cancelled = True  # the client cancelled it: the cell stops it (cancel)
+                self.node.commands.put(("cancel", handover))
+        if handover.preempted:
+            server.set_preempted(handover.result, handover.text)
+        elif handover.succeeded:
             server.set_succeeded(handover.result, handover.text)
         else:
             server.set_aborted(handover.result, handover.text)
@@ -160,7 +168,30 @@ class SimDrivers:
         if kind == "grip":
             self.grips.append(handover)
             return self.run_grips() if not self.motions else True
+        if kind == "cancel":
+            self._cancel(handover)
+            return self.run_grips() if not self.motions else True
         raise FoldbotError(f"unknown driver goal {kind!r}")
+
+    def _cancel(self, handover: _Handover) -> None:
+        """A goal its client cancelled, as a driver takes a cancel: a motion under way (or
+        waiting for its start) stops the arm where it is, a gripper goal not yet begun is
+        dropped; either ends preempted. A goal already ended stays as it ended."""
+        if handover.done.is_set():
+            return
+        for arm, m in list(self.motions.items()):
+            if m.handover is handover:
+                robot = self.node.executors[arm].robot
+                robot.command_joint_positions(robot.joint_positions())  # stop where it is
+                self._end(arm, control_msgs.FollowJointTrajectoryResult.SUCCESSFUL,
+                          "cancelled: the arm stopped where it was", preempted=True)  # fmt: skip
+                return
+        if handover in self.grips:
+            self.grips.remove(handover)
+            grasp = self.node.executors[handover.arm].grasp
+            handover.result = control_msgs.GripperCommandResult(position=grasp.jaw_gap())
+            handover.text, handover.preempted = "cancelled before the jaws moved", True
+            handover.done.set()
 
     def _guarded(self, run: Callable[[], None], taken: _Handover | None = None) -> bool:
         """Run `run`; a divergence (or any cell error) on the way aborts every goal under way
@@ -335,11 +366,12 @@ class SimDrivers:
                 f"its goal (goal tolerance {m.goal_tol[j]:g} rad)",
             )
 
-    def _end(self, arm: int, code: int, text: str) -> None:
+    def _end(self, arm: int, code: int, text: str, preempted: bool = False) -> None:
         motion = self.motions.pop(arm)
         if motion.slip_hook is not None:
             self.node.world.remove_step_hook(motion.slip_hook)
         handover = motion.handover
+        handover.preempted = preempted
         handover.succeeded = code == control_msgs.FollowJointTrajectoryResult.SUCCESSFUL
         handover.result = control_msgs.FollowJointTrajectoryResult(
             error_code=code, error_string=text
@@ -549,6 +581,11 @@ class ActionArm:
                     f"no {TOPICS['joint_states']} naming {self.arm_joints} within {timeout_s:g} s"
                 )
             time.sleep(0.02)
+        if self.finger_joints and self.fingers is None:
+            rospy.logwarn(
+                "%s names no finger joints %s: a slip is not seen (the jaws' hold is taken "
+                "from the gripper's result alone)", TOPICS["joint_states"], self.finger_joints,
+            )  # fmt: skip
         self._served = True
 
     def _wait(
@@ -604,8 +641,10 @@ class ActionArm:
         commanded and measured joints, and with `then_grip` (True: close, False: open) the
         gripper's outcome as `grip` gives it. That gripper goal is sent `lead_s` before the
         trajectory's end by its feedback (or at its result), so the jaws act as the arm arrives
-        rather than a round trip later. A goal the driver aborts or rejects raises, with its
-        error code and text (a gripper goal already sent is cancelled)."""
+        rather than a round trip later. A hold seen lost on the way (watch_hold) does not stop
+        the motion (stopped there, the fold recovered worse: docs/experiments.md, "A slip seen
+        on the fingers"). A goal the driver aborts or rejects raises, with its error code and
+        text (a gripper goal already sent is cancelled)."""
         following = self.send(joint_names, times, positions, velocities)
         gripping = [then_grip is None]  # whether the gripper goal has gone
 
