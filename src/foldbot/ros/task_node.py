@@ -147,9 +147,11 @@ class RosCell(FoldCell):
         """`arm_interface` "actions" drives the arm through its drivers' actions
         (foldbot.ros.drivers.ActionArm, one per arm: `joint_names` are an arm's, prefixed
         per arm as over topics) and reads where it left the cell from /joint_states and the
-        camera stream, where the gripper's `finger_names` (prefixed likewise) show a slip; "topics" through the sim node's commands and reports. `cell` "real" (actions only) neither publishes nor
-        subscribes to anything of the sim node's own (its reports, commands, clock, ground
-        truth): the cell is whatever serves the drivers' actions and the camera."""
+        camera stream, where the gripper's `finger_names` (prefixed likewise) show a slip;
+        "topics" through the sim node's commands and reports. `cell` "real" (actions only)
+        neither publishes nor subscribes to anything of the sim node's own (its reports,
+        commands, clock, ground truth): the cell is whatever serves the drivers' actions and the
+        camera."""
         if cell not in CELLS:
             raise errors.ConfigError(f"cell must be one of {', '.join(CELLS)}, got {cell!r}")
         if cell == "real" and arm_interface != "actions":
