@@ -116,6 +116,19 @@ from foldbot.commands.ros_fold import add_arguments, fold_args_text
         ),
         (["ros-fold", "--out", "{tmp}/e", "--fault-slip", "1.5"], "fault_slip must be in [0, 1)"),
         (
+            ["ros-fold", "--out", "{tmp}/e", "--finger-travel", "0.003"],
+            "--finger-travel: the fingers are watched for a slip through the drivers' actions",
+        ),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--arm-interface", "actions", "--finger-travel", "0"],
+            "--finger-travel must be > 0, got 0.0",
+        ),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--arm-interface", "actions"]
+            + ["--finger-joints", "finger_joint,,x"],
+            "finger joints must be comma-separated joint names, 'none', or empty",
+        ),
+        (
             ["ros-cell", "--calibration-board", "right"],
             "--calibration-board right is for a two-arm cell (--arms 2)",
         ),
@@ -386,3 +399,13 @@ def test_a_calibration_reaches_the_simulated_cells_nodes(tmp_path, monkeypatch):
     real = fold_parser.parse_args([*options, "--out", "e", "--cell", "real"])
     real.camera_calibration = None  # ros_fold.run: a real cell's camera is where it is
     assert "--camera-pose" not in fold_args_text(real).split()
+
+
+def test_finger_joints_are_the_robots_none_or_named():
+    from foldbot.ros.node_args import finger_joint_names
+
+    robot = ("left_finger_joint", "right_finger_joint")
+    assert finger_joint_names("", robot) == robot
+    assert finger_joint_names("none", robot) == ()
+    assert finger_joint_names("finger_joint", robot) == ("finger_joint",)
+    assert finger_joint_names("a, b", robot) == ("a", "b")

@@ -29,12 +29,14 @@ def test_a_slip_is_seen_on_the_fingers_and_recovered_through_the_drivers(tmp_pat
         [sys.executable, "-m", "foldbot.cli", "ros-fold", "--arm-interface", "actions",
          "--recipe", "diagonal", "--width", "0.24", "--height", "0.24", "--resolution", "10",
          "--fault-slip", "0.3", "--video-fps", "0", "--camera-rate", "2", "--out", str(out),
-         "--port", str(free_port()), "--record", str(bag)],
+         "--port", str(free_port()), "--record", str(bag), "--finger-travel", "0.003"],
         capture_output=True, text=True, timeout=600, check=False,
     )  # fmt: skip
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     result = json.loads((out / "result.json").read_text())
     assert result["faults"] == {"grasp_offset_m": 0.0, "slip_fraction": 0.3, "slipped": True}
+    fingers = list(robot_class("ur5").FINGER_JOINT_NAMES)  # the robot model's, by default
+    assert result["slip_watch"] == {"finger_joints": [fingers], "finger_travel": 0.003}
     first, again = result["actions"]
     (slipped,) = first["attempts"]
     assert slipped["slipped"] is True and slipped["grasp_success"] is False
@@ -47,7 +49,6 @@ def test_a_slip_is_seen_on_the_fingers_and_recovered_through_the_drivers(tmp_pat
     assert result["success"] is True
     # The fingers as the bag holds them: stopped on the cloth (its thickness apart) while the
     # jaws held it, then closed on it, having let go of nothing.
-    fingers = list(robot_class("ur5").FINGER_JOINT_NAMES)
     with AnyReader([bag]) as reader:
         conns = [c for c in reader.connections if c.topic == "/joint_states"]
         rows = []

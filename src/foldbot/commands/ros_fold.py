@@ -29,7 +29,9 @@ from foldbot.ros.node_args import (
     CELLS,
     GRIPPER_LEAD_S,
     MAX_CLOTH_THICKNESS,
+    SLIP_FINGER_TRAVEL,
     TOGETHER_LEAD_S,
+    finger_joint_names,
 )
 from foldbot.verdict import unscored_outcome
 
@@ -154,6 +156,30 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         f"follows it is sent, so the jaws act as the arm arrives (default {GRIPPER_LEAD_S}); "
         "off: after the motion's result, a round trip later",
     )
+    add_finger_watch(parser)
+
+
+def add_finger_watch(parser: argparse.ArgumentParser) -> None:
+    """--finger-joints and --finger-travel: the watch for a slip through the drivers."""
+    parser.add_argument(
+        "--finger-joints",
+        default=None,
+        metavar="NAMES|none",
+        help="with --arm-interface actions: the gripper's joints on /joint_states watched for a "
+        "slip, comma-separated, one arm's (two arms: each prefixed as the arm joints are; "
+        "default: the robot model's, left_finger_joint,right_finger_joint for the ur5's); none: "
+        "no watch",
+    )
+    parser.add_argument(
+        "--finger-travel",
+        type=float,
+        default=None,
+        metavar="X",
+        help="with --arm-interface actions: how far a watched finger joint may move, in its own "
+        "units, after the jaws stalled on cloth before the hold counts as lost (default "
+        f"{SLIP_FINGER_TRAVEL:g}: m for the simulated gripper's prismatic fingers; rad for a "
+        "revolute one)",
+    )
 
 
 def gripper_lead(text: str) -> float | None:
@@ -186,6 +212,30 @@ def add_real_time_factor(parser: argparse.ArgumentParser, where: str) -> None:
         default=None,
         help=f"{where}simulated seconds per wall second (default 1)",
     )
+
+
+def check_finger_watch(args: argparse.Namespace, interface: str) -> list[str]:
+    """roslaunch's finger_joints and finger_travel arguments from --finger-joints and
+    --finger-travel (none where not given); ConfigError where they cannot apply or are bad."""
+    given = [
+        f for f, v in (("--finger-joints", args.finger_joints), ("--finger-travel", args.finger_travel))
+        if v is not None
+    ]  # fmt: skip
+    if given and interface != "actions":
+        raise ConfigError(
+            f"{' and '.join(given)}: the fingers are watched for a slip through the drivers' "
+            f"actions (--arm-interface actions, --cell real's); got --arm-interface {interface}"
+        )
+    words = []
+    if args.finger_joints is not None:
+        finger_joint_names(args.finger_joints, ())
+        words.append(f"finger_joints:={args.finger_joints}")
+    travel = args.finger_travel
+    if travel is not None:
+        if not (math.isfinite(travel) and travel > 0):
+            raise ConfigError(f"--finger-travel must be > 0, got {travel!r}")
+        words.append(f"finger_travel:={travel!r}")
+    return words
 
 
 def check_port(port: int | None) -> None:
@@ -403,6 +453,7 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(
             f"--cloth-thickness must be metres in (0, {MAX_CLOTH_THICKNESS:g}], got {thickness!r}"
         )
+    finger_words = check_finger_watch(args, interface)
     together = args.together_lead
     if together is not None and not (cfg.arms == 2 and interface == "actions"):
         raise ConfigError(
@@ -464,6 +515,7 @@ def run(args: argparse.Namespace) -> int:
         f"together_lead:={TOGETHER_LEAD_S if together is None else together!r}",
         f"cloth_thickness:={-1.0 if thickness is None else thickness!r}",
         f"camera_pose:={camera_pose}",
+        *finger_words,
     ]
     result_file = out / "result.json"
     before = result_file.stat().st_mtime_ns if result_file.is_file() else None

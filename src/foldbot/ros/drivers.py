@@ -30,6 +30,7 @@ from foldbot.errors import FoldbotError
 from foldbot.ros import TOPICS, convert, driver_actions
 from foldbot.ros.control_msgs import msg as control_msgs
 from foldbot.ros.goal_client import GoalClient
+from foldbot.ros.node_args import SLIP_FINGER_TRAVEL
 
 DRIVER_PERIOD_S = 0.02
 """Least spacing of a trajectory goal's points (about 45 Hz at the 1/360 s step): the planner's
@@ -48,10 +49,6 @@ the gap asked for, at most their largest."""
 OPEN_GAP_M = 0.085
 """The gap the task node commands to open the jaws (a Robotiq 2F-85's full stroke); a driver
 clamps it to its own gripper's largest, as the sim node does."""
-SLIP_FINGER_TRAVEL = 0.002
-"""How far a finger joint may move (in its own units: m for the simulated gripper's prismatic
-fingers), with no gripper goal sent since the jaws stalled on cloth, before the hold counts as
-lost: a gripper under position control closes on once what it held has slipped out."""
 _STATUS_NAMES = {v: k for k, v in vars(GoalStatus).items() if k.isupper() and isinstance(v, int)}
 
 
@@ -465,7 +462,9 @@ class ActionArm:
         so no wait outlasts a cell that has stopped. `actions`: the arm's FollowJointTrajectory
         and GripperCommand action names (foldbot.ros.driver_actions). `finger_joints`: the
         gripper's joints on /joint_states, watched for a slip (watch_hold); none or absent
-        there, no slip is seen."""
+        there, no slip is seen. `slip_travel`: how far one may move (in its own units), with
+        no gripper goal sent since the jaws stalled on cloth, before the hold counts as lost:
+        a gripper under position control closes on once what it held has slipped out."""
         self.arm_joints = arm_joints
         self.failure = failure
         self.actions = actions

@@ -8,6 +8,7 @@ import argparse
 import shlex
 
 from foldbot.commands import fold
+from foldbot.errors import ConfigError
 from foldbot.pipeline import EpisodeConfig
 
 FOLD_ARGS_PARAM = "/foldbot/fold_args"
@@ -41,6 +42,16 @@ laid layer's height (the grasp and place heights on a stack); negative: the simu
 the same size and options (task_node.real_cell_thickness)."""
 MAX_CLOTH_THICKNESS = 0.05
 """Largest layer thickness (m) accepted, as for a simulated cloth (sim.cloth.ClothConfig)."""
+FINGER_JOINTS_PARAM = "/foldbot/finger_joints"
+"""With the actions interface: the gripper's joints on /joint_states the task node watches for a
+slip, one arm's, comma-separated (two arms: each prefixed as the arm joints are); empty: the
+robot model's own; "none": no watch (finger_joint_names)."""
+FINGER_TRAVEL_PARAM = "/foldbot/finger_travel"
+"""With the actions interface: how far a watched finger joint may move, in its own units, after
+the jaws stalled on cloth before the hold counts as lost (drivers.ActionArm)."""
+SLIP_FINGER_TRAVEL = 0.002
+"""The default: 2 mm for a prismatic finger (the simulated UR5's, whose fingers stop about
+4.5 mm each from closed on the simulated cloth)."""
 REAL_TIME_FACTOR_PARAM = "/foldbot/real_time_factor"
 """With the actions interface: simulated seconds per wall second the sim node runs at."""
 CALIBRATION_BOARD_PARAM = "/foldbot/calibration_board"
@@ -56,6 +67,22 @@ is not calibrated yet; `foldbot ros-fold --cell real --camera-pose` then publish
 ERROR_FILE_PARAM = "/foldbot/error_file"
 """Where the task node writes its error (JSON: error, error_type) when the fold fails, for
 `foldbot ros-fold` to report; empty: nowhere."""
+
+
+def finger_joint_names(text: str, robot_fingers: tuple[str, ...]) -> tuple[str, ...]:
+    """The finger joints a --finger-joints value names: empty, the robot model's own
+    (`robot_fingers`); "none", none; else its comma-separated names."""
+    text = text.strip()
+    if not text:
+        return tuple(robot_fingers)
+    if text == "none":
+        return ()
+    names = tuple(n.strip() for n in text.split(","))
+    if not all(names) or any(c.isspace() for n in names for c in n):
+        raise ConfigError(
+            f"finger joints must be comma-separated joint names, 'none', or empty, got {text!r}"
+        )
+    return names
 
 
 def fold_parser() -> argparse.ArgumentParser:

@@ -68,12 +68,16 @@ from foldbot.ros.node_args import (
     CELLS,
     CLOTH_THICKNESS_PARAM,
     ERROR_FILE_PARAM,
+    FINGER_JOINTS_PARAM,
+    FINGER_TRAVEL_PARAM,
     FOLD_ARGS_PARAM,
     GRIPPER_LEAD_PARAM,
     GRIPPER_LEAD_S,
     MAX_CLOTH_THICKNESS,
+    SLIP_FINGER_TRAVEL,
     TOGETHER_LEAD_PARAM,
     TOGETHER_LEAD_S,
+    finger_joint_names,
     parse_fold_args,
 )
 from foldbot.ros.publish import publish_when_heard, wait_for_listed_subscribers
@@ -141,13 +145,15 @@ class RosCell(FoldCell):
         joint_names: tuple[str, ...] = (),
         cell: str = "sim",
         finger_names: tuple[str, ...] = (),
+        finger_travel: float = SLIP_FINGER_TRAVEL,
         gripper_lead: float | None = None,
         together_lead: float = TOGETHER_LEAD_S,
     ) -> None:
         """`arm_interface` "actions" drives the arm through its drivers' actions
         (foldbot.ros.drivers.ActionArm, one per arm: `joint_names` are an arm's, prefixed
         per arm as over topics) and reads where it left the cell from /joint_states and the
-        camera stream, where the gripper's `finger_names` (prefixed likewise) show a slip;
+        camera stream, where the gripper's `finger_names` (prefixed likewise) show a slip by
+        moving over `finger_travel` (their units) after the jaws stalled on cloth;
         "topics" through the sim node's commands and reports. `cell` "real" (actions only)
         neither publishes nor subscribes to anything of the sim node's own (its reports,
         commands, clock, ground truth): the cell is whatever serves the drivers' actions and the
@@ -252,7 +258,7 @@ class RosCell(FoldCell):
             from foldbot.ros.drivers import ActionArm
 
             self.drivers = [
-                ActionArm(names, self.raise_reported_error, actions, fingers)
+                ActionArm(names, self.raise_reported_error, actions, fingers, finger_travel)
                 for names, actions, fingers in zip(
                     arm_joint_names(joint_names, arms),
                     driver_actions(arms),
@@ -1038,6 +1044,8 @@ def run_real_task(
     gripper_lead: float | None = GRIPPER_LEAD_S,
     together_lead: float = TOGETHER_LEAD_S,
     cloth_thickness: float | None = None,
+    finger_joints: str = "",
+    finger_travel: float = SLIP_FINGER_TRAVEL,
 ) -> dict:
     """Fold on a real cell (whatever serves the drivers' actions and the camera) and write the
     episode folder, unscored: result.json, video.mp4 and the overlays; no cloth.npz.
@@ -1058,7 +1066,10 @@ def run_real_task(
             "actions",
             robot_class(cfg.robot).ARM_JOINT_NAMES,
             cell="real",
-            finger_names=robot_class(cfg.robot).FINGER_JOINT_NAMES,
+            finger_names=finger_joint_names(
+                finger_joints, robot_class(cfg.robot).FINGER_JOINT_NAMES
+            ),
+            finger_travel=finger_travel,
             gripper_lead=gripper_lead,
             together_lead=together_lead,
         )
@@ -1087,6 +1098,7 @@ def run_real_task(
             result["transport"] = "ros"
             result["arm_interface"] = "actions"
             result["gripper_lead_s"] = gripper_lead
+            result["slip_watch"] = slip_watch(cell, finger_travel)
             if cfg.arms > 1:
                 result["together_lead_s"] = together_lead
             result["cell"] = "real"
@@ -1104,6 +1116,8 @@ def run_task(
     arm_interface: str = "topics",
     gripper_lead: float | None = GRIPPER_LEAD_S,
     together_lead: float = TOGETHER_LEAD_S,
+    finger_joints: str = "",
+    finger_travel: float = SLIP_FINGER_TRAVEL,
 ) -> dict:
     """Fold over topics and write the episode folder; returns result.json's content."""
     args, cfg = parse_fold_args(fold_args)
@@ -1117,7 +1131,10 @@ def run_task(
             cfg.arms,
             arm_interface,
             robot_class(cfg.robot).ARM_JOINT_NAMES,
-            finger_names=robot_class(cfg.robot).FINGER_JOINT_NAMES,
+            finger_names=finger_joint_names(
+                finger_joints, robot_class(cfg.robot).FINGER_JOINT_NAMES
+            ),
+            finger_travel=finger_travel,
             gripper_lead=gripper_lead,
             together_lead=together_lead,
         )
@@ -1183,6 +1200,7 @@ def run_task(
             result["arm_interface"] = arm_interface
             if arm_interface == "actions":
                 result["gripper_lead_s"] = gripper_lead
+                result["slip_watch"] = slip_watch(cell, finger_travel)
                 if cfg.arms > 1:
                     result["together_lead_s"] = together_lead
             result["cell"] = "sim"
@@ -1190,6 +1208,15 @@ def run_task(
             path = writer.commit()
     result["out_dir"] = str(Path(path))
     return result
+
+
+def slip_watch(cell: RosCell, travel: float) -> dict:
+    """result.json's record of the watch for a slip through the drivers: each arm's finger
+    joints watched on /joint_states (none: no watch) and the travel that counts as lost."""
+    return {
+        "finger_joints": [list(d.finger_joints) for d in cell.drivers],
+        "finger_travel": travel,
+    }
 
 
 def outcome_line(result: dict) -> str:
@@ -1213,6 +1240,10 @@ def main(argv: list[str] | None = None) -> int:
     lead = float(rospy.get_param(GRIPPER_LEAD_PARAM, GRIPPER_LEAD_S))
     lead = None if lead < 0 else lead
     together = float(rospy.get_param(TOGETHER_LEAD_PARAM, TOGETHER_LEAD_S))
+    fingers = {
+        "finger_joints": str(rospy.get_param(FINGER_JOINTS_PARAM, "")),
+        "finger_travel": float(rospy.get_param(FINGER_TRAVEL_PARAM, SLIP_FINGER_TRAVEL)),
+    }
     try:
         if rospy.get_param(CELL_PARAM, "sim") == "real":
             thickness = float(rospy.get_param(CLOTH_THICKNESS_PARAM, -1.0))
@@ -1221,6 +1252,7 @@ def main(argv: list[str] | None = None) -> int:
                 gripper_lead=lead,
                 together_lead=together,
                 cloth_thickness=None if thickness < 0 else thickness,
+                **fingers,
             )
         else:
             result = run_task(
@@ -1228,6 +1260,7 @@ def main(argv: list[str] | None = None) -> int:
                 arm_interface=rospy.get_param(ARM_INTERFACE_PARAM, "topics"),
                 gripper_lead=lead,
                 together_lead=together,
+                **fingers,
             )
     except errors.FoldbotError as exc:
         failure = {"ok": False, "error": str(exc), "error_type": type(exc).__name__}
