@@ -108,7 +108,7 @@ def add_arguments(
     """Options of `foldbot fold`: an episode's, and `--suite` (`output` False: without the
     episode folder's --out and --overwrite, or --gui; `camera_pose` False: without
     --camera-pose, which `ros-fold` defines its own way; `faults` False: without the injected
-    faults, which only a lockstep simulated cell makes: in process, or over ROS topics)."""
+    faults, which only a simulated cell the fold starts makes: in process, or over ROS)."""
     add_episode_arguments(parser, output)
     if faults:
         add_fault_options(parser)
@@ -172,6 +172,21 @@ them: a trial of one of its episodes."""
 def add_fault_options(parser: argparse.ArgumentParser) -> None:
     """Faults the simulated cell injects, to watch the closed loop recover
     (EpisodeConfig.fault_grasp_offset and fault_slip; result.json's `faults`)."""
+    add_slip_option(parser)
+    parser.add_argument(
+        "--fault-grasp-offset",
+        type=float,
+        default=0.0,
+        metavar="M",
+        help="the episode's first grasp is aimed this far (m, at most 0.2) outward from the "
+        "perceived corner, onto bare table (default 0: none): the jaws close on nothing and "
+        "the loop re-observes and retries",
+    )
+
+
+def add_slip_option(parser: argparse.ArgumentParser) -> None:
+    """--fault-slip: the one fault the cell itself makes (`ros-cell` too; a grasp aimed off the
+    cloth is the fold's own)."""
     parser.add_argument(
         "--fault-slip",
         type=float,
@@ -183,16 +198,8 @@ def add_fault_options(parser: argparse.ArgumentParser) -> None:
         "again (--loop-option slip_lay_back=false: re-observes and grasps again). Late in "
         "the carry the cloth falls from its highest and can sink through the table, which is "
         "reported as a divergence. Over ROS (`ros-fold`), the sim node's cell slips (through "
-        "the drivers' actions the task node sees it on /joint_states, the fingers closing on)",
-    )
-    parser.add_argument(
-        "--fault-grasp-offset",
-        type=float,
-        default=0.0,
-        metavar="M",
-        help="the episode's first grasp is aimed this far (m, at most 0.2) outward from the "
-        "perceived corner, onto bare table (default 0: none): the jaws close on nothing and "
-        "the loop re-observes and retries",
+        "the drivers' actions the task node sees it on /joint_states, the fingers closing on; "
+        "`ros-cell --fault-slip` makes a running cell slip so)",
     )
 
 

@@ -48,6 +48,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """`foldbot fold`'s options that lay the cloth (no --out), the camera's rate, the master's
     port and the pace."""
     fold.add_arguments(parser, output=False, faults=False)
+    fold.add_slip_option(parser)  # a running cell that lets its first carry's cloth go
     parser.add_argument(
         "--camera-rate",
         type=float,
