@@ -295,7 +295,7 @@ class SimDrivers:
             m.pos = pos
             m.k = 0
             ex = node.executors[arm]
-            m.slip_hook = node._slip_hook([(ex, slice(0, pos.shape[1]))], m.q_cmd)
+            m.slip_hook = node.slip_hook([(ex, slice(0, pos.shape[1]))], m.q_cmd)
             if n == 0:
                 self._settling(arm, m)
 
@@ -410,15 +410,6 @@ class SimDrivers:
             grasp.open(min(float(position), robot.max_opening))
             handover.result = result(position=grasp.jaw_gap(), reached_goal=True)
         handover.succeeded = True
-
-
-def slip_reason(motion: str, travel: float) -> str:
-    """The task node's word for a hold lost in `motion` (its name), seen on /joint_states as the
-    fingers moving `travel` after the jaws had stalled on the cloth."""
-    return (
-        f"the cloth slipped from the jaws in the {motion} (on /joint_states the fingers closed "
-        f"on by {travel:.4g}, in their joints' units, after they had stalled on it)"
-    )
 
 
 def _gripper_goal(close: bool):

@@ -348,7 +348,7 @@ class SimNode:
         }
         max_err = [0.0] * len(moved)
         held = [ex.grasp.held for ex, _cols in moved]
-        hook = self._slip_hook(moved, q_cmd)
+        hook = self.slip_hook(moved, q_cmd)
         try:
             for k in range(n):
                 for ex, cols in moved:
@@ -389,7 +389,7 @@ class SimNode:
             "slipped": slipped,
         }
 
-    def _slip_hook(self, moved: list, q_cmd: np.ndarray):
+    def slip_hook(self, moved: list, q_cmd: np.ndarray):
         """The injected slip (EpisodeConfig.fault_slip), on the first motion of an arm that
         holds cloth (a carry: the gripper closes at the end of the descent before it), from the
         motion's commanded start toward its end; added as a step hook, None when none is due."""

@@ -128,6 +128,15 @@ class _Inbox:
                 self.cond.wait(min(left, 0.5))
 
 
+def finger_slip_reason(motion: str, travel: float) -> str:
+    """The task node's word for a hold lost in `motion` (its name), seen on /joint_states as the
+    fingers moving `travel` after the jaws had stalled on the cloth (drivers.ActionArm)."""
+    return (
+        f"the cloth slipped from the jaws in the {motion} (on /joint_states the fingers closed "
+        f"on by {travel:.4g}, in their joints' units, after they had stalled on it)"
+    )
+
+
 class RosCell(FoldCell):
     """The cell as seen over topics: the perception, planner and sim nodes."""
 
@@ -797,10 +806,8 @@ class RosCell(FoldCell):
     def _slips(lost: dict[int, tuple[float, float] | None], motion: str) -> list[dict]:
         """The holds the drivers' arms lost in a motion (ActionArm.take_lost), as the sim
         node's motion reply words them (its "slipped"), each with the task node's reason."""
-        from foldbot.ros.drivers import slip_reason as jaws_slip_reason
-
         return [
-            {"arm": arm, "vertices_held": 0, "reason": jaws_slip_reason(motion, seen[1])}
+            {"arm": arm, "vertices_held": 0, "reason": finger_slip_reason(motion, seen[1])}
             for arm, seen in lost.items()
             if seen is not None
         ]
@@ -900,9 +907,7 @@ class RosCell(FoldCell):
             if lost is not None and (lost[0] <= end or s is chain[-1]):
                 # The hold was lost in this step (seen on /joint_states): the later steps of
                 # the chain moved empty jaws; the loop lets go and lifts from where they ended.
-                from foldbot.ros.drivers import slip_reason as jaws_slip_reason
-
-                reason = jaws_slip_reason(s["name"], lost[1])
+                reason = finger_slip_reason(s["name"], lost[1])
                 self._lost[id(s)] = GraspResult(False, (), reason)
                 lost = None
             start = end

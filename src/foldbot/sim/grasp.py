@@ -104,29 +104,36 @@ class ClothGrasp:
             return False
         return bool(np.all(self._held_distances() <= self._grasped_at + HOLD_SLACK))
 
+    def _cloth_stop(self, opening: float) -> float:
+        """The gap (m) cloth stops a real gripper's fingers at, the jaws' measured `opening`
+        aside: the held cloth's layer thickness (at least HELD_GAP_MIN) while the grasp holds
+        what it grasped, the gap they opened from until they are past it; else 0."""
+        if self._opening_from is not None and opening >= self._opening_from:
+            self._opening_from = None
+        stop = self._opening_from or 0.0
+        if self.holds_what_it_grasped():
+            stop = max(stop, self.cloth.thickness, HELD_GAP_MIN)
+        return stop
+
     def jaw_gap(self) -> float:
         """The jaws' gap (m) as a real gripper's encoder reads it: closed on cloth, they stop on
-        it (the cloth's layer thickness, at least HELD_GAP_MIN) while they hold what they
-        grasped, and close on once it has slipped out; else the fingers' measured gap. (The
-        simulated pads pass through the cloth, which the anchors hold instead.)"""
-        gap = self.robot.gripper_opening()
-        if self.holds_what_it_grasped():
-            return max(gap, self.cloth.thickness, HELD_GAP_MIN)
-        return gap
+        it while they hold what they grasped, and close on once it has slipped out; else the
+        fingers' measured gap. (The simulated pads pass through the cloth, which the anchors
+        hold instead.)"""
+        opening = self.robot.gripper_opening()
+        return max(opening, self._cloth_stop(opening))
 
     def reported_fingers(self) -> np.ndarray:
         """The finger joints (left, right; m) as a real gripper's driver publishes them on
-        /joint_states: stopped on the held cloth (jaw_gap) while the grasp holds, else measured.
-        A cell's task node sees a slip there, as the jaws closing on after they had stalled."""
+        /joint_states: stopped on the held cloth (jaw_gap) while the grasp holds, opening from
+        it, else measured. A cell's task node sees a slip there, as the jaws closing on after
+        they had stalled."""
         fingers = self.robot.finger_positions()
-        gap = self.jaw_gap()
-        if self._opening_from is not None:  # opened from the cloth: never closer than that
-            if self.robot.gripper_opening() >= self._opening_from:
-                self._opening_from = None
-            gap = max(gap, self._opening_from or 0.0)
-        if gap <= self.robot.gripper_opening():
+        opening = self.robot.gripper_opening()
+        stop = self._cloth_stop(opening)
+        if stop <= opening:
             return fingers
-        return np.maximum(fingers, self.robot.finger_target(min(gap, self.robot.max_opening)))
+        return np.maximum(fingers, self.robot.finger_target(min(stop, self.robot.max_opening)))
 
     def lost_hold(self, held_before: tuple[int, ...], motion: str) -> str | None:
         """Why a grasp that held `held_before` as a motion began, and was not opened by it, no
