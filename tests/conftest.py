@@ -3,10 +3,23 @@ SIMD level before they load (foldbot.simd), so in-process tests compute as the c
 
 import json
 import re
+import subprocess
 
 import pytest
 
 import foldbot  # noqa: F401
+
+
+@pytest.fixture
+def no_launch(monkeypatch):
+    """Refuse to start any process (roslaunch, roscore, a node) for the test's length: a check
+    that a bad option is refused fails at once, instead of running a cell for ever, should the
+    option become valid."""
+
+    def refuse(cmd, *args, **kwargs):
+        raise AssertionError(f"the command launched {cmd!r}: the options were accepted")
+
+    monkeypatch.setattr(subprocess, "Popen", refuse)
 
 
 def _spec(recipe, seed, **extra):

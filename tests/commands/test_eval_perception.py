@@ -3,9 +3,7 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
-import math
 from pathlib import Path
 
 import numpy as np
@@ -13,12 +11,9 @@ import pytest
 from calibration_files import write_calibration
 
 from foldbot.commands import eval_perception
-from foldbot.commands.eval_perception import folded_towel, sample_garment_scene, sample_scene
-from foldbot.errors import ConfigError
 from foldbot.garments import GARMENT_KEYPOINTS
-from foldbot.garments.towel import TowelSpec
 from foldbot.sim.camera import CameraConfig
-from foldbot.sim.layout import DEFAULT_LAYOUT
+from foldbot.sim.perception_scenes import depth_sensor_config, sample_scene
 
 
 def _args(*argv: str) -> argparse.Namespace:
@@ -76,7 +71,7 @@ def test_a_depth_sensor_beside_the_camera_is_rendered_and_registered(tmp_path: P
     """`--depth-sensor M`: the depth comes from a sensor M m to the colour camera's left, smaller
     and wider, and is registered onto the colour image; the summary says so."""
     color = CameraConfig()
-    cfg, T = eval_perception.depth_sensor_config(color, 0.025)
+    cfg, T = depth_sensor_config(color, 0.025)
     assert (cfg.width, cfg.height) == (424, 240) and cfg.fx < color.fx
     np.testing.assert_allclose(T[:3, 3], [-0.025, 0.0, 0.0])
     np.testing.assert_allclose(cfg.T_world_camera, color.T_world_camera @ T, atol=1e-12)
@@ -100,41 +95,6 @@ def test_unwritable_out_is_a_clear_error(tmp_path: Path, capsys: pytest.CaptureF
     assert eval_perception.run(_args("--scenes", "1", "--out", str(blocker))) == 2
     assert "not a folder" in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["file.txt"]
-
-
-def test_scene_sampling_is_reproducible_and_in_range() -> None:
-    a = [sample_scene(np.random.default_rng([5, i]), i, 0.3, 0.4) for i in range(30)]
-    b = [sample_scene(np.random.default_rng([5, i]), i, 0.3, 0.4) for i in range(30)]
-    assert a == b
-    for s in a:
-        assert 0.2 <= s.towel_width <= 0.45 and 0.2 <= s.towel_height <= 0.45
-        assert 0.15 <= s.x <= 0.75 and -0.3 <= s.y <= 0.3
-    assert {s.state for s in a} == {"flat", "folded"}
-
-
-def test_towel_sides_range_draws_the_same_scene_otherwise() -> None:
-    """`--towel-sides` changes the sizes only: the same draws scaled into the other range."""
-    a = [sample_scene(np.random.default_rng([5, i]), i, 0.3, 0.4) for i in range(20)]
-    b = [
-        sample_scene(np.random.default_rng([5, i]), i, 0.3, 0.4, "anywhere", (0.5, 0.7))
-        for i in range(20)
-    ]
-    for s, t in zip(a, b, strict=True):
-        assert 0.5 <= t.towel_width <= 0.7 and 0.5 <= t.towel_height <= 0.7
-        assert (t.towel_width - 0.5) / 0.2 == pytest.approx((s.towel_width - 0.2) / 0.25)
-        assert (t.state, t.yaw, t.cloth_rgb, t.arm_target) == (
-            s.state,
-            s.yaw,
-            s.cloth_rgb,
-            s.arm_target,
-        )
-
-
-def test_folded_towel_mesh() -> None:
-    mesh = folded_towel(TowelSpec(0.3, 0.2, 10), "y", lift=0.01)
-    v = mesh.vertices
-    assert np.ptp(v[:, 0]) == pytest.approx(0.3) and np.ptp(v[:, 1]) == pytest.approx(0.1)
-    assert set(np.round(v[:, 2], 6)) == {0.0, 0.01}
 
 
 def test_tshirt_scenes_write_per_keypoint_figures(
@@ -179,42 +139,6 @@ def test_bad_garment_arguments_write_nothing(
     assert eval_perception.run(_args("--out", str(out), *argv)) == 2
     assert message in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
-
-
-@pytest.mark.parametrize("garment", ["tshirt", "pants"])
-def test_garment_scene_sampling_is_reproducible_and_in_range(garment: str) -> None:
-    a = [sample_garment_scene(np.random.default_rng([5, i]), i, garment) for i in range(20)]
-    b = [sample_garment_scene(np.random.default_rng([5, i]), i, garment) for i in range(20)]
-    assert a == b
-    for s in a:
-        assert abs(s.yaw - math.pi / 2) <= math.radians(15)
-        assert abs(s.x - 0.45) <= 0.03 and abs(s.y) <= 0.03
-        assert s.arm_target is None and s.state == "flat"
-    assert len({s.spec for s in a}) == 20
-
-
-def test_garment_yaw_range_spreads_the_garments() -> None:
-    wide = [
-        sample_garment_scene(np.random.default_rng([5, i]), i, "tshirt", yaw_range=math.pi)
-        for i in range(20)
-    ]
-    offsets = [abs(s.yaw - math.pi / 2) for s in wide]
-    assert max(offsets) <= math.pi and max(offsets) > math.radians(90)
-
-
-def test_the_arm_at_home_moves_nothing_else() -> None:
-    """`--arm-pose home` puts the gripper where the one-arm cell parks while it looks; every
-    other draw of the scene stays as it is with the arm anywhere."""
-    for i in range(10):
-        anywhere = sample_garment_scene(np.random.default_rng([5, i]), i, "pants", 1.0)
-        home = sample_garment_scene(np.random.default_rng([5, i]), i, "pants", 1.0, arm_pose="home")
-        assert anywhere.arm_target is not None and anywhere.arm_target != home.arm_target
-        assert home.arm_target == pytest.approx((0.45, 0.0, DEFAULT_LAYOUT.table_height + 0.25))
-        assert dataclasses.replace(home, arm_target=anywhere.arm_target) == anywhere
-    towel = sample_scene(np.random.default_rng([5, 0]), 0, 0.0, 1.0, "home")
-    assert towel.arm_target == home.arm_target
-    with pytest.raises(ConfigError, match=r"arm pose must be one of .*'elbow'"):
-        sample_garment_scene(np.random.default_rng(0), 0, "pants", 1.0, arm_pose="elbow")
 
 
 def test_pants_under_the_parked_arm(tmp_path: Path) -> None:

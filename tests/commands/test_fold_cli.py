@@ -342,7 +342,7 @@ def test_a_suite_episode_takes_options_over_the_suites_own_as_bench_does():
         config_from_args(parser.parse_args([*flat, "--flatten-option", "finish_coverage=0.99"]))
 
 
-def test_faults_reach_the_episode_alone_or_with_a_suite_and_not_a_running_cell():
+def test_faults_reach_the_episode_alone_or_with_a_suite_and_not_a_running_cell(no_launch):
     """--fault-slip and --fault-grasp-offset set the simulated cell's injected faults, also on
     a suite's episode (a trial of the loop's recovery); `ros-fold` hands them to its nodes
     (tests/commands/test_ros_cli.py), a running cell (`ros-cell`) has no such options."""

@@ -146,7 +146,7 @@ from foldbot.commands.ros_fold import add_arguments, fold_args_text
         (["export-bag", "{tmp}", "--out", "{tmp}/x.txt"], "must end in .bag"),
     ],
 )
-def test_bad_input_is_named(args, needle, tmp_path, capsys):
+def test_bad_input_is_named(args, needle, tmp_path, capsys, no_launch):
     code = main([a.replace("{tmp}", str(tmp_path)) for a in args])
     assert code == 2
     err = capsys.readouterr().err

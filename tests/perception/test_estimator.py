@@ -9,13 +9,13 @@ import math
 import numpy as np
 import pytest
 
-from foldbot.commands.eval_perception import default_scene, render_scene
 from foldbot.errors import PerceptionError
 from foldbot.perception.estimator import VisionEstimator
 from foldbot.perception.keypoints import CORNER_LABELS
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import NO_CLOTH, ClothState, fold_check_iou, mask_iou
 from foldbot.sim.camera import CameraConfig, RGBDCamera
+from foldbot.sim.perception_scenes import default_scene, render_scene
 from foldbot.sim.world import SimWorld
 from foldbot.types import CameraIntrinsics
 

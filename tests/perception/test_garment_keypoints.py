@@ -14,7 +14,6 @@ import math
 import numpy as np
 import pytest
 
-from foldbot.commands.eval_perception import default_garment_scene, render_garment_scene
 from foldbot.errors import ConfigError, PerceptionError
 from foldbot.garments.outline import points_inside
 from foldbot.garments.pants import PANTS_KEYPOINTS, PantsSpec, pants_outline
@@ -26,6 +25,7 @@ from foldbot.perception.garment_keypoints import (
 )
 from foldbot.perception.state import NO_CLOTH
 from foldbot.sim.camera import look_at
+from foldbot.sim.perception_scenes import default_garment_scene, render_garment_scene
 from foldbot.types import CameraIntrinsics, Observation
 
 

@@ -7,10 +7,10 @@ import cv2
 import numpy as np
 import pytest
 
-from foldbot.commands.eval_perception import default_scene, render_scene
 from foldbot.errors import PerceptionError
 from foldbot.perception.estimator import VisionEstimator
 from foldbot.perception.rectify import rectify, rectify_depth
+from foldbot.sim.perception_scenes import default_scene, render_scene
 from foldbot.types import Observation
 
 # Barrel distortion (k1 k2 p1 p2 k3), about 20 px at the image corners with the cell's K.

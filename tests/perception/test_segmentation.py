@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from foldbot.commands.eval_perception import default_scene, render_scene, sample_scene
 from foldbot.errors import ConfigError
 from foldbot.perception.estimator import EstimatorConfig, VisionEstimator
 from foldbot.perception.segmentation import SegmentationConfig, _with_shadow, segment_cloth
 from foldbot.perception.state import mask_iou
 from foldbot.sim.camera import CameraConfig, RGBDCamera
+from foldbot.sim.perception_scenes import default_scene, render_scene, sample_scene
 from foldbot.sim.world import SimWorld
 
 W, H = 320, 240

@@ -7,7 +7,6 @@ import math
 import numpy as np
 import pytest
 
-from foldbot.commands.eval_perception import folded_towel
 from foldbot.errors import ConfigError
 from foldbot.garments.towel import TowelSpec, make_towel
 from foldbot.perception.keypoints import CORNER_LABELS, label_corners
@@ -15,6 +14,7 @@ from foldbot.perception.state import ClothState
 from foldbot.sim.camera import CameraConfig, RGBDCamera
 from foldbot.sim.cloth import ClothConfig, SoftCloth, settle
 from foldbot.sim.oracle import GroundTruthOracle, OracleEstimator
+from foldbot.sim.perception_scenes import folded_towel
 from foldbot.sim.world import SimWorld
 
 

@@ -130,10 +130,11 @@ class _Inbox:
 
 def finger_slip_reason(motion: str, travel: float) -> str:
     """The task node's word for a hold lost in `motion` (its name), seen on /joint_states as the
-    fingers moving `travel` after the jaws had stalled on the cloth (drivers.ActionArm)."""
+    fingers moving `travel` after the jaws had stalled on the cloth (drivers.ActionArm). The
+    watch counts a move either way (a gripper's joints close toward + or −), so says "moved"."""
     return (
-        f"the cloth slipped from the jaws in the {motion} (on /joint_states the fingers closed "
-        f"on by {travel:.4g}, in their joints' units, after they had stalled on it)"
+        f"the cloth slipped from the jaws in the {motion} (on /joint_states the fingers moved "
+        f"by {travel:.4g}, in their joints' units, after they had stalled on it)"
     )
 
 
