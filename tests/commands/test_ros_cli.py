@@ -409,3 +409,16 @@ def test_finger_joints_are_the_robots_none_or_named():
     assert finger_joint_names("none", robot) == ()
     assert finger_joint_names("finger_joint", robot) == ("finger_joint",)
     assert finger_joint_names("a, b", robot) == ("a", "b")
+
+
+def test_finger_travel_is_given_or_a_quarter_of_the_cloth_for_the_robots_fingers():
+    """A slip closes each of the robot model's fingers by half the gap the cloth held open:
+    the default watch counts a quarter of the cloth's thickness (at most 2 mm), so a towel
+    thinner than 8 mm is not missed; another gripper's joints (units unknown) keep 0.002."""
+    from foldbot.ros.node_args import SLIP_FINGER_TRAVEL, finger_travel_for
+
+    assert finger_travel_for(0.004, "", 0.003) == (0.004, "given")
+    assert finger_travel_for(None, "", 0.003) == (pytest.approx(0.00075), "cloth thickness")
+    assert finger_travel_for(None, "", 0.0089) == (SLIP_FINGER_TRAVEL, "cloth thickness")
+    assert finger_travel_for(None, "finger_joint", 0.003) == (SLIP_FINGER_TRAVEL, "default")
+    assert finger_travel_for(0.02, "finger_joint", 0.003) == (0.02, "given")

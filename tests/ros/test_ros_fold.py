@@ -488,7 +488,11 @@ def test_a_fold_on_a_running_cell_as_on_a_real_one(tmp_path):
     assert result["cell"] == "real" and result["scored"] is False
     assert result["cloth_thickness_m"] == 0.004 and result["cloth_thickness_given"] is True
     fingers = ["left_finger_joint", "right_finger_joint"]  # the robot model's, watched
-    assert result["slip_watch"] == {"finger_joints": [fingers], "finger_travel": 0.002}
+    assert result["slip_watch"] == {  # a quarter of the towel's 4 mm
+        "finger_joints": [fingers],
+        "finger_travel": 0.001,
+        "finger_travel_from": "cloth thickness",
+    }
     assert result["success"] is None and result["fold_error_mm"] is None
     seen = result["perceived"]
     assert seen["verified"] and 0.4 < seen["coverage_ratio"] < 0.6  # a triangle: half the area

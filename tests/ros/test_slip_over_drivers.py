@@ -36,7 +36,11 @@ def test_a_slip_is_seen_on_the_fingers_and_recovered_through_the_drivers(tmp_pat
     result = json.loads((out / "result.json").read_text())
     assert result["faults"] == {"grasp_offset_m": 0.0, "slip_fraction": 0.3, "slipped": True}
     fingers = list(robot_class("ur5").FINGER_JOINT_NAMES)  # the robot model's, by default
-    assert result["slip_watch"] == {"finger_joints": [fingers], "finger_travel": 0.003}
+    assert result["slip_watch"] == {
+        "finger_joints": [fingers],
+        "finger_travel": 0.003,
+        "finger_travel_from": "given",
+    }
     first, again = result["actions"]
     (slipped,) = first["attempts"]
     assert slipped["slipped"] is True and slipped["grasp_success"] is False

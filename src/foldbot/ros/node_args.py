@@ -48,10 +48,12 @@ slip, one arm's, comma-separated (two arms: each prefixed as the arm joints are)
 robot model's own; "none": no watch (finger_joint_names)."""
 FINGER_TRAVEL_PARAM = "/foldbot/finger_travel"
 """With the actions interface: how far a watched finger joint may move, in its own units, after
-the jaws stalled on cloth before the hold counts as lost (drivers.ActionArm)."""
+the jaws stalled on cloth before the hold counts as lost (drivers.ActionArm); negative: as
+finger_travel_for chooses."""
 SLIP_FINGER_TRAVEL = 0.002
-"""The default: 2 mm for a prismatic finger (the simulated UR5's, whose fingers stop about
-4.5 mm each from closed on the simulated cloth)."""
+"""The most a prismatic finger may move by default (m): 2 mm (the simulated UR5's fingers stop
+about 4.5 mm each from closed on the simulated cloth); the only default for another gripper's
+joints, whose units the task node does not know."""
 REAL_TIME_FACTOR_PARAM = "/foldbot/real_time_factor"
 """With the actions interface: simulated seconds per wall second the sim node runs at."""
 CALIBRATION_BOARD_PARAM = "/foldbot/calibration_board"
@@ -83,6 +85,21 @@ def finger_joint_names(text: str, robot_fingers: tuple[str, ...]) -> tuple[str, 
             f"finger joints must be comma-separated joint names, 'none', or empty, got {text!r}"
         )
     return names
+
+
+def finger_travel_for(
+    given: float | None, finger_joints: str, thickness: float
+) -> tuple[float, str]:
+    """How far a watched finger may move before the hold counts as lost, and where that came
+    from: `given` (--finger-travel); else, for the robot model's own prismatic fingers
+    (`finger_joints` empty), a quarter of the cloth's layer `thickness` (m), at most
+    SLIP_FINGER_TRAVEL: a slip closes each finger by half the gap the cloth held, so a quarter
+    is halfway, and a towel thinner than 8 mm is not missed; else SLIP_FINGER_TRAVEL."""
+    if given is not None:
+        return float(given), "given"
+    if not finger_joints.strip():
+        return min(SLIP_FINGER_TRAVEL, thickness / 4.0), "cloth thickness"
+    return SLIP_FINGER_TRAVEL, "default"
 
 
 def fold_parser() -> argparse.ArgumentParser:

@@ -78,6 +78,7 @@ from foldbot.ros.node_args import (
     TOGETHER_LEAD_PARAM,
     TOGETHER_LEAD_S,
     finger_joint_names,
+    finger_travel_for,
     parse_fold_args,
 )
 from foldbot.ros.publish import publish_when_heard, wait_for_listed_subscribers
@@ -941,6 +942,12 @@ class RosCell(FoldCell):
             self._gripper("open", self.active)
         return StepLog(step["name"], err, grasp)
 
+    def set_finger_travel(self, travel: float) -> None:
+        """How far a watched finger may move before a hold counts as lost, every arm's (the
+        drivers' ActionArm.slip_travel)."""
+        for driver in self.drivers:
+            driver.slip_travel = travel
+
     def release_and_lift(self) -> None:
         self._gripper("open", self.active)
         # Straight up by the episode's retreat height (the planner node's MotionConfig).
@@ -1051,13 +1058,15 @@ def run_real_task(
     together_lead: float = TOGETHER_LEAD_S,
     cloth_thickness: float | None = None,
     finger_joints: str = "",
-    finger_travel: float = SLIP_FINGER_TRAVEL,
+    finger_travel: float | None = None,
 ) -> dict:
     """Fold on a real cell (whatever serves the drivers' actions and the camera) and write the
     episode folder, unscored: result.json, video.mp4 and the overlays; no cloth.npz.
-    `cloth_thickness` (m): the towel's layer thickness (None: real_cell_thickness's default)."""
+    `cloth_thickness` (m): the towel's layer thickness (None: real_cell_thickness's default).
+    `finger_travel`: the slip watch's (None: finger_travel_for's, from that thickness)."""
     args, cfg = parse_fold_args(fold_args)
     thickness = real_cell_thickness(cfg, cloth_thickness)
+    finger_travel, travel_from = finger_travel_for(finger_travel, finger_joints, thickness)
     if cfg.perception != "vision":
         raise errors.ConfigError(
             f"a real cell folds with vision perception; got perception {cfg.perception!r}"
@@ -1104,7 +1113,7 @@ def run_real_task(
             result["transport"] = "ros"
             result["arm_interface"] = "actions"
             result["gripper_lead_s"] = gripper_lead
-            result["slip_watch"] = slip_watch(cell, finger_travel)
+            result["slip_watch"] = slip_watch(cell, travel_from)
             if cfg.arms > 1:
                 result["together_lead_s"] = together_lead
             result["cell"] = "real"
@@ -1123,9 +1132,11 @@ def run_task(
     gripper_lead: float | None = GRIPPER_LEAD_S,
     together_lead: float = TOGETHER_LEAD_S,
     finger_joints: str = "",
-    finger_travel: float = SLIP_FINGER_TRAVEL,
+    finger_travel: float | None = None,
 ) -> dict:
-    """Fold over topics and write the episode folder; returns result.json's content."""
+    """Fold over topics and write the episode folder; returns result.json's content.
+    `finger_travel`: the slip watch's, through the actions (None: finger_travel_for's, from the
+    simulated cloth's thickness)."""
     args, cfg = parse_fold_args(fold_args)
     layout = cfg.sim.layout
     writer = EpisodeWriter(args.out, overwrite=args.overwrite, fps=max(cfg.video_fps, 1.0))
@@ -1140,7 +1151,6 @@ def run_task(
             finger_names=finger_joint_names(
                 finger_joints, robot_class(cfg.robot).FINGER_JOINT_NAMES
             ),
-            finger_travel=finger_travel,
             gripper_lead=gripper_lead,
             together_lead=together_lead,
         )
@@ -1149,6 +1159,8 @@ def run_task(
         initial = convert.cloud_array(cell.truth.take(lambda m: True, "initial ground truth"))
         mesh = cell.mesh.take(lambda m: True, "cloth mesh from the sim node")
         thickness = float(mesh["thickness"])  # the loop's layer height where depth tells nothing
+        travel, travel_from = finger_travel_for(finger_travel, finger_joints, thickness)
+        cell.set_finger_travel(travel)
         faces = np.array(mesh["faces"], dtype=np.int64)
 
         def write_image(name: str, image: np.ndarray) -> None:
@@ -1206,7 +1218,7 @@ def run_task(
             result["arm_interface"] = arm_interface
             if arm_interface == "actions":
                 result["gripper_lead_s"] = gripper_lead
-                result["slip_watch"] = slip_watch(cell, finger_travel)
+                result["slip_watch"] = slip_watch(cell, travel_from)
                 if cfg.arms > 1:
                     result["together_lead_s"] = together_lead
             result["cell"] = "sim"
@@ -1216,12 +1228,14 @@ def run_task(
     return result
 
 
-def slip_watch(cell: RosCell, travel: float) -> dict:
+def slip_watch(cell: RosCell, travel_from: str) -> dict:
     """result.json's record of the watch for a slip through the drivers: each arm's finger
-    joints watched on /joint_states (none: no watch) and the travel that counts as lost."""
+    joints watched on /joint_states (none: no watch), the travel that counts as lost and where
+    it came from (finger_travel_for)."""
     return {
         "finger_joints": [list(d.finger_joints) for d in cell.drivers],
-        "finger_travel": travel,
+        "finger_travel": cell.drivers[0].slip_travel if cell.drivers else None,
+        "finger_travel_from": travel_from,
     }
 
 
@@ -1246,9 +1260,10 @@ def main(argv: list[str] | None = None) -> int:
     lead = float(rospy.get_param(GRIPPER_LEAD_PARAM, GRIPPER_LEAD_S))
     lead = None if lead < 0 else lead
     together = float(rospy.get_param(TOGETHER_LEAD_PARAM, TOGETHER_LEAD_S))
+    travel = float(rospy.get_param(FINGER_TRAVEL_PARAM, -1.0))
     fingers = {
         "finger_joints": str(rospy.get_param(FINGER_JOINTS_PARAM, "")),
-        "finger_travel": float(rospy.get_param(FINGER_TRAVEL_PARAM, SLIP_FINGER_TRAVEL)),
+        "finger_travel": None if travel <= 0 else travel,  # finger_travel_for's
     }
     try:
         if rospy.get_param(CELL_PARAM, "sim") == "real":
