@@ -90,6 +90,10 @@ MAX_REPLICATE = 999
 """Largest replicate index."""
 
 
+MAX_VIDEO_FPS = 60.0
+"""Most video frames per simulated second an episode records (as a suite allows)."""
+
+
 @dataclass(frozen=True)
 class EpisodeConfig:
     """Everything that defines one fold episode; the seed draws the cloth's pose on the table."""
@@ -236,7 +240,11 @@ class EpisodeConfig:
             f"fault_slip must be in [0, 1) (the fraction of the first carry done when its "
             f"grasp slips; 0: none), got {self.fault_slip!r}",
         )
-        require(self.video_fps >= 0, f"video_fps must be ≥ 0, got {self.video_fps!r}")
+        require(
+            0 <= self.video_fps <= MAX_VIDEO_FPS,
+            f"video_fps must be frames per simulated second in [0, {MAX_VIDEO_FPS:g}] "
+            f"(0: no video), got {self.video_fps!r}",
+        )
         require(
             self.start in START_STATES,
             f"unknown start {self.start!r}; allowed: {', '.join(START_STATES)}",

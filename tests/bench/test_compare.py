@@ -4,9 +4,9 @@ import json
 
 import pytest
 
-from foldbot.bench.compare import compare_runs, load_run, markdown
+from foldbot.bench.compare import compare_runs, load_run, markdown, plot_pairs
 from foldbot.bench.summary import mean_interval, success_interval
-from foldbot.errors import ConfigError
+from foldbot.errors import ConfigError, OutputError
 
 
 @pytest.fixture
@@ -189,3 +189,47 @@ def test_pair_by_seed_pairs_replicate_with_replicate(tmp_path, write_run):
     assert [p["fold_error_mm"] for p in c["pairs"]] == [[40.0, 35.0], [30.0, 31.0], [20.0, 22.0]]
     # One towel folded three times: no interval over a single towel's mean difference.
     assert c["overall"]["difference_mm"]["mean_ci95"] is None
+
+
+EID = "towel-half-vision-closed-s0000"
+
+
+@pytest.mark.parametrize(
+    ("file", "text", "says"),
+    [
+        (f"episodes/{EID}/result.json", "{not json", "is not valid JSON"),
+        (f"episodes/{EID}/result.json", "", "is empty"),
+        (f"episodes/{EID}/result.json", "[]", "holds a JSON array, not an object"),
+        (
+            f"episodes/{EID}/result.json",
+            json.dumps({"success": False, "fold_error_mm": "big"}),
+            "fold_error_mm = 'big' must be a number (mm) or null",
+        ),
+        (
+            f"episodes/{EID}/result.json",
+            json.dumps({"fold_error_mm": 3.0, "actions": [1]}),
+            "actions = [1] must be a list of objects",
+        ),
+        ("suite.json", "garbage", "is not valid JSON"),
+        ("suite.json", "[]", "holds a JSON array, not an object"),
+        ("suite.json", json.dumps({"episodes": {EID: 3}}), f"episode '{EID}' = 3 must be a spec"),
+        (f"episodes/{EID}.error.json", "garbage", "is not valid JSON"),
+        (f"episodes/{EID}.error.json", json.dumps({"error": 7}), "error = 7 must be a string"),
+    ],
+)
+def test_a_malformed_run_file_is_named(tmp_path, write_run, file, text, says):
+    record = "SimulationDivergedError" if file.endswith(".error.json") else 8.0
+    run = write_run(tmp_path / "a", {EID: ("half", 0, record)})
+    (run / file).write_text(text)
+    with pytest.raises(ConfigError) as caught:
+        load_run(run)
+    assert str(run / file) in str(caught.value) and says in str(caught.value)
+
+
+def test_a_plot_that_cannot_be_written_leaves_no_temp_file(tmp_path, runs):
+    folder = tmp_path / "pairs.png"
+    folder.mkdir()
+    with pytest.raises(OutputError, match=r"pairs\.png: it is a folder"):
+        plot_pairs(compare_runs(*runs), folder)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a", "b", "pairs.png"]
+    assert list(folder.iterdir()) == []

@@ -1,14 +1,19 @@
-"""The runner on real (tiny) episodes: resume, error records, changed settings, open loop."""
+"""The runner on real (tiny) episodes: resume, error records, changed settings, open loop,
+another run's folder, what a stopped episode staged, bad timeouts."""
 
 import json
+import os
+import signal
 import sys
+import threading
+import time
 
 import pytest
 
-from foldbot.bench.runner import episode_dir, error_file, run_suite
+from foldbot.bench.runner import MAX_TIMEOUT_S, episode_dir, error_file, run_suite
 from foldbot.bench.suite import suite_from_dict
 from foldbot.bench.summary import failure_cause
-from foldbot.errors import ConfigError
+from foldbot.errors import ConfigError, OutputError
 from foldbot.io.episode import is_episode_dir
 
 
@@ -99,3 +104,98 @@ def test_ray_missing_is_a_clear_error_before_anything_is_written(
     with pytest.raises(ConfigError, match=r"pip install -e '\.\[ray\]'"):
         run_suite(suite_from_dict(tiny_suite_data()), out, ray_address="auto")
     assert not out.exists()
+
+
+def _watch_staging(out, found: list, kill: bool = False):
+    """A thread that notes the first staging folder an episode's worker makes under `out`
+    (and, with kill, kills that worker, its pid named by the folder)."""
+
+    def watch():
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and not found:
+            partial = list((out / "episodes").glob(".*.partial-*"))
+            if partial:
+                found.append(partial[0])
+                if kill:
+                    os.kill(int(partial[0].name.rpartition("-")[2]), signal.SIGKILL)
+            time.sleep(0.01)
+
+    thread = threading.Thread(target=watch, daemon=True)
+    thread.start()
+    return thread
+
+
+def test_an_episode_stopped_at_the_timeout_leaves_no_staging_folder(tmp_path, tiny_suite_data):
+    """The worker is killed mid-write: its `.<id>.partial-<pid>` folder goes with it."""
+    data = tiny_suite_data(recipe=["quarter"])
+    data["towel"]["resolution"] = 20  # an episode far longer than the timeout
+    suite = suite_from_dict(data)
+    found: list = []
+    thread = _watch_staging(tmp_path, found)
+    (rec,) = run_suite(suite, tmp_path, progress=False, timeout=6)
+    thread.join()
+    assert rec["error_type"] == "Timeout", rec
+    assert found, "the worker never began its episode folder within the timeout"
+    assert sorted(p.name for p in (tmp_path / "episodes").iterdir()) == [
+        f"{suite.episodes[0].id}.error.json"
+    ]
+
+
+def test_a_killed_episode_leaves_no_staging_folder(tmp_path, tiny_suite_data):
+    suite = suite_from_dict(tiny_suite_data())
+    found: list = []
+    thread = _watch_staging(tmp_path, found, kill=True)
+    (rec,) = run_suite(suite, tmp_path, progress=False)
+    thread.join()
+    assert found and rec["error_type"] == "Crashed" and "SIGKILL" in rec["error"], rec
+    assert not list((tmp_path / "episodes").glob(".*"))
+
+
+def test_a_rerun_removes_what_a_stopped_run_staged(tmp_path, tiny_suite_data):
+    """Staging folders an earlier run left (its process gone) are removed before the episode
+    runs again; one whose process still runs (a run writing it now) is kept."""
+    suite = suite_from_dict(tiny_suite_data())
+    eid = suite.episodes[0].id
+    episodes = tmp_path / "episodes"
+    stale = [episodes / f".{eid}.partial-{2**22 + 1}", episodes / f".{eid}.ray-partial"]
+    alive = episodes / f".{eid}.partial-{os.getpid()}"
+    for folder in [*stale, alive]:
+        folder.mkdir(parents=True)
+        (folder / "video.mp4").write_bytes(b"half")
+    (rec,) = run_suite(suite, tmp_path, progress=False)
+    assert "result" in rec
+    assert not any(p.exists() for p in stale) and alive.is_dir()
+
+
+def test_a_bad_timeout_is_refused_before_anything_is_written(tmp_path, tiny_suite_data):
+    suite = suite_from_dict(tiny_suite_data())
+    for bad in (float("nan"), float("inf"), 0.0, -1.0, MAX_TIMEOUT_S * 2):
+        for run in (True, False):
+            with pytest.raises(ConfigError, match=rf"--timeout must be .* got {bad!r}"):
+                run_suite(suite, tmp_path / "b", timeout=bad, run=run, progress=False)
+    assert not (tmp_path / "b").exists()
+
+
+def test_a_folder_holding_another_run_is_refused(tmp_path, tiny_suite_data):
+    """Another suite's run is neither replaced nor mixed with; the same run resumes (with other
+    seeds too), and a suite of the very same episodes under another name may report them."""
+    run_suite(suite_from_dict(tiny_suite_data()), tmp_path, progress=False, run=False)
+    before = (tmp_path / "suite.json").read_bytes()
+    other = suite_from_dict({**tiny_suite_data(recipe=["quarter"]), "name": "other"})
+    with pytest.raises(ConfigError) as exc:
+        run_suite(other, tmp_path, progress=False, run=False)
+    assert str(exc.value).startswith(f"output folder {tmp_path} holds another run")
+    assert "'tiny'" in str(exc.value) and "'other'" in str(exc.value)
+    assert (tmp_path / "suite.json").read_bytes() == before
+    for resumed in (tiny_suite_data(), tiny_suite_data(seeds="0-2")):
+        run_suite(suite_from_dict(resumed), tmp_path, progress=False, run=False, retry_errors=True)
+    renamed = {**tiny_suite_data(seeds="0-2"), "name": "tiny_copy"}
+    run_suite(suite_from_dict(renamed), tmp_path, progress=False, run=False)
+    assert json.loads((tmp_path / "suite.json").read_text())["name"] == "tiny_copy"
+
+
+def test_an_unreadable_suite_json_is_a_clear_error(tmp_path, tiny_suite_data):
+    (tmp_path / "suite.json").write_text("{not json")
+    with pytest.raises(OutputError, match=r"cannot read .*suite.json"):
+        run_suite(suite_from_dict(tiny_suite_data()), tmp_path, progress=False, run=False)
+    assert not (tmp_path / "episodes").exists()

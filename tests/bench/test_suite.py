@@ -6,6 +6,8 @@ import math
 import pytest
 
 from foldbot.bench.suite import (
+    MAX_SEED,
+    MAX_SEEDS,
     SUITES_DIR,
     EpisodeSpec,
     available_suites,
@@ -414,6 +416,40 @@ def test_seeds():
     for bad in ("3-1", "a", "", "-2", [1.5]):
         with pytest.raises(ConfigError, match="seeds"):
             parse_seeds(bad)
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        "0-99999999999",  # refused before the range is expanded (it was a MemoryError)
+        f"0-{MAX_SEEDS}",
+        f"0-{MAX_SEEDS - 1},{MAX_SEEDS}",
+        str(MAX_SEED + 1),
+        [MAX_SEED + 1],
+    ],
+)
+def test_too_many_seeds_or_too_large_a_seed_is_refused(bad, tiny_suite_data):
+    with pytest.raises(ConfigError) as exc:
+        parse_seeds(bad)
+    assert f"at most {MAX_SEEDS} seeds" in str(exc.value) and repr(bad)[:20] in str(exc.value)
+    data = tiny_suite_data(seeds=bad)
+    with pytest.raises(ConfigError, match=rf"x.toml: axes.seeds must name at most {MAX_SEEDS}"):
+        suite_from_dict(data, source="x.toml")
+
+
+def test_the_most_seeds_and_the_largest_seed_are_allowed():
+    assert len(parse_seeds(f"0-{MAX_SEEDS - 1}")) == MAX_SEEDS
+    assert parse_seeds(f"{MAX_SEED - 1}-{MAX_SEED}") == [MAX_SEED - 1, MAX_SEED]
+    assert parse_seeds(f"0-{MAX_SEEDS - 1},5") == list(range(MAX_SEEDS))  # counted once
+
+
+def test_a_suite_file_with_a_huge_seed_range_is_refused_at_once(tmp_path):
+    """The range is checked before it is expanded: `fold --suite` and `bench --suite` over
+    such a file hung or ran out of memory."""
+    path = tmp_path / "huge.toml"
+    path.write_text('name = "huge"\n[axes]\nseeds = "0-99999999999"\n')
+    with pytest.raises(ConfigError, match=r"huge.toml: axes.seeds must name at most 10000 seeds"):
+        load_suite(str(path))
 
 
 def test_unknown_suite_name_lists_the_available_ones():

@@ -277,3 +277,109 @@ def test_a_calibration_sees_every_episode_and_a_resume_keeps_its_pose(tmp_path):
                  "--camera-pose", str(cal)]) == 0  # fmt: skip
     command = json.loads((out / "summary.json").read_text())["command"]
     assert command.endswith(f"--camera-pose {cal} --out {out}")
+
+
+@pytest.mark.parametrize("bad", ["nan", "inf", "-1", "0", "1e9"])
+@pytest.mark.parametrize("report_only", [False, True])
+def test_a_bad_timeout_is_refused_before_anything_is_written(tmp_path, capsys, bad, report_only):
+    out = tmp_path / "b"
+    args = ["bench", "--suite", "smoke", "--out", str(out), "--timeout", bad]
+    assert main(args + ["--report-only"] * report_only) == 2
+    err = capsys.readouterr().err
+    assert "--timeout must be a number of seconds in (0, 604800]" in err
+    assert f"got {float(bad)!r}" in err and "Traceback" not in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("seeds", "needle"),
+    [
+        ("", "--seeds must look like '0-9' or '0,3,5', got ''"),
+        ("0-99999999999", "--seeds must name at most 10000 seeds, each in [0, 2147483647]"),
+    ],
+)
+@pytest.mark.parametrize("suite", [[], ["--suite", "smoke"]])
+def test_bad_seeds_are_refused_before_anything_is_written(tmp_path, capsys, seeds, needle, suite):
+    """An empty --seeds was taken for the one-recipe suite's default, 0-9; a huge range ran out
+    of memory expanding it."""
+    out = tmp_path / "b"
+    assert main(["bench", *suite, "--seeds", seeds, "--report-only", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert needle in err and "Traceback" not in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("empty", ["", " "])
+def test_an_empty_out_is_refused(tmp_path, monkeypatch, capsys, empty):
+    """`--out ''` was the current folder: the run's files went among whatever was there."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as exc:  # argparse's error
+        main(["bench", "--suite", "smoke", "--report-only", "--out", empty])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert f"argument --out: must name a folder or file, got {empty!r}" in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_folder_holding_another_run_is_refused(tmp_path, capsys):
+    """A run folder is not taken over by another suite's run; the same run still resumes,
+    reports and retries its errors (over other seeds too)."""
+    out = tmp_path / "r"
+    assert main(["bench", "--suite", "smoke", "--report-only", "--out", str(out)]) == 0
+    kept = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    capsys.readouterr()
+    args = ["bench", "--recipe", "quarter", "--seeds", "0", "--report-only", "--out", str(out)]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert f"output folder {out} holds another run: its suite.json describes suite 'smoke'" in err
+    assert "not 'quarter_vision'" in err and "use another --out" in err
+    assert "Traceback" not in err
+    assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == kept
+    for again in (["--report-only"], ["--report-only", "--retry-errors", "--seeds", "0-2"]):
+        assert main(["bench", "--suite", "smoke", "--out", str(out), *again]) == 0
+
+
+def test_a_bench_stopped_by_sigterm_stops_its_episodes_and_leaves_none_half_written(tmp_path):
+    """`kill` stops a bench at once, as Ctrl-C does: the running episode's process is killed
+    rather than waited for, its staging folder removed, no record written (it runs again on
+    the next bench); exit 143."""
+    import os
+    import signal
+    import time
+
+    suite_file = tmp_path / "one.toml"
+    suite_file.write_text(
+        'name = "one"\n[axes]\nrecipe = ["half"]\nperception = ["oracle"]\nseeds = "0"\n'
+        "[towel]\nresolution = 17\n[episode]\nvideo_fps = 0\n[reference]\nravens_speed = false\n"
+    )
+    out = tmp_path / "run"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "foldbot.cli", "bench", "--suite", str(suite_file), "--out",
+         str(out), "--workers", "1", "--no-reference"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    deadline = time.monotonic() + 120
+    staged: list = []
+    while not staged and time.monotonic() < deadline:
+        assert proc.poll() is None, proc.communicate()
+        staged = (
+            list((out / "episodes").glob(".*.partial-*")) if (out / "episodes").is_dir() else []
+        )
+        time.sleep(0.05)
+    assert staged, "the episode never staged its folder"
+    worker = int(staged[0].name.rsplit("-", 1)[1])
+    started = time.monotonic()
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 128 + signal.SIGTERM, err[-2000:]
+    assert time.monotonic() - started < 10  # not the episode's whole length (~40 s)
+    assert "terminated (SIGTERM)" in err
+    assert list((out / "episodes").iterdir()) == []
+    for _ in range(100):  # the worker is gone (killed, then reaped by bench or by init)
+        try:
+            os.kill(worker, 0)
+        except ProcessLookupError:
+            break
+        time.sleep(0.1)
+    else:
+        raise AssertionError(f"the episode process {worker} still runs")

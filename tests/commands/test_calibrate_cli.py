@@ -50,7 +50,13 @@ def test_a_moved_camera_is_found_from_the_held_board(tmp_path, capsys):
         (["--board", "eight"], "--board must be COLUMNSxROWS"),
         (["--views", "3"], "views must be an integer in [4, 12]"),
         (["--camera-target", "0.4", "0", "0.75"], "--camera-target needs --camera-eye"),
-        (["--look-from", "1", "0", "0.9"], "must be above the held board"),
+        (["--look-from", "1", "0", "0.9"], "--look-from: the camera's rough position"),
+        (["--camera-eye", "1", "0", "0.9"], "--camera-eye (the board turns to it): the camera's"),
+        (
+            ["--camera-eye", "0.45", "0", "1.75", "--camera-target", "0.45", "0", "1.75"],
+            "camera eye [0.45, 0.0, 1.75] and target [0.45, 0.0, 1.75] (m) must differ",
+        ),
+        (["--out", ""], "argument --out: must name a folder or file, got ''"),
         (["--square", "0"], "square_m must be in"),
         (["--camera-noise", "-1"], "--camera-noise must be in [0, 64] intensity levels"),
         (["--arm", "right"], "--arm right is for a two-arm cell (--arms 2)"),
@@ -73,7 +79,11 @@ def test_a_moved_camera_is_found_from_the_held_board(tmp_path, capsys):
 )
 def test_bad_options_are_refused_by_name_and_leave_no_folder(tmp_path, capsys, extra, needle):
     out = tmp_path / "cal"
-    assert main(["calibrate", "--out", str(out), *extra]) == 2
+    try:
+        code = main(["calibrate", "--out", str(out), *extra])
+    except SystemExit as exc:  # argparse's own errors
+        code = exc.code
+    assert code == 2
     assert needle in capsys.readouterr().err
     assert not out.exists() and list(tmp_path.iterdir()) == []
 
@@ -89,6 +99,13 @@ def test_the_board_to_print_is_written_at_its_resolution(tmp_path, capsys):
     assert "232 × 160 mm at 254 dpi" in capsys.readouterr().out
     assert main(["print-board", str(tmp_path / "b.jpg")]) == 2
     assert "written as a .png" in capsys.readouterr().err
+    # A board metres across at a print resolution: refused before a byte is drawn.
+    huge = ["print-board", str(tmp_path / "h.png"), "--board", "29x28", "--square", "0.2"]
+    assert main([*huge, "--dpi", "2400"]) == 2
+    assert "would be 551811 × 532913 px at 94488.2 px/m: at most 600 megapixels" in (
+        capsys.readouterr().err
+    )
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["board.png"]
 
 
 def test_either_arm_of_two_holds_the_board(tmp_path):

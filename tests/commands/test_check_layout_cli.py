@@ -74,8 +74,11 @@ def test_a_calibrations_camera_is_the_one_checked(tmp_path, capsys):
 @pytest.mark.parametrize(
     ("extra", "needle"),
     [
-        (["--grid", "1"], "the grid must be 2–41 points a side, got 1"),
+        (["--grid", "1"], "--grid must be 2–41 points a side, got 1"),
+        (["--grid", "-3"], "--grid must be 2–41 points a side, got -3"),
         (["missing.toml"], "layout file 'missing.toml' does not exist"),
+        (["."], "layout file '.' is a folder, not a file"),
+        (["--out", ""], "argument --out: must name a folder or file, got ''"),
         (["--camera-pose", "missing.json"], "'missing.json': no such file"),
     ],
 )
@@ -84,8 +87,14 @@ def test_bad_input_is_refused_by_name_and_leaves_no_folder(
 ):
     monkeypatch.chdir(tmp_path)
     out = tmp_path / "check"
-    assert main(["check-layout", "--out", str(out), *extra]) == 2
-    assert needle in capsys.readouterr().err
+    try:
+        code = main(["check-layout", "--out", str(out), *extra])
+    except SystemExit as exc:  # argparse's own errors
+        code = exc.code
+    assert code == 2
+    captured = capsys.readouterr()
+    assert needle in captured.err
+    assert "points" not in captured.out  # refused before anything is printed
     assert list(tmp_path.iterdir()) == []
 
 

@@ -3,6 +3,8 @@ not a run."""
 
 import json
 
+import pytest
+
 from foldbot.cli import main
 
 
@@ -48,3 +50,49 @@ def test_plot_draws_every_pair_and_refuses_what_it_cannot_write(tmp_path, capsys
         err = capsys.readouterr().err
         assert str(bad) in err and says in err and "Traceback" not in err
         assert not bad.exists()
+
+
+def test_a_corrupt_result_json_gets_one_line_naming_it(tmp_path, capsys, write_run):
+    eid = "towel-half-vision-closed-s0000"
+    a = write_run(tmp_path / "a", {eid: ("half", 0, 8.0)})
+    b = write_run(tmp_path / "b", {eid: ("half", 0, 12.0)})
+    bad = b / "episodes" / eid / "result.json"
+    bad.write_text("[]")
+    assert main(["compare", str(a), str(b)]) == 2
+    err = capsys.readouterr().err
+    assert f"foldbot compare: error: {bad} holds a JSON array, not an object" in err
+    assert "Traceback" not in err
+
+
+def test_plot_onto_a_folder_is_refused_first(tmp_path, capsys, write_run):
+    episodes = {"towel-half-vision-closed-s0000": ("half", 0, 8.0)}
+    a, b = write_run(tmp_path / "a", episodes), write_run(tmp_path / "b", episodes)
+    folder = tmp_path / "dir.png"
+    folder.mkdir()
+    assert main(["compare", str(a), str(b), "--plot", str(folder)]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""  # refused before anything is compared or printed
+    assert f"--plot {folder} is a folder; name a .png file to write" in captured.err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a", "b", "dir.png"]
+    assert list(folder.iterdir()) == []
+
+
+def test_plot_into_a_folder_it_cannot_write_is_refused_first(tmp_path, capsys, write_run):
+    episodes = {"towel-half-vision-closed-s0000": ("half", 0, 8.0)}
+    a, b = write_run(tmp_path / "a", episodes), write_run(tmp_path / "b", episodes)
+    shut = tmp_path / "shut"
+    shut.mkdir()
+    shut.chmod(0o555)
+    try:
+        try:  # root (and some file systems) write there all the same: nothing to test then
+            (shut / "probe").write_bytes(b"")
+        except OSError:
+            pass
+        else:
+            pytest.skip("this user can write in a read-only folder")
+        assert main(["compare", str(a), str(b), "--plot", str(shut / "p.png")]) == 2
+        err = capsys.readouterr().err
+        assert f"--plot {shut / 'p.png'}: cannot write in its folder {shut}" in err
+        assert "Traceback" not in err and list(shut.iterdir()) == []
+    finally:
+        shut.chmod(0o755)

@@ -57,6 +57,11 @@ def test_subcommand_help(cmd, capsys):
         (["--mass", "-1"], "mass"),
         (["--time-step", "0"], "time_step"),
         (["--time-step", "0.05"], "time_step"),
+        (["--out", ""], "argument --out: must name a folder or file, got ''"),
+        (["--time-step", "1e-9"], "time_step must be in [0.0001, 0.02] s, got 1e-09"),
+        (["--time-step", "nan"], "time_step must be in [0.0001, 0.02] s, got nan"),
+        (["--video-fps", "1e9"], "video_fps must be frames per simulated second in [0, 60]"),
+        (["--video-fps", "inf"], "(0: no video), got inf"),
         (["--jaw-catch", "glue"], "glue"),
         (["--resolution", "2"], "resolution"),
         (["--resolution", "99"], "resolution"),
@@ -468,3 +473,30 @@ def test_a_fold_perceives_from_the_calibrations_pose(tmp_path):
     seen = result["first_frame_keypoint_error_mm"]
     assert all(4.0 < e < 6.0 for e in seen.values()), seen
     assert result["success"] and result["coverage"] < 0.6
+
+
+def test_a_fold_stopped_by_sigterm_leaves_nothing_behind(tmp_path):
+    """`kill` (or `timeout`) stops a fold as Ctrl-C does: its staged episode folder is removed,
+    nothing at --out, exit 143 (128 + SIGTERM)."""
+    import signal
+    import time
+
+    out = tmp_path / "ep"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "foldbot.cli", "fold", "--resolution", "5", "--out", str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PYTHONWARNINGS": "ignore"},
+    )
+    deadline = time.monotonic() + 120
+    while not list(tmp_path.glob(".ep.partial-*")) and time.monotonic() < deadline:
+        assert proc.poll() is None, proc.communicate()
+        time.sleep(0.05)
+    assert list(tmp_path.glob(".ep.partial-*")), "the fold never staged its episode"
+    time.sleep(0.5)  # into the episode: the cloth settling, the video open
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 128 + signal.SIGTERM, err[-2000:]
+    assert "terminated (SIGTERM)" in err
+    assert list(tmp_path.iterdir()) == []

@@ -2,6 +2,8 @@
 run with or without ROS installed)."""
 
 import argparse
+import json
+import os
 
 import pytest
 from calibration_files import write_calibration
@@ -79,7 +81,21 @@ from foldbot.commands.ros_fold import add_arguments, fold_args_text
         ),
         (
             ["ros-fold", "--out", "{tmp}/e", "--cell", "real", "--master-wait", "-1"],
-            "--master-wait must be seconds >= 0, got -1.0",
+            "--master-wait must be seconds in [0, 3600], got -1.0",
+        ),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--cell", "real", "--master-wait", "inf"],
+            "--master-wait must be seconds in [0, 3600], got inf",
+        ),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--cell", "real", "--master-wait", "1e9"],
+            "--master-wait must be seconds in [0, 3600], got 1000000000.0",
+        ),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--real-time-factor", "2"],
+            "--real-time-factor paces the simulated cell's drivers: it applies with "
+            "--arm-interface actions (the topics interface runs in lockstep, as fast as it can); "
+            "got --arm-interface topics",
         ),
         (
             ["ros-fold", "--out", "{tmp}/e", "--arms", "2", "--together-lead", "0.5"],
@@ -142,7 +158,37 @@ from foldbot.commands.ros_fold import add_arguments, fold_args_text
         ),
         (["ros-calibrate", "--out", "{tmp}/e", "--board", "9x5"], "odd in all"),
         (["ros-calibrate", "--out", "{tmp}/e", "--port", "70000"], "--port must be in 1–65535"),
+        (
+            ["ros-calibrate", "--out", "{tmp}/e", "--master-wait", "inf"],
+            "--master-wait must be seconds in [0, 3600], got inf",
+        ),
+        (
+            ["ros-calibrate", "--out", "{tmp}/e", "--master-wait", "1e9"],
+            "--master-wait must be seconds in [0, 3600], got 1000000000.0",
+        ),
+        (
+            ["ros-check", "--out", "{tmp}/e", "--master-wait", "inf"],
+            "--master-wait must be seconds in [0, 3600], got inf",
+        ),
+        (
+            ["ros-check", "--out", "{tmp}/e", "--master-wait", "nan"],
+            "--master-wait must be seconds in [0, 3600], got nan",
+        ),
+        (["ros-check", "--out", "{tmp}/e", "--port", "0"], "--port must be in 1–65535, got 0"),
         (["ros-replay", "{tmp}/missing.bag", "--rate", "0"], "--rate"),
+        (
+            ["ros-replay", "{tmp}/missing.bag", "--rate", "inf"],
+            "--rate must be a play rate in [0.01, 100] (1: as recorded), got inf",
+        ),
+        (
+            ["ros-replay", "{tmp}/missing.bag", "--rate", "1e-6"],
+            "--rate must be a play rate in [0.01, 100] (1: as recorded), got 1e-06",
+        ),
+        (
+            ["ros-replay", "{tmp}/missing.bag", "--port", "70000"],
+            "--port must be in 1–65535, got 70000",
+        ),
+        (["ros-replay", "{tmp}/missing.bag", "--port", "0"], "--port must be in 1–65535, got 0"),
         (["export-bag", "{tmp}", "--out", "{tmp}/x.txt"], "must end in .bag"),
     ],
 )
@@ -152,6 +198,195 @@ def test_bad_input_is_named(args, needle, tmp_path, capsys, no_launch):
     err = capsys.readouterr().err
     assert needle in err
     assert not (tmp_path / "e").exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (
+            ["ros-fold", "--out", "{tmp}/afile"],
+            "episode output '{tmp}/afile' exists and is not a folder; allowed: a new path, an "
+            "empty folder, or a previous episode folder",
+        ),
+        (
+            ["ros-fold", "--out", "{tmp}/afile/e"],
+            "cannot create the parent folder of episode output '{tmp}/afile/e'",
+        ),
+        (
+            ["ros-fold", "--out", "{tmp}/junk", "--overwrite"],
+            "episode output '{tmp}/junk' is a non-empty folder that is not a foldbot episode",
+        ),
+        (
+            ["ros-fold", "--out", "{tmp}/episode"],
+            "--out {tmp}/episode already holds an episode; pass --overwrite to replace it",
+        ),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--record", "{tmp}/afile/run.bag"],
+            "--record {tmp}/afile/run.bag: '{tmp}/afile' is a file, not a folder",
+        ),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--record", "{tmp}/afile/sub/run.bag"],
+            "--record {tmp}/afile/sub/run.bag: cannot write a bag in '{tmp}/afile/sub' (Not a "
+            "directory); allowed: a .bag path in a folder that can be written",
+        ),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--record", "{tmp}/folder.bag", "--overwrite"],
+            "--record {tmp}/folder.bag is a folder; allowed: a .bag file's path",
+        ),
+        (["ros-check", "--out", "{tmp}/afile"], "--out {tmp}/afile exists and is not a folder"),
+        (
+            ["ros-calibrate", "--out", "{tmp}/afile"],
+            "--out {tmp}/afile exists and is not a folder",
+        ),
+    ],
+)
+def test_an_output_that_cannot_be_written_is_named_before_anything_starts(
+    args, needle, tmp_path, capsys, no_launch
+):
+    """An --out or --record the run could not write is refused up front (ros-check and
+    ros-calibrate: before the master is waited for), as `foldbot fold` refuses it, and the
+    check leaves nothing behind."""
+    (tmp_path / "afile").write_text("not a folder")
+    (tmp_path / "junk").mkdir()
+    (tmp_path / "junk" / "notes.txt").write_text("not an episode")
+    (tmp_path / "episode").mkdir()
+    (tmp_path / "episode" / "result.json").write_text("{}")
+    (tmp_path / "episode" / "cloth.npz").write_bytes(b"")
+    (tmp_path / "folder.bag").mkdir()
+    before = sorted(tmp_path.rglob("*"))
+    code = main([a.replace("{tmp}", str(tmp_path)) for a in args])
+    assert code == 2
+    assert needle.replace("{tmp}", str(tmp_path)) in capsys.readouterr().err
+    assert sorted(tmp_path.rglob("*")) == before
+
+
+@pytest.mark.parametrize("option", ["--out", "--record"])
+def test_an_empty_output_path_is_refused(option, tmp_path, capsys, no_launch):
+    """An empty --out (or --record) is not taken as the current folder."""
+    args = ["ros-fold", "--out", str(tmp_path / "e"), option, ""]
+    with pytest.raises(SystemExit) as exit_:
+        main(args)
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert f"argument {option}: " in err and "got ''" in err  # io.staging.output_path's words
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_the_bags_folder_is_checked_and_left_as_it_was(tmp_path):
+    """--record's folder is made where missing and written in once (a probe file, removed)."""
+    from foldbot.commands.ros_fold import check_bag_target
+    from foldbot.errors import ConfigError, OutputError
+
+    check_bag_target(tmp_path / "new" / "deep" / "run.bag", overwrite=False)
+    assert (tmp_path / "new" / "deep").is_dir()
+    assert list((tmp_path / "new" / "deep").iterdir()) == []
+    (tmp_path / "run.bag").write_bytes(b"old")
+    with pytest.raises(OutputError, match="already exists; pass --overwrite"):
+        check_bag_target(tmp_path / "run.bag", overwrite=False)
+    check_bag_target(tmp_path / "run.bag", overwrite=True)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["new", "run.bag"]
+    with pytest.raises(ConfigError, match=r"must name a \.bag file"):
+        check_bag_target(tmp_path / "run.txt", overwrite=False)
+
+
+def test_a_bag_the_recorder_did_not_write_is_no_success(tmp_path):
+    """After the run, `bag recorded` only where the recorder left its bag: not where it wrote
+    none, left it unfinished, or left the bag --overwrite was to replace as it was."""
+    from foldbot.commands.ros_fold import check_bag_recorded, file_stamp
+    from foldbot.errors import FoldbotError
+
+    bag = tmp_path / "run.bag"
+    with pytest.raises(FoldbotError) as none:
+        check_bag_recorded(bag, None)
+    assert str(none.value) == (
+        f"--record {bag}: no bag was recorded (rosbag record failed: see its output above)"
+    )
+    (tmp_path / "run.bag.active").write_bytes(b"cut short")
+    with pytest.raises(
+        FoldbotError, match=r"left .*run\.bag\.active unfinished \(`rosbag reindex`"
+    ):
+        check_bag_recorded(bag, None)
+    bag.write_bytes(b"old bag")
+    old = file_stamp(bag)
+    with pytest.raises(FoldbotError, match="no bag was recorded"):
+        check_bag_recorded(bag, old)  # --overwrite's old bag, not replaced
+    check_bag_recorded(bag, None)  # a new bag
+    os.utime(bag, ns=(old + 10**9, old + 10**9))  # the old one, written over by the run
+    check_bag_recorded(bag, old)
+
+
+def write_bag(path, states, seconds=1.0):
+    """A bag as ros-fold --record leaves one, in brief: /cloth/state messages (`states`, each
+    as published) and a frame's camera topics at stamp 1 s, spanning `seconds`."""
+    import rosbag
+    import rospy
+    from sensor_msgs.msg import CameraInfo, Image
+    from std_msgs.msg import String
+
+    with rosbag.Bag(str(path), "w") as bag:
+        start = rospy.Time(1)
+        for topic, msg in (
+            ("/camera/color/image_raw", Image()),
+            ("/camera/color/camera_info", CameraInfo()),
+            ("/camera/depth/image_raw", Image()),
+        ):
+            msg.header.stamp = start
+            bag.write(topic, msg, start)
+        for text in states:
+            bag.write("/cloth/state", String(data=text), start)
+        bag.write("/cloth/state", String(data=states[-1]), start + rospy.Duration(seconds))
+
+
+def ros_is_missing():
+    from foldbot.commands.ros_fold import ros_missing
+
+    return ros_missing()
+
+
+STATE = json.dumps({"stamp": 1.0, "detected": True, "keypoints": {}})
+
+
+@pytest.mark.skipif(ros_is_missing() is not None, reason="needs ROS 1")
+@pytest.mark.parametrize(
+    ("make", "needle"),
+    [
+        (
+            lambda bag: bag.write_bytes(b"garbage!"),
+            "{bag} is not a ROS bag that can be read (This does not appear to be a bag file); "
+            "ros-replay plays a bag recorded by `foldbot ros-fold --record`",
+        ),
+        (
+            lambda bag: bag.write_bytes(b""),
+            "{bag} is not a ROS bag that can be read (empty file)",
+        ),
+        (
+            lambda bag: (write_bag(bag, [STATE]), bag.write_bytes(bag.read_bytes()[:3000])),
+            "{bag} is a bag without its index (a recording cut short): `rosbag reindex {bag}`",
+        ),
+        (
+            lambda bag: write_bag(bag, ["{not json"]),
+            "{bag}: a /cloth/state message is not a foldbot perception node's state "
+            "(JSONDecodeError",
+        ),
+        (
+            lambda bag: write_bag(bag, [json.dumps({"detected": True})]),
+            "{bag}: a /cloth/state message is not a foldbot perception node's state (KeyError",
+        ),
+        (
+            lambda bag: write_bag(bag, [STATE], seconds=12.0),
+            "{bag} spans 12.0 s: at --rate 0.01 it would play for 1200 s, more than the 600 s a "
+            "replay is given; pass a --rate of at least 0.02",
+        ),
+    ],
+)
+def test_a_bag_ros_replay_cannot_play_is_named(make, needle, tmp_path, capsys, no_launch):
+    """A file that is no bag, an empty one, one cut short, one whose /cloth/state is not
+    perception's, or one that would play for too long at --rate: named, exit code 2, before
+    roscore or a node starts."""
+    bag = tmp_path / "run.bag"
+    make(bag)
+    assert main(["ros-replay", str(bag), "--rate", "0.01"]) == 2
+    assert needle.replace("{bag}", str(bag)) in capsys.readouterr().err
 
 
 def test_export_of_a_folder_that_is_no_episode_names_it(tmp_path, capsys):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import json
 from pathlib import Path
 from typing import Any
@@ -245,7 +246,7 @@ def test_target_validation(tmp_path: Path) -> None:
 
 def test_overwrite_only_when_asked(tmp_path: Path) -> None:
     out = write_episode(tmp_path / "ep")
-    with pytest.raises(OutputError, match="overwrite=True"):
+    with pytest.raises(OutputError, match=r"use --overwrite \(overwrite=True\) to replace it"):
         EpisodeWriter(out)
     (out / "stale.png").write_bytes(b"old")
     write_episode(out, overwrite=True)
@@ -271,3 +272,62 @@ def test_bad_cloth_and_image_args(tmp_path: Path) -> None:
 def test_load_rejects_non_episode(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="not an episode folder"):
         rescore(tmp_path)
+
+
+def _cloth_npz(**arrays: Any) -> bytes:
+    """A cloth.npz's bytes: the test cloth's arrays, with `arrays` in place of them."""
+    faces, initial, final = cloth()
+    base = {"faces": faces, "initial": initial, "final": final, "thickness": THICKNESS}
+    buf = io.BytesIO()
+    np.savez(buf, **{**base, **arrays})
+    return buf.getvalue()
+
+
+_, _INITIAL, _FINAL = cloth()
+
+
+@pytest.mark.parametrize(
+    ("data", "says"),
+    [
+        (b"", "is not a readable episode file (it is empty)"),
+        (b"not a zip at all", "is not a readable episode file (it is not a .npz (zip) archive)"),
+        (_cloth_npz()[:500], "is not a readable episode file (a truncated or corrupt archive"),
+        (
+            _cloth_npz(final=np.array([None] * 3, dtype=object)),
+            "array 'final' holds Python objects, which foldbot does not load",
+        ),
+        (
+            _cloth_npz(final=np.array(["a"] * len(_FINAL))),
+            "final must be a non-empty V×3 array of numbers (m), got <U1",
+        ),
+        (
+            _cloth_npz(final=np.where(np.arange(len(_FINAL))[:, None] < 2, np.nan, _FINAL)),
+            "final has NaN or inf coordinates at 2 of its 121 vertices; every coordinate must be "
+            "finite and within ±100 m of the world origin",
+        ),
+        (
+            _cloth_npz(initial=_INITIAL * 1e300),
+            "initial has a vertex coordinate of 7.6e+299 m; every coordinate must be finite",
+        ),
+        (_cloth_npz(thickness=np.float64("nan")), "thickness = nan must be a finite number ≥ 0"),
+        (_cloth_npz(thickness=np.array([1.0, 2.0])), "thickness = float64 array of shape (2,)"),
+    ],
+)
+def test_load_names_a_cloth_file_it_cannot_use(tmp_path: Path, data: bytes, says: str) -> None:
+    out = write_episode(tmp_path / "ep")
+    (out / "cloth.npz").write_bytes(data)
+    with pytest.raises(ConfigError) as caught:
+        load_episode(out)
+    message = str(caught.value)
+    assert message.startswith(f"cloth.npz in {out}") and says in message
+    assert "array(" not in message and "allow_pickle" not in message
+
+
+def test_write_cloth_refuses_coordinates_no_cloth_has(tmp_path: Path) -> None:
+    faces, initial, final = cloth()
+    w = EpisodeWriter(tmp_path / "ep")
+    final[5, 2] = np.inf
+    with pytest.raises(ConfigError, match="final has NaN or inf coordinates at 1 of its 121"):
+        w.write_cloth(faces, initial, final, THICKNESS)
+    w.abort()
+    assert list(tmp_path.iterdir()) == []

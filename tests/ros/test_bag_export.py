@@ -75,3 +75,30 @@ def test_refuses_to_overwrite(episode, tmp_path):
     with pytest.raises(OutputError, match="already exists"):
         export_episode(episode, bag)
     assert bag.read_bytes() == b"keep"
+
+
+def test_a_cloth_score_would_refuse_is_refused_and_no_partial_bag_is_left(tmp_path):
+    from foldbot.errors import ConfigError, OutputError
+    from foldbot.io.episode import REQUIRED_RESULT_KEYS, EpisodeWriter
+    from foldbot.ros.bag_export import export_episode
+
+    xs = np.linspace(0.0, 0.3, 3)
+    initial = np.array([[x, y, 0.76] for y in xs for x in xs])
+    faces = np.array([[0, 1, 4], [0, 4, 3], [1, 2, 5], [1, 5, 4]])
+    result = {**dict.fromkeys(REQUIRED_RESULT_KEYS, 0), "fold_lines": [[0.15, 0, 0, 1]]}
+    with EpisodeWriter(tmp_path / "ep") as w:
+        w.write_cloth(faces, initial, initial, 0.002)
+        w.write_result({**result, "actions": []})
+    bags = tmp_path / "bags"
+    assert export_episode(tmp_path / "ep", bags / "ok.bag")["/task/result"] == 1
+    for bad in (np.nan, np.inf, 1e300):
+        final = initial.copy()
+        final[4] = bad
+        np.savez(tmp_path / "ep" / "cloth.npz", faces=faces, initial=initial, final=final,
+                 thickness=0.002)  # fmt: skip
+        with pytest.raises(ConfigError, match=r"cloth\.npz in .*: final has "):
+            export_episode(tmp_path / "ep", bags / "ok.bag", overwrite=True)
+    (bags / "d.bag").mkdir()
+    with pytest.raises(OutputError, match=r"d\.bag is a folder; name a \.bag file"):
+        export_episode(tmp_path / "ep", bags / "d.bag", overwrite=True)
+    assert sorted(p.name for p in bags.iterdir()) == ["d.bag", "ok.bag"]  # no partial bag

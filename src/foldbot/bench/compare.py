@@ -36,9 +36,53 @@ SPEC_AXES = ("garment", "recipe", "perception", "loop")
 """The spec fields a group is made of (an episode's id adds its seed)."""
 
 
+_JSON_KINDS = {
+    list: "array",
+    str: "string",
+    int: "number",
+    float: "number",
+    bool: "boolean",
+    type(None): "null",
+}
+"""What JSON calls the values json.loads returns as these types."""
+
+
+def _read_object(path: Path, what: str) -> dict:
+    """The JSON object in `path`; ConfigError naming the file and what it should hold (`what`)
+    when it cannot be read, is not JSON, or holds something other than an object."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}") from None
+    if not text.strip():
+        raise ConfigError(f"{path} is empty; it must hold {what}")
+    try:
+        data = json.loads(text)
+    except ValueError as exc:
+        raise ConfigError(f"{path} is not valid JSON ({exc}); it must hold {what}") from None
+    if not isinstance(data, dict):
+        kind = _JSON_KINDS.get(type(data), type(data).__name__)
+        raise ConfigError(f"{path} holds a JSON {kind}, not an object; it must hold {what}")
+    return data
+
+
+def _check_result(path: Path, result: dict) -> None:
+    """ConfigError naming `path` when a result.json value compare reads has the wrong type."""
+    v = result.get("fold_error_mm")
+    if v is not None and (isinstance(v, bool) or not isinstance(v, int | float)):
+        raise ConfigError(f"{path}: fold_error_mm = {v!r} must be a number (mm) or null")
+    v = result.get("self_crossings")
+    if v is not None and (isinstance(v, bool) or not isinstance(v, int | float)):
+        raise ConfigError(f"{path}: self_crossings = {v!r} must be a number or null")
+    actions = result.get("actions", [])
+    if not isinstance(actions, list) or not all(isinstance(a, dict) for a in actions):
+        raise ConfigError(f"{path}: actions = {actions!r} must be a list of objects")
+
+
 def load_run(run: Path) -> tuple[dict[str, dict], dict[str, dict]]:
     """A run folder's episode specs (suite.json) and the records of its finished episodes (scored:
-    {"id", "result"}; ended by an error: the error record), both by episode id."""
+    {"id", "result"}; ended by an error: the error record), both by episode id. ConfigError
+    naming the file when suite.json, a result.json or an error record is malformed."""
     run = Path(run)
     suite_file = run / SUITE_FILE
     if not suite_file.is_file():
@@ -46,15 +90,29 @@ def load_run(run: Path) -> tuple[dict[str, dict], dict[str, dict]]:
             f"{run} is not a benchmark run folder: it has no {SUITE_FILE} "
             "(a folder written by `foldbot bench --out`)"
         )
-    specs = json.loads(suite_file.read_text()).get("episodes", {})
+    suite = _read_object(suite_file, 'an object with "episodes": {id: spec object}')
+    specs = suite.get("episodes", {})
+    if not isinstance(specs, dict):
+        raise ConfigError(
+            f"{suite_file}: episodes = {specs!r} must be an object of episode id → spec object"
+        )
+    for eid, spec in specs.items():
+        if not isinstance(spec, dict):
+            raise ConfigError(f"{suite_file}: episode {eid!r} = {spec!r} must be a spec object")
     records: dict[str, dict] = {}
     for eid in specs:
         ep = run / EPISODES / eid
         err = run / EPISODES / f"{eid}.error.json"
         if is_episode_dir(ep):
-            records[eid] = {"id": eid, "result": json.loads((ep / RESULT_FILE).read_text())}
+            result = _read_object(ep / RESULT_FILE, "an episode's result object")
+            _check_result(ep / RESULT_FILE, result)
+            records[eid] = {"id": eid, "result": result}
         elif err.is_file():
-            records[eid] = json.loads(err.read_text())
+            record = _read_object(err, 'an error record: {"error_type", "error", ...}')
+            for key in ("error_type", "error"):
+                if not isinstance(record.get(key, ""), str):
+                    raise ConfigError(f"{err}: {key} = {record[key]!r} must be a string")
+            records[eid] = record
     return specs, records
 
 

@@ -3,32 +3,51 @@ distributions per group), each through a temporary file and a rename: complete o
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 from pathlib import Path
 from typing import Any
 
 from foldbot.bench.summary import CAUSES, FIRST_FRAME_OFF_MM
+from foldbot.errors import OutputError
 from foldbot.flatten_options import shown_flatten_value
 from foldbot.io.episode import to_jsonable
 from foldbot.loop_options import shown_value
 
 
 def _atomic_write(path: Path, data: bytes) -> None:
+    """Write `path` through a temporary file and a rename (complete or absent); OutputError
+    naming it when it cannot be written, with no temporary file left behind."""
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)
+    try:
+        tmp.write_bytes(data)
+        os.replace(tmp, path)
+    except OSError as exc:
+        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+    finally:
+        with contextlib.suppress(OSError):
+            tmp.unlink(missing_ok=True)
 
 
 def save_figure(fig: Any, path: Path) -> None:
     """Write a matplotlib figure as PNG through a temporary file and a rename (complete or
-    absent), and close it."""
+    absent), and close it; OutputError naming `path` when it cannot be written (a folder there,
+    a read-only place), with no temporary file left behind."""
     import matplotlib.pyplot as plt
 
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}.png")
-    fig.savefig(tmp)
-    plt.close(fig)
-    os.replace(tmp, path)
+    try:
+        fig.savefig(tmp)
+        if path.is_dir():  # os.replace would say only "Is a directory"
+            raise OutputError(f"cannot write {path}: it is a folder; name a .png file")
+        os.replace(tmp, path)
+    except OSError as exc:
+        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+    finally:
+        plt.close(fig)
+        with contextlib.suppress(OSError):
+            tmp.unlink(missing_ok=True)
 
 
 def _f(v: Any, fmt: str = ".1f", none: str = "–") -> str:

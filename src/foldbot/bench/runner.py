@@ -25,6 +25,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
@@ -43,6 +44,53 @@ SINGLE_THREAD_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_N
 """Set in every episode process: no BLAS/OpenMP thread pools beside the episode's one core."""
 DEFAULT_TIMEOUT_S = 3600.0
 """An episode still running after this long is stopped and recorded as a timeout."""
+MAX_TIMEOUT_S = 7 * 24 * 3600.0
+"""Longest allowed episode timeout (a week), far beyond any episode's wall time."""
+
+
+def check_timeout(timeout: float | None) -> None:
+    """ConfigError unless `timeout` (wall seconds per episode; None: no limit) is a finite number
+    in (0, MAX_TIMEOUT_S]."""
+    if timeout is None:
+        return
+    if not (isinstance(timeout, int | float) and 0 < timeout <= MAX_TIMEOUT_S):
+        raise ConfigError(
+            f"--timeout must be a number of seconds in (0, {MAX_TIMEOUT_S:g}] (a week), "
+            f"got {timeout!r}"
+        )
+
+
+def _staging_dirs(out: Path, spec: EpisodeSpec) -> list[Path]:
+    """The staging folders an episode's writers may leave behind when stopped mid-write: the
+    worker's `.<id>.partial-<pid>` (io.episode.EpisodeWriter) and the driver's Ray copies."""
+    parent = out / EPISODES
+    return [
+        *parent.glob(f".{spec.id}.partial-*"),
+        *parent.glob(f".{spec.id}.ray-partial"),
+        *parent.glob(f".{spec.id}.failed.ray-partial"),
+    ]
+
+
+def _remove_stale_staging(out: Path, spec: EpisodeSpec) -> None:
+    """Remove the staging folders an earlier, stopped run of the episode left behind; a
+    `.partial-<pid>` whose process still runs on this machine (a run writing it now) is kept."""
+    for path in _staging_dirs(out, spec):
+        _, _, pid = path.name.rpartition(".partial-")
+        if not (pid.isdigit() and _alive(int(pid))):
+            shutil.rmtree(path, ignore_errors=True)
+
+
+def _alive(pid: int) -> bool:
+    """Whether a process `pid` (> 0) runs on this machine."""
+    if pid <= 0:
+        return False
+    try:
+        os.kill(pid, 0)
+    except PermissionError:  # another user's process
+        return True
+    except (ProcessLookupError, OverflowError):
+        return False
+    return True
 
 
 def episode_dir(out: Path, spec: EpisodeSpec) -> Path:
@@ -66,8 +114,22 @@ def load_finished(out: Path, spec: EpisodeSpec, retry_errors: bool = False) -> d
     return None
 
 
+_LIVE: set[subprocess.Popen] = set()
+"""The episode processes running now (run_episode_process), so a bench stopped by `kill` stops
+them too rather than waiting for them (Ctrl-C reaches them by itself, as the terminal's)."""
+_LIVE_LOCK = threading.Lock()
+
+
+def _kill_live_episodes() -> None:
+    """Kill every running episode process; each one's thread then removes its staging folder."""
+    with _LIVE_LOCK:
+        for proc in _LIVE:
+            proc.kill()
+
+
 def run_episode_process(spec: EpisodeSpec, out_dir: Path, timeout: float | None) -> dict:
-    """Run one episode in a fresh Python process; return its record (result or error)."""
+    """Run one episode in a fresh Python process; return its record (result or error). A
+    process stopped at the timeout (or dead without a result) leaves no staging folder."""
     with tempfile.TemporaryDirectory(prefix="foldbot-bench-") as tmp:
         record_path = Path(tmp) / "record.json"
         cmd = [
@@ -81,9 +143,25 @@ def run_episode_process(spec: EpisodeSpec, out_dir: Path, timeout: float | None)
         # One core per episode, and the same numeric set-up locally and on Ray (which sets
         # OMP_NUM_THREADS=1 in its workers): the episode is the same wherever it runs.
         env = {**os.environ, "PYTHONWARNINGS": "ignore", **SINGLE_THREAD_ENV}
-        try:
-            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
-        except subprocess.TimeoutExpired:
+        with subprocess.Popen(
+            cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env
+        ) as proc:
+            with _LIVE_LOCK:
+                _LIVE.add(proc)
+            try:
+                stderr: str | None = proc.communicate(timeout=timeout)[1]
+            except subprocess.TimeoutExpired:
+                stderr = None
+            finally:
+                with _LIVE_LOCK:
+                    _LIVE.discard(proc)
+                # Stopped at the timeout (or by Ctrl-C), or dead: nothing of it left running,
+                # nor the staging folder its episode writer had begun (named by its pid).
+                proc.kill()
+                proc.wait()
+                staging = out_dir.parent / f".{out_dir.name}.partial-{proc.pid}"
+                shutil.rmtree(staging, ignore_errors=True)
+        if stderr is None:
             return {
                 "id": spec.id,
                 "error_type": "Timeout",
@@ -99,7 +177,7 @@ def run_episode_process(spec: EpisodeSpec, out_dir: Path, timeout: float | None)
             if code < 0 and -code in signal.valid_signals()
             else f"exit code {code}"
         )
-        tail = proc.stderr.strip().splitlines()[-3:]
+        tail = stderr.strip().splitlines()[-3:]
         return {
             "id": spec.id,
             "error_type": "Crashed",
@@ -177,24 +255,42 @@ def connect_ray(address: str) -> Any:
 
 
 def prepare_output(out: Path, suite: Suite) -> None:
-    """Create DIR and check that a resumed run does not change any finished episode's spec."""
+    """Create DIR and check that it holds no other run (its suite.json names another suite
+    with other episodes) and that a resumed run does not change any finished episode's spec."""
+    described = suite.as_dict()
+    previous = out / SUITE_FILE
+    if previous.is_file():
+        try:
+            before = json.loads(previous.read_text())
+        except (OSError, ValueError) as exc:
+            raise OutputError(
+                f"cannot read {previous} ({exc}); use another --out or remove that folder"
+            ) from None
+        episodes = before.get("episodes", {}) if isinstance(before, dict) else {}
+        if not isinstance(episodes, dict):
+            episodes = {}
+        name = before.get("name") if isinstance(before, dict) else None
+        if name != suite.name and set(episodes) != set(described["episodes"]):
+            raise ConfigError(
+                f"output folder {out} holds another run: its {SUITE_FILE} describes suite "
+                f"{name!r} (other episodes), not {suite.name!r}; a folder resumes only its own "
+                "run: use another --out, or remove that folder"
+            )
+        for eid, spec in described["episodes"].items():
+            if eid in episodes and episodes[eid] != spec:
+                changed = sorted(
+                    k for k in spec | episodes[eid] if episodes[eid].get(k) != spec.get(k)
+                )
+                raise ConfigError(
+                    f"{out} holds a run of episode {eid} with different settings "
+                    f"({', '.join(changed)}); use another --out or remove that folder"
+                )
     try:
         (out / EPISODES).mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise OutputError(f"cannot create output folder {out}: {exc.strerror}") from exc
     if not os.access(out, os.W_OK):
         raise OutputError(f"output folder {out} is not writable")
-    described = suite.as_dict()
-    previous = out / SUITE_FILE
-    if previous.is_file():
-        before = json.loads(previous.read_text()).get("episodes", {})
-        for eid, spec in described["episodes"].items():
-            if eid in before and before[eid] != spec:
-                changed = sorted(k for k in spec | before[eid] if before[eid].get(k) != spec.get(k))
-                raise ConfigError(
-                    f"{out} holds a run of episode {eid} with different settings "
-                    f"({', '.join(changed)}); use another --out or remove that folder"
-                )
     write_json_atomic(previous, described)
 
 
@@ -217,6 +313,7 @@ def run_suite(
     """
     if workers < 1:
         raise ConfigError(f"--workers must be ≥ 1, got {workers}")
+    check_timeout(timeout)
     ray = connect_ray(ray_address) if run and ray_address is not None else None
     prepare_output(out, suite)
     records: dict[str, dict] = {}
@@ -225,6 +322,7 @@ def run_suite(
         done = load_finished(out, spec, retry_errors)
         if done is None:
             if run:
+                _remove_stale_staging(out, spec)  # an earlier run stopped mid-write
                 todo.append(spec)
         else:
             records[spec.id] = done
@@ -260,8 +358,13 @@ def run_suite(
                     pool.submit(run_episode_process, spec, episode_dir(out, spec), timeout): spec
                     for spec in todo
                 }
-                for fut in as_completed(futures):
-                    finish(futures[fut], fut.result())
+                try:
+                    for fut in as_completed(futures):
+                        finish(futures[fut], fut.result())
+                except BaseException:  # stopped (foldbot.cli.Terminated) or failed: no waiting
+                    pool.shutdown(wait=False, cancel_futures=True)
+                    _kill_live_episodes()
+                    raise
     finally:
         bar.close()
     return [records[s.id] for s in suite.episodes if s.id in records]

@@ -16,6 +16,7 @@ recipe = ["half", "diagonal"]           # towel: planning.recipes.RECIPES; tshir
 perception = ["vision", "oracle"]       # comparison axis: keypoints from RGB-D or ground truth
 loop = ["closed", "open"]               # comparison axis: re-observe after every action or not
 seeds = "0-1"                           # "0-49", "0,3,5" or a list of integers ≥ 0
+                                        # (at most 10 000 seeds, each ≤ 2^31 − 1)
 replicates = 1                          # runs of each seed's cloth (1–20): replicate k > 0 lays
                                         # it 0.1 mm from the seed's pose (EpisodeConfig.replicate)
 
@@ -86,6 +87,7 @@ from foldbot.loop_options import LOOP_OPTIONS, LoopOptionValue, check_loop_optio
 from foldbot.pipeline import (
     ARM_COUNTS,
     GARMENTS,
+    MAX_VIDEO_FPS,
     PARK_POSES,
     PERCEPTION_MODES,
     START_STATES,
@@ -98,7 +100,7 @@ from foldbot.sim.camera import CameraConfig
 from foldbot.sim.cloth import ClothConfig
 from foldbot.sim.grasp import JAW_CATCHES
 from foldbot.sim.layout import DEFAULT_LAYOUT, LAYOUT_FIELDS, CellLayout, layout_from_table
-from foldbot.sim.world import SimConfig
+from foldbot.sim.world import MAX_TIME_STEP, MIN_TIME_STEP, SimConfig
 
 ALL_RECIPES = RECIPES + tuple(r for rs in GARMENT_RECIPES.values() for r in rs)
 
@@ -135,15 +137,22 @@ _SCHEMA: dict[str, set[str]] = {
 
 MAX_REPLICATES = 20
 """Most runs of one seed's cloth a suite may ask for (`[axes] replicates`)."""
+MAX_SEEDS = 10_000
+"""Most seeds one seed text or list (a suite's `[axes] seeds`, `bench --seeds`) may name: a
+generous bound (the full suites run 50), checked before a range is expanded."""
+MAX_SEED = 2**31 - 1
+"""Largest seed (as the gym environment's, foldbot.envs.towel_task.MAX_SEED)."""
 
 
 def parse_seeds(text: str | list[int]) -> list[int]:
-    """'0-9', '0,3,5', '4' or a list of integers → sorted unique seeds (all ≥ 0)."""
-    seeds: set[int] = set()
+    """'0-9', '0,3,5', '4' or a list of integers → sorted unique seeds, each in [0, MAX_SEED],
+    at most MAX_SEEDS of them (a range is checked before it is expanded)."""
+    shown = repr(text) if len(repr(text)) <= 60 else repr(text)[:57] + "…"
+    ranges: list[tuple[int, int]] = []
     if isinstance(text, list):
         if not all(isinstance(s, int) and not isinstance(s, bool) for s in text):
-            raise ConfigError(f"seeds must be integers ≥ 0, got {text!r}")
-        seeds.update(text)
+            raise ConfigError(f"seeds must be integers ≥ 0, got {shown}")
+        ranges = [(s, s) for s in text]
     else:
         try:
             for part in str(text).split(","):
@@ -151,13 +160,24 @@ def parse_seeds(text: str | list[int]) -> list[int]:
                     lo, hi = (int(v) for v in part.split("-", 1))
                     if hi < lo:
                         raise ValueError
-                    seeds.update(range(lo, hi + 1))
+                    ranges.append((lo, hi))
                 else:
-                    seeds.add(int(part))
+                    ranges.append((int(part), int(part)))
         except ValueError:
-            raise ConfigError(f"seeds must look like '0-9' or '0,3,5', got {text!r}") from None
+            raise ConfigError(f"seeds must look like '0-9' or '0,3,5', got {shown}") from None
+    seeds: set[int] = set()
+    for lo, hi in ranges:
+        if hi > MAX_SEED or hi - lo >= MAX_SEEDS:
+            raise ConfigError(
+                f"seeds must name at most {MAX_SEEDS} seeds, each in [0, {MAX_SEED}], got {shown}"
+            )
+        seeds.update(range(lo, hi + 1))
+        if len(seeds) > MAX_SEEDS:
+            raise ConfigError(
+                f"seeds must name at most {MAX_SEEDS} seeds, got {shown} ({len(seeds)} or more)"
+            )
     if not seeds or min(seeds) < 0:
-        raise ConfigError(f"seeds must name at least one seed, all ≥ 0, got {text!r}")
+        raise ConfigError(f"seeds must name at least one seed, all ≥ 0, got {shown}")
     return sorted(seeds)
 
 
@@ -617,7 +637,7 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
     retries = _get(data, "episode", "retries", int, 1, where)
     if not 0 <= retries <= 10:
         raise ConfigError(f"{where}: episode.retries = {retries!r} must be an integer in [0, 10]")
-    video_fps = _range(ep.get("video_fps", 0.0), "episode.video_fps", 0, 60, where)
+    video_fps = _range(ep.get("video_fps", 0.0), "episode.video_fps", 0, MAX_VIDEO_FPS, where)
     start = _get(data, "episode", "start", str, "flat", where)
     if start not in START_STATES:
         raise ConfigError(
@@ -642,7 +662,7 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
         )
     time_step = ep.get("time_step")
     if time_step is not None:
-        time_step = _range(time_step, "episode.time_step", 1e-4, 0.02, where)
+        time_step = _range(time_step, "episode.time_step", MIN_TIME_STEP, MAX_TIME_STEP, where)
 
     def loop_checked(table: dict[str, Any]) -> dict[str, LoopOptionValue]:
         checked = check_loop_options(table)

@@ -365,6 +365,11 @@ def board_pose(
     return T
 
 
+MAX_BOARD_PIXELS = 600e6
+"""Largest board image drawn (pixels, a byte each): a whole A0 sheet at 600 dpi is 558 million;
+a larger image is a slip in the board's size or resolution, not a print."""
+
+
 def board_image(board: CalibrationBoard, px_per_m: float) -> np.ndarray:
     """The board as printed: its plate white, its black squares (and markers), `px_per_m`
     pixels a metre (H × W uint8; the first inner corner where the board frame's origin is)."""
@@ -374,6 +379,12 @@ def board_image(board: CalibrationBoard, px_per_m: float) -> np.ndarray:
     )
     x0, x1, y0, y1 = board.plate_bounds()
     width, height = round((x1 - x0) * px_per_m), round((y1 - y0) * px_per_m)
+    require(
+        width * height <= MAX_BOARD_PIXELS,
+        f"the board, {x1 - x0:.3g} × {y1 - y0:.3g} m, would be {width} × {height} px at "
+        f"{px_per_m:.6g} px/m: at most {MAX_BOARD_PIXELS / 1e6:g} megapixels; choose fewer or "
+        "smaller squares, or a lower resolution",
+    )
     img = np.full((height, width), 255, np.uint8)
     for a0, a1, b0, b1 in board.black_rects():
         u0, u1 = round((a0 - x0) * px_per_m), round((a1 - x0) * px_per_m)

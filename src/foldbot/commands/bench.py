@@ -26,7 +26,7 @@ import shlex
 from pathlib import Path
 
 from foldbot.bench.report import write_report
-from foldbot.bench.runner import DEFAULT_TIMEOUT_S, run_suite
+from foldbot.bench.runner import DEFAULT_TIMEOUT_S, MAX_TIMEOUT_S, check_timeout, run_suite
 from foldbot.bench.suite import (
     Suite,
     camera_from_items,
@@ -45,6 +45,7 @@ from foldbot.commands.fold import (
 )
 from foldbot.errors import ConfigError
 from foldbot.flatten_options import flatten_options_from_args
+from foldbot.io.staging import output_path
 from foldbot.loop_options import loop_options_from_args
 from foldbot.pipeline import PERCEPTION_MODES
 from foldbot.planning.recipes import RECIPE_HELP, RECIPES
@@ -62,7 +63,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="suite name (a file in suites/, e.g. smoke, towel_full, towel_compare) or a .toml path",
     )
-    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument("--out", type=output_path, required=True, help="output folder")
     parser.add_argument(
         "--workers",
         type=int,
@@ -92,7 +93,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--timeout",
         type=float,
         default=DEFAULT_TIMEOUT_S,
-        help=f"stop an episode after this many wall seconds (default {DEFAULT_TIMEOUT_S:g})",
+        help=f"stop an episode after this many wall seconds, at most {MAX_TIMEOUT_S:g} "
+        f"(default {DEFAULT_TIMEOUT_S:g})",
     )
     parser.add_argument(
         "--seeds",
@@ -185,7 +187,7 @@ def _suite_from_args(args: argparse.Namespace) -> Suite:
                 "a suite file states its recipes, perception and ranges (--seeds may replace "
                 "its seeds)"
             )
-        return load_suite(args.suite, None if args.seeds is None else parse_seeds(args.seeds))
+        return load_suite(args.suite, None if args.seeds is None else _seeds(args.seeds))
     recipe = args.recipe or "half"
     perception = args.perception or "vision"
     data: dict = {
@@ -196,7 +198,7 @@ def _suite_from_args(args: argparse.Namespace) -> Suite:
             "recipe": [recipe],
             "perception": [perception],
             "loop": ["closed"],
-            "seeds": ",".join(map(str, parse_seeds(args.seeds or "0-9"))),
+            "seeds": ",".join(map(str, _seeds("0-9" if args.seeds is None else args.seeds))),
         },
         # The towel `foldbot fold` folds by default: odd vertex counts, 17 along the longer side.
         "towel": {"resolution": 17, "odd_grid": True},
@@ -205,6 +207,14 @@ def _suite_from_args(args: argparse.Namespace) -> Suite:
     if args.size_range is not None:
         data["randomise"] = {"towel_side": list(args.size_range)}
     return suite_from_dict(data)
+
+
+def _seeds(text: str) -> list[int]:
+    """--seeds as seeds (parse_seeds), its ConfigError naming the option."""
+    try:
+        return parse_seeds(text)
+    except ConfigError as exc:
+        raise ConfigError(f"--{exc}") from None
 
 
 def _reference(suite: Suite, summary: dict) -> dict | None:
@@ -228,6 +238,8 @@ def _reference(suite: Suite, summary: dict) -> dict | None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the missing episodes, then summarise all of them."""
+    out = args.out
+    check_timeout(args.timeout)  # before anything is written (--report-only too)
     suite = suite_from_args(args)
     try:
         import matplotlib  # noqa: F401  (checked before any episode runs: errors.png needs it)
@@ -236,9 +248,6 @@ def run(args: argparse.Namespace) -> int:
             "foldbot bench needs matplotlib for errors.png; install it with "
             "`pip install -e '.[bench]'` (or `pip install matplotlib`)"
         ) from None
-    if args.timeout <= 0:
-        raise ConfigError(f"--timeout must be > 0 s, got {args.timeout}")
-    out: Path = args.out
     records = run_suite(
         suite,
         out,
@@ -256,7 +265,7 @@ def run(args: argparse.Namespace) -> int:
             cmd += ["--seeds", args.seeds]
     else:
         cmd += ["--recipe", suite.axes["recipe"][0], "--perception", suite.axes["perception"][0]]
-        cmd += ["--seeds", args.seeds or "0-9"]
+        cmd += ["--seeds", "0-9" if args.seeds is None else args.seeds]
         if args.size_range is not None:
             cmd += ["--size-range", *map(str, args.size_range)]
     for option in args.loop_option:

@@ -42,7 +42,7 @@ from foldbot.calibration.capture import capture_views, solve_captures, write_cal
 from foldbot.calibration.hand_eye import pose_error
 from foldbot.calibration.views import MAX_VIEWS, BoardMount, CalibrationView, calibration_views
 from foldbot.errors import ConfigError
-from foldbot.io.staging import commit_output, prepare_output
+from foldbot.io.staging import commit_output, output_path, prepare_output
 from foldbot.sim.camera import CameraConfig, camera_for_layout
 from foldbot.sim.layout import DEFAULT_LAYOUT, CellLayout, load_layout
 from foldbot.sim.robots import ROBOT_NAMES
@@ -194,7 +194,7 @@ def add_board_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument("--out", type=output_path, required=True, help="output folder")
     add_board_arguments(parser)
     parser.add_argument(
         "--camera-eye",
@@ -296,7 +296,14 @@ def plan_from_args(
         given = camera_for_layout(CameraConfig(), layout).T_world_camera[:3, 3]
     x, y, z = (float(v) for v in given)
     look_from = (x, y, z)
-    views = calibration_views(layout, look_from, board, mount, args.views)
+    try:
+        views = calibration_views(layout, look_from, board, mount, args.views)
+    except ConfigError as exc:  # say which option gave the camera's rough position
+        if args.look_from is not None:
+            raise ConfigError(f"--look-from: {exc}") from None
+        if rough_camera is not None and getattr(args, "camera_eye", None) is not None:
+            raise ConfigError(f"--camera-eye (the board turns to it): {exc}") from None
+        raise
     return CalibrationPlan(board, mount, layout, args.robot, args.arms, arm, look_from, views)
 
 

@@ -23,8 +23,8 @@ import json
 import time
 from pathlib import Path
 
-from foldbot.errors import OutputError
-from foldbot.io.staging import commit_output, prepare_output
+from foldbot.errors import ConfigError, OutputError
+from foldbot.io.staging import commit_output, output_path, prepare_output
 from foldbot.layout_check import (
     DEFAULT_GRID,
     GRID_RANGE,
@@ -67,7 +67,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help=f"points along each side of the workspace, {lo}–{hi} (default {DEFAULT_GRID})",
     )
     parser.add_argument(
-        "--out", type=Path, default=None, help="write layout_check.json and .png into this folder"
+        "--out",
+        type=output_path,
+        default=None,
+        help="write layout_check.json and .png into this folder",
     )
 
 
@@ -100,6 +103,9 @@ def camera_placement(path: Path | None, layout: CellLayout) -> CameraPlacement:
 
 
 def run(args: argparse.Namespace) -> int:
+    lo, hi = GRID_RANGE
+    if not lo <= args.grid <= hi:  # before anything is printed or loaded
+        raise ConfigError(f"--grid must be {lo}–{hi} points a side, got {args.grid}")
     layout = DEFAULT_LAYOUT if args.layout is None else load_layout(args.layout)
     camera = camera_placement(args.camera_pose, layout)
     stage = None if args.out is None else prepare_output(args.out)

@@ -17,10 +17,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import tempfile
 from pathlib import Path
 
 from foldbot.bench.compare import PAIRINGS, compare_runs, markdown, plot_pairs
-from foldbot.errors import ConfigError
+from foldbot.errors import ConfigError, OutputError
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -45,14 +46,30 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _check_plot_path(plot: Path) -> None:
+    """ConfigError (OutputError where the folder cannot be written) unless `plot` names a .png
+    file that can be written: before any run is read, so a bad path costs nothing."""
+    if plot.suffix.lower() != ".png":
+        raise ConfigError(f"--plot {plot}: the picture is written as PNG; name a .png file")
+    if plot.is_dir():
+        raise ConfigError(f"--plot {plot} is a folder; name a .png file to write")
+    if not plot.parent.is_dir():
+        raise ConfigError(f"--plot {plot}: its folder {plot.parent} does not exist")
+    try:  # the one sure test of a writable folder (read-only mounts, permissions, root)
+        with tempfile.NamedTemporaryFile(dir=plot.parent, prefix=f".{plot.name}.probe-"):
+            pass
+    except OSError as exc:
+        raise OutputError(
+            f"--plot {plot}: cannot write in its folder {plot.parent} ({exc.strerror or exc}); "
+            "name a .png file in a writable folder"
+        ) from None
+
+
 def run(args: argparse.Namespace) -> int:
     """Print the comparison."""
     plot = args.plot
     if plot is not None:
-        if plot.suffix.lower() != ".png":
-            raise ConfigError(f"--plot {plot}: the picture is written as PNG; name a .png file")
-        if not plot.parent.is_dir():
-            raise ConfigError(f"--plot {plot}: its folder {plot.parent} does not exist")
+        _check_plot_path(plot)
     comparison = compare_runs(args.first, args.second, args.pair_by)
     print(json.dumps(comparison, indent=2) if args.json else markdown(comparison), end="")
     if args.json:

@@ -78,7 +78,7 @@ from foldbot.errors import ConfigError, FoldbotError, SimulationDivergedError
 from foldbot.garments import GARMENT_KEYPOINTS
 from foldbot.garments.towel import TowelSpec
 from foldbot.garments.tshirt import TShirtSpec
-from foldbot.io.staging import commit_output, prepare_output
+from foldbot.io.staging import commit_output, output_path, prepare_output
 from foldbot.metrics import keypoint_errors_mm
 from foldbot.perception.estimator import VisionEstimator
 from foldbot.perception.garment_keypoints import GarmentEstimator
@@ -121,7 +121,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare eval-perception's command-line options on `parser`."""
     parser.add_argument("--scenes", type=int, default=100, help="number of scenes (default 100)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument("--out", type=output_path, required=True, help="output folder")
     parser.add_argument(
         "--save-overlays",
         type=int,
@@ -334,6 +334,10 @@ def _validate(args: argparse.Namespace) -> None:
         (
             isinstance(args.scenes, int) and args.scenes > 0,
             f"--scenes must be > 0, got {args.scenes}",
+        ),
+        (
+            isinstance(args.seed, int) and args.seed >= 0,
+            f"--seed must be an integer ≥ 0, got {args.seed}",
         ),
         (
             isinstance(args.save_overlays, int) and args.save_overlays >= 0,

@@ -7,10 +7,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from foldbot.io.staging import output_path
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("episode", type=Path, help="episode folder (from foldbot fold / ros-fold)")
-    parser.add_argument("--out", type=Path, required=True, help="the .bag file to write")
+    parser.add_argument("--out", type=output_path, required=True, help="the .bag file to write")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing bag")
 
 

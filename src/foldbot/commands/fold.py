@@ -13,6 +13,7 @@ from foldbot.cloth_options import apply_cloth_options, cloth_options_from_args, 
 from foldbot.errors import ConfigError
 from foldbot.flatten_options import flatten_options_from_args, flatten_options_help
 from foldbot.garments.towel import TowelSpec
+from foldbot.io.staging import output_path
 from foldbot.loop_options import loop_options_from_args, loop_options_help
 from foldbot.pipeline import (
     ARM_COUNTS,
@@ -334,7 +335,7 @@ def add_episode_arguments(parser: argparse.ArgumentParser, output: bool = True) 
     if not output:
         parser.set_defaults(out=None, overwrite=False, gui=False)
         return
-    parser.add_argument("--out", type=Path, required=True, help="episode output folder")
+    parser.add_argument("--out", type=output_path, required=True, help="episode output folder")
     parser.add_argument(
         "--overwrite", action="store_true", help="replace DIR if it holds an earlier episode"
     )

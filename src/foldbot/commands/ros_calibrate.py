@@ -26,21 +26,29 @@ import shutil
 from pathlib import Path
 
 from foldbot.commands.calibrate import add_board_arguments, board_words, plan_from_args
-from foldbot.commands.ros_fold import add_running_cell_master, run_node, running_cell_env
-from foldbot.io.staging import commit_output, prepare_output
+from foldbot.commands.ros_fold import (
+    add_running_cell_master,
+    check_port,
+    master_wait_s,
+    run_node,
+    running_cell_env,
+)
+from foldbot.io.staging import commit_output, output_path, prepare_output
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument("--out", type=output_path, required=True, help="output folder")
     add_board_arguments(parser)
     add_running_cell_master(parser)
 
 
 def run(args: argparse.Namespace) -> int:
     plan = plan_from_args(args)  # every option checked before the cell is asked anything
-    env = running_cell_env(args, "a real one, or `foldbot ros-cell --calibration-board`")
-    stage = prepare_output(args.out)
+    check_port(args.port)
+    master_wait_s(args.master_wait)
+    stage = prepare_output(args.out)  # a bad --out named before the cell is waited for
     try:
+        env = running_cell_env(args, "a real one, or `foldbot ros-cell --calibration-board`")
         cmd = ["--stage", str(stage)]
         cmd += ["--robot", args.robot, *board_words(args)]
         cmd += ["--arms", str(args.arms), "--arm", args.arm]

@@ -29,11 +29,10 @@ from foldbot.commands.ros_fold import (
     fold_args_text,
     ros_env,
     ros_missing,
+    stop_launch,
 )
 from foldbot.errors import ConfigError, FoldbotError
 
-STOP_WAIT_S = 30.0
-"""How long an interrupted cell's roslaunch is given to stop its nodes and roscore."""
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 """What stops the cell cleanly: Ctrl-C, or `kill`. SIGINT is taken even where the cell
 inherited it ignored (a script's `foldbot ros-cell … &`, where Python would not raise
@@ -144,11 +143,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             code = proc.wait()
         except KeyboardInterrupt:
-            proc.send_signal(signal.SIGINT)
-            try:
-                proc.wait(timeout=STOP_WAIT_S)
-            except subprocess.TimeoutExpired:
-                proc.kill()
+            stop_launch(proc)
             print("the simulated cell stopped", flush=True)
             return 0
         finally:

@@ -27,14 +27,20 @@ import json
 import shutil
 from pathlib import Path
 
-from foldbot.commands.ros_fold import add_running_cell_master, run_node, running_cell_env
-from foldbot.io.staging import commit_output, prepare_output
+from foldbot.commands.ros_fold import (
+    add_running_cell_master,
+    check_port,
+    master_wait_s,
+    run_node,
+    running_cell_env,
+)
+from foldbot.io.staging import commit_output, output_path, prepare_output
 from foldbot.sim.layout import load_layout
 from foldbot.sim.robots import ROBOT_NAMES
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument("--out", type=output_path, required=True, help="output folder")
     parser.add_argument("--robot", default="ur5", choices=ROBOT_NAMES, help="arm (default ur5)")
     parser.add_argument(
         "--arms", type=int, default=1, choices=(1, 2), help="arms in the cell (default 1)"
@@ -64,9 +70,11 @@ def run(args: argparse.Namespace) -> int:
         from foldbot.calibration.capture import calibration_camera
 
         calibration_camera(args.camera_pose)
-    env = running_cell_env(args, "a real one, or `foldbot ros-cell`")
-    stage = prepare_output(args.out)
+    check_port(args.port)
+    master_wait_s(args.master_wait)
+    stage = prepare_output(args.out)  # a bad --out named before the cell is waited for
     try:
+        env = running_cell_env(args, "a real one, or `foldbot ros-cell`")
         cmd = ["--stage", str(stage), "--robot", args.robot, "--arms", str(args.arms)]
         if args.layout is not None:
             cmd += ["--layout", str(Path(args.layout).resolve())]

@@ -14,6 +14,7 @@ import math
 import os
 import shlex
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -24,6 +25,8 @@ from foldbot import errors
 from foldbot.calibration.capture import calibration_pose_words
 from foldbot.commands import fold
 from foldbot.errors import ConfigError, FoldbotError, OutputError
+from foldbot.io.episode import EpisodeWriter, is_episode_dir
+from foldbot.io.staging import output_path
 from foldbot.ros.node_args import (
     ARM_INTERFACES,
     CELLS,
@@ -38,8 +41,28 @@ from foldbot.verdict import unscored_outcome
 DEFAULT_PORT = 11311
 MASTER_WAIT_S = 15.0
 """How long `--cell real` waits for the running cell's ROS master to answer."""
+MAX_MASTER_WAIT_S = 3600.0
+"""The longest --master-wait taken: a cell that has not answered in an hour is not coming up."""
 ROS_PACKAGE_DIR = Path(__file__).resolve().parents[3] / "ros"
 """The repository's ROS package folder (holds foldbot_ros/)."""
+
+
+STOP_WAIT_S = 30.0
+"""How long an interrupted roslaunch is given to stop its nodes (and roscore) before it is
+killed."""
+
+
+def stop_launch(proc: subprocess.Popen) -> None:
+    """Stop a roslaunch as Ctrl-C does (SIGINT: it takes its nodes and roscore down first), then
+    wait STOP_WAIT_S for it; killed only if it has not ended by then (killing it at once would
+    leave its nodes running)."""
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+    try:
+        proc.wait(timeout=STOP_WAIT_S)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
 
 
 def ros_missing() -> str | None:
@@ -77,7 +100,9 @@ def ros_env(port: int | None) -> dict[str, str]:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """`foldbot fold`'s options (`--suite` among them), plus the ROS ones."""
     fold.add_arguments(parser, camera_pose=False)
-    parser.add_argument("--record", type=Path, default=None, help="record the run to this .bag")
+    parser.add_argument(
+        "--record", type=output_path, default=None, help="record the run to this .bag"
+    )
     parser.add_argument(
         "--camera-rate",
         type=float,
@@ -123,8 +148,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         metavar="S",
         help="with --cell real: seconds to wait for the running cell's ROS master to answer "
-        f"before giving up (default {MASTER_WAIT_S:g}; a cell just started may still be "
-        "bringing its roscore up)",
+        f"before giving up (default {MASTER_WAIT_S:g}, at most {MAX_MASTER_WAIT_S:g}; a cell "
+        "just started may still be bringing its roscore up)",
     )
     parser.add_argument(
         "--cloth-thickness",
@@ -249,6 +274,64 @@ def check_real_time_factor(factor: float | None) -> None:
         raise ConfigError(f"--real-time-factor must be > 0, got {factor!r}")
 
 
+def check_episode_output(out: Path, overwrite: bool) -> None:
+    """Refuse, before anything starts, an episode folder the task node's EpisodeWriter would
+    refuse once the fold is done (OutputError): a file, a folder holding something other than
+    an episode, an episode without --overwrite, a place that cannot be written. The writer's
+    own checks, as `foldbot fold` makes them: its staging folder is made and dropped again."""
+    if out.is_dir() and is_episode_dir(out) and not overwrite:
+        raise OutputError(f"--out {out} already holds an episode; pass --overwrite to replace it")
+    EpisodeWriter(out, overwrite=overwrite).abort()
+
+
+def check_bag_target(bag: Path, overwrite: bool) -> None:
+    """Refuse, before anything starts, a --record bag the recorder could not write: no .bag,
+    a folder, a bag already there without --overwrite, a folder that cannot be made or
+    written in (a file is made there and removed, as rosbag record will make its own)."""
+    if bag.suffix != ".bag":
+        raise ConfigError(f"--record must name a .bag file, got {str(bag)!r}")
+    if bag.is_dir():
+        raise OutputError(f"--record {bag} is a folder; allowed: a .bag file's path")
+    if bag.exists() and not overwrite:
+        raise OutputError(f"{bag} already exists; pass --overwrite to replace it")
+    folder = bag.parent
+    if folder.exists() and not folder.is_dir():
+        raise OutputError(f"--record {bag}: {str(folder)!r} is a file, not a folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        handle, probe = tempfile.mkstemp(prefix=f".{bag.name}.", dir=folder)
+        os.close(handle)
+        os.unlink(probe)
+    except OSError as exc:
+        raise OutputError(
+            f"--record {bag}: cannot write a bag in {str(folder)!r} ({exc.strerror or exc}); "
+            "allowed: a .bag path in a folder that can be written"
+        ) from None
+
+
+def file_stamp(path: Path) -> int | None:
+    """`path`'s modification time (ns) where it is a file, else None: a file the run writes
+    is told from the one that was there before it."""
+    return path.stat().st_mtime_ns if path.is_file() else None
+
+
+def check_bag_recorded(bag: Path, before: int | None) -> None:
+    """FoldbotError unless the run left its bag at `bag`: a file that was not there (`before`
+    None), or one written since (`before`: file_stamp of the bag --overwrite replaces)."""
+    stamp = file_stamp(bag)
+    if stamp is not None and stamp != before:
+        return
+    active = bag.with_name(bag.name + ".active")
+    left = (
+        f"; it left {active} unfinished (`rosbag reindex` may recover it)"
+        if active.is_file()
+        else ""
+    )
+    raise FoldbotError(
+        f"--record {bag}: no bag was recorded (rosbag record failed: see its output above)" + left
+    )
+
+
 def master_running(env: dict[str, str], wait_s: float = MASTER_WAIT_S) -> bool:
     """Whether a ROS master answers at env's ROS_MASTER_URI within `wait_s` (a cell started
     a moment before may still be bringing its roscore up)."""
@@ -271,8 +354,21 @@ def add_running_cell_master(parser: argparse.ArgumentParser) -> None:
         type=float,
         default=None,
         metavar="S",
-        help=f"how long to wait for the master to answer (default {MASTER_WAIT_S:g} s)",
+        help=f"how long to wait for the master to answer (default {MASTER_WAIT_S:g} s, at most "
+        f"{MAX_MASTER_WAIT_S:g})",
     )
+
+
+def master_wait_s(wait: float | None) -> float:
+    """--master-wait's seconds (None: MASTER_WAIT_S); ConfigError unless in [0,
+    MAX_MASTER_WAIT_S]."""
+    if wait is None:
+        return MASTER_WAIT_S
+    if not (math.isfinite(wait) and 0.0 <= wait <= MAX_MASTER_WAIT_S):
+        raise ConfigError(
+            f"--master-wait must be seconds in [0, {MAX_MASTER_WAIT_S:g}], got {wait!r}"
+        )
+    return wait
 
 
 def running_cell_env(args: argparse.Namespace, start: str) -> dict[str, str]:
@@ -280,9 +376,7 @@ def running_cell_env(args: argparse.Namespace, start: str) -> dict[str, str]:
     ROS_MASTER_URI's), once ROS is here and that master answers within --master-wait;
     FoldbotError naming what is missing, `start` saying how to bring a cell up."""
     check_port(args.port)
-    wait_s = MASTER_WAIT_S if args.master_wait is None else args.master_wait
-    if not (wait_s >= 0):
-        raise ConfigError(f"--master-wait must be ≥ 0 s, got {args.master_wait!r}")
+    wait_s = master_wait_s(args.master_wait)
     missing = ros_missing()
     if missing:
         raise FoldbotError(missing)
@@ -430,15 +524,19 @@ def run(args: argparse.Namespace) -> int:
             f"{' and '.join(faulty)}: faults are the simulated cell's, injected on the cell "
             "ros-fold starts (--cell sim, through either arm interface); got --cell real"
         )
+    if args.real_time_factor is not None and interface != "actions":
+        raise ConfigError(
+            "--real-time-factor paces the simulated cell's drivers: it applies with "
+            f"--arm-interface actions (the topics interface runs in lockstep, as fast as it "
+            f"can); got --arm-interface {interface}"
+        )
     check_real_time_factor(args.real_time_factor)
     check_port(args.port)
-    wait = args.master_wait
-    if wait is not None and not real:
+    if args.master_wait is not None and not real:
         raise ConfigError(
             "--master-wait is for --cell real (with --cell sim, ros-fold starts its own master)"
         )
-    if wait is not None and not (math.isfinite(wait) and wait >= 0):
-        raise ConfigError(f"--master-wait must be seconds >= 0, got {wait!r}")
+    wait_s = master_wait_s(args.master_wait)
     thickness = args.cloth_thickness
     if thickness is not None and not real:
         raise ConfigError(
@@ -479,19 +577,14 @@ def run(args: argparse.Namespace) -> int:
             "pass --video-fps 0, or a camera rate > 0"
         )
     out = Path(args.out)
-    if out.exists() and any(out.iterdir()) and not args.overwrite:
-        raise OutputError(f"{out} already exists and is not empty; pass --overwrite to replace it")
+    check_episode_output(out, args.overwrite)
     if args.record is not None:
-        if args.record.suffix != ".bag":
-            raise ConfigError(f"--record must name a .bag file, got {str(args.record)!r}")
-        if args.record.exists() and not args.overwrite:
-            raise OutputError(f"{args.record} already exists; pass --overwrite to replace it")
-        args.record.parent.mkdir(parents=True, exist_ok=True)
+        check_bag_target(args.record, args.overwrite)
+    bag_before = None if args.record is None else file_stamp(args.record)
     missing = ros_missing()
     if missing:
         raise FoldbotError(missing)
     env = ros_env(args.port if args.port is not None or real else DEFAULT_PORT)
-    wait_s = MASTER_WAIT_S if args.master_wait is None else args.master_wait
     if real and not master_running(env, wait_s):
         raise FoldbotError(
             f"no ROS master answers at {env['ROS_MASTER_URI']} within {wait_s:g} s: "
@@ -519,12 +612,17 @@ def run(args: argparse.Namespace) -> int:
         *finger_words,
     ]
     result_file = out / "result.json"
-    before = result_file.stat().st_mtime_ns if result_file.is_file() else None
+    before = file_stamp(result_file)
     with tempfile.TemporaryDirectory(prefix="foldbot-ros-") as tmp:
         error_file = Path(tmp) / "error.json"
-        proc = subprocess.run([*cmd, f"error_file:={error_file}"], env=env, check=False)
+        proc = subprocess.Popen([*cmd, f"error_file:={error_file}"], env=env)
+        try:
+            proc.wait()
+        except BaseException:  # Ctrl-C, or `kill` (foldbot.cli.Terminated)
+            stop_launch(proc)
+            raise
         failure = json.loads(error_file.read_text()) if error_file.is_file() else None
-    if not result_file.is_file() or result_file.stat().st_mtime_ns == before:
+    if file_stamp(result_file) in (None, before):
         if failure is not None:  # the task node's own error, as `foldbot fold` would name it
             raise errors.reported_error(failure, "over ROS")
         raise FoldbotError(
@@ -543,5 +641,6 @@ def run(args: argparse.Namespace) -> int:
         print(f"{unscored_outcome(result['perceived'])}; {result['sim_seconds']:.1f} s")
     print(f"episode written to {out}")
     if args.record:
+        check_bag_recorded(args.record, bag_before)
         print(f"bag recorded to {args.record}")
     return 0

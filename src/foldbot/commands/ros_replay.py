@@ -8,7 +8,9 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from foldbot.errors import ConfigError, FoldbotError
+from foldbot.commands.ros_fold import DEFAULT_PORT, check_port, ros_missing
+from foldbot.errors import FoldbotError
+from foldbot.ros.replay import MAX_RATE, MIN_RATE, PLAY_TIMEOUT_S, check_rate
 
 if TYPE_CHECKING:
     from foldbot.ros.replay import ReplayReport
@@ -16,15 +18,23 @@ if TYPE_CHECKING:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("bag", type=Path, help="bag recorded with foldbot ros-fold --record")
-    parser.add_argument("--port", type=int, default=11311, help="ROS master port")
-    parser.add_argument("--rate", type=float, default=1.0, help="rosbag play rate (default 1)")
+    parser.add_argument(
+        "--port", type=int, default=DEFAULT_PORT, help=f"ROS master port (default {DEFAULT_PORT})"
+    )
+    parser.add_argument(
+        "--rate",
+        type=float,
+        default=1.0,
+        help=f"rosbag play rate, {MIN_RATE:g}–{MAX_RATE:g} (default 1); the bag must play "
+        f"within {PLAY_TIMEOUT_S:g} s",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
-    from foldbot.commands.ros_fold import ros_missing
-
-    if not (args.rate > 0):
-        raise ConfigError(f"--rate must be > 0, got {args.rate!r}")
+    """Check the options, replay the bag, print the comparison; 0 when the keypoints are the
+    live run's, 1 when not."""
+    check_port(args.port)
+    check_rate(args.rate)
     missing = ros_missing()
     if missing:
         raise FoldbotError(missing)

@@ -16,11 +16,13 @@ import math
 import os
 import shutil
 import weakref
+import zlib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
 from typing import Any
+from zipfile import BadZipFile
 
 import numpy as np
 
@@ -98,32 +100,76 @@ def to_jsonable(value: Any) -> Any:
     raise ConfigError(f"result value {value!r} of type {type(value).__name__} is not JSON-able")
 
 
+CLOTH_LIMIT_M = 100.0
+"""How far from the world origin (m, along each axis) a cloth vertex may lie: a cell's cloth is
+within a few metres of it, and a vertex much further out is a diverged simulation or a corrupt
+file, whose extent no raster could score."""
+
+
+def _positions(name: str, value: Any) -> np.ndarray:
+    """A V×3 float array of finite vertex positions (m) within CLOTH_LIMIT_M of the origin."""
+    try:
+        arr = np.asarray(value)
+        ok = arr.dtype.kind in "iuf"  # integers or floats; not bool, complex, text or objects
+    except (TypeError, ValueError):  # ragged nested lists
+        arr, ok = np.asarray(None), False
+    if not ok or arr.ndim != 2 or arr.shape[1] != 3 or arr.shape[0] == 0:
+        raise ConfigError(
+            f"{name} must be a non-empty V×3 array of numbers (m), got {arr.dtype} {arr.shape}"
+        )
+    arr = arr.astype(np.float64)
+    allowed = (
+        f"every coordinate must be finite and within ±{CLOTH_LIMIT_M:g} m of the world origin "
+        "(did the simulation diverge?)"
+    )
+    bad = ~np.isfinite(arr).all(axis=1)
+    if bad.any():
+        raise ConfigError(
+            f"{name} has NaN or inf coordinates at {int(bad.sum())} of its {len(arr)} "
+            f"vertices; {allowed}"
+        )
+    far = float(np.abs(arr).max())
+    if far > CLOTH_LIMIT_M:
+        raise ConfigError(f"{name} has a vertex coordinate of {far:.3g} m; {allowed}")
+    return arr
+
+
+def _thickness(value: Any) -> float:
+    """The cloth thickness (m) as a float: one finite number ≥ 0."""
+    arr = np.asarray(value)
+    if arr.shape != () or arr.dtype.kind not in "iuf":
+        shown = f"{arr.dtype} array of shape {arr.shape}" if arr.shape else repr(value)
+        raise ConfigError(f"thickness = {shown} must be one finite number ≥ 0 (m)")
+    t = float(arr)
+    if not math.isfinite(t) or t < 0:
+        raise ConfigError(f"thickness = {t:g} must be a finite number ≥ 0 (m)")
+    return t
+
+
 def _validate_cloth(
     faces: Any, initial: Any, final: Any, thickness: Any
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """Check the cloth arrays against the cloth.npz contract and return them normalised."""
-    init = np.asarray(initial, dtype=np.float64)
-    fin = np.asarray(final, dtype=np.float64)
-    for name, arr in (("initial", init), ("final", fin)):
-        if arr.ndim != 2 or arr.shape[1] != 3 or arr.shape[0] == 0:
-            raise ConfigError(f"{name} must be a non-empty V×3 array (m), got shape {arr.shape}")
+    init = _positions("initial", initial)
+    fin = _positions("final", final)
     if init.shape != fin.shape:
         raise ConfigError(f"final shape {fin.shape} differs from initial shape {init.shape}")
     tri = np.asarray(faces)
-    if tri.ndim != 2 or tri.shape[1] != 3 or not np.issubdtype(tri.dtype, np.integer):
-        raise ConfigError(f"faces must be an F×3 integer array, got {tri.dtype} {tri.shape}")
+    if (
+        tri.ndim != 2
+        or tri.shape[1] != 3
+        or tri.shape[0] == 0
+        or not np.issubdtype(tri.dtype, np.integer)
+    ):
+        raise ConfigError(
+            f"faces must be a non-empty F×3 integer array, got {tri.dtype} {tri.shape}"
+        )
     tri = tri.astype(np.int64)
     if tri.size and (tri.min() < 0 or tri.max() >= init.shape[0]):
         raise ConfigError(
             f"faces index range [{tri.min()}, {tri.max()}] is outside [0, {init.shape[0] - 1}]"
         )
-    try:
-        t = float(thickness)
-    except (TypeError, ValueError):
-        raise ConfigError(f"thickness = {thickness!r} must be a finite number ≥ 0 (m)") from None
-    if not math.isfinite(t) or t < 0:
-        raise ConfigError(f"thickness = {thickness!r} must be a finite number ≥ 0 (m)")
-    return tri, init, fin, t
+    return tri, init, fin, _thickness(thickness)
 
 
 def _close_videos(videos: list[VideoWriter]) -> None:
@@ -189,7 +235,8 @@ class EpisodeWriter:
         """Raise OutputError unless DIR may be written (new, empty, or episode + overwrite)."""
         d = self.out_dir
         allowed = (
-            "allowed: a new path, an empty folder, or a previous episode folder with overwrite=True"
+            "allowed: a new path, an empty folder, or a previous episode folder with "
+            "--overwrite (overwrite=True)"
         )
         if d.exists() and not d.is_dir():
             raise OutputError(f"episode output {str(d)!r} exists and is not a folder; {allowed}")
@@ -207,8 +254,8 @@ class EpisodeWriter:
                 )
             if not self.overwrite:
                 raise OutputError(
-                    f"episode output {str(d)!r} already holds an episode; pass overwrite=True "
-                    f"to replace it ({allowed})"
+                    f"episode output {str(d)!r} already holds an episode; use --overwrite "
+                    f"(overwrite=True) to replace it ({allowed})"
                 )
 
     def _require_open(self) -> None:
@@ -408,6 +455,52 @@ class Episode:
         return as_fold_lines(self.result["fold_lines"])
 
 
+_NPZ_ERRORS = (OSError, EOFError, ValueError, KeyError, NotImplementedError, BadZipFile, zlib.error)
+"""What numpy and zipfile raise on a file that is not a whole .npz archive."""
+
+
+def _unreadable(path: Path, reason: str) -> ConfigError:
+    """The error for a cloth.npz foldbot cannot read: names the file, the reason, what it must be."""
+    return ConfigError(
+        f"{path.name} in {path.parent} is not a readable episode file ({reason}); it must be "
+        f"a NumPy .npz archive of the arrays {', '.join(CLOTH_KEYS)}, as `foldbot fold` writes it"
+    )
+
+
+def _read_cloth(path: Path) -> dict[str, np.ndarray]:
+    """The CLOTH_KEYS arrays of cloth.npz at `path` (ConfigError naming the file and the array
+    when it is empty, not a .npz archive, truncated or corrupt, or lacks one)."""
+    try:
+        with path.open("rb") as fh:
+            magic = fh.read(4)
+    except OSError as exc:
+        raise _unreadable(path, exc.strerror or str(exc)) from None
+    if not magic:
+        raise _unreadable(path, "it is empty")
+    if magic != b"PK\x03\x04":  # every .npz is a zip archive
+        raise _unreadable(path, "it is not a .npz (zip) archive")
+    arrays: dict[str, np.ndarray] = {}
+    key = None
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            missing = [k for k in CLOTH_KEYS if k not in npz.files]
+            if missing:
+                raise _unreadable(path, f"it lacks the arrays {missing}")
+            for key in CLOTH_KEYS:
+                arrays[key] = npz[key]
+    except _NPZ_ERRORS as exc:
+        if isinstance(exc, ConfigError):
+            raise
+        if key is None:
+            reason = f"a truncated or corrupt archive: {exc}"
+        elif isinstance(exc, ValueError) and "allow_pickle" in str(exc):
+            reason = f"array {key!r} holds Python objects, which foldbot does not load"
+        else:
+            reason = f"array {key!r} is truncated or corrupt: {exc}"
+        raise _unreadable(path, reason) from None
+    return arrays
+
+
 def load_episode(path: str | Path) -> Episode:
     """Read result.json and cloth.npz of an episode folder (ConfigError if malformed)."""
     d = Path(path)
@@ -421,19 +514,13 @@ def load_episode(path: str | Path) -> Episode:
         raise ConfigError(f"cannot read {str(d / RESULT_FILE)!r}: {exc}") from exc
     if not isinstance(result, dict):
         raise ConfigError(f"{str(d / RESULT_FILE)!r} must hold a JSON object")
+    arrays = _read_cloth(d / CLOTH_FILE)
     try:
-        with np.load(d / CLOTH_FILE, allow_pickle=False) as npz:
-            missing = [k for k in CLOTH_KEYS if k not in npz.files]
-            if missing:
-                raise ConfigError(f"{str(d / CLOTH_FILE)!r} lacks keys {missing}")
-            arrays = {k: npz[k] for k in CLOTH_KEYS}
-    except (OSError, ValueError) as exc:
-        if isinstance(exc, ConfigError):
-            raise
-        raise ConfigError(f"cannot read {str(d / CLOTH_FILE)!r}: {exc}") from exc
-    faces, initial, final, thickness = _validate_cloth(
-        arrays["faces"], arrays["initial"], arrays["final"], arrays["thickness"]
-    )
+        faces, initial, final, thickness = _validate_cloth(
+            arrays["faces"], arrays["initial"], arrays["final"], arrays["thickness"]
+        )
+    except ConfigError as exc:
+        raise ConfigError(f"{CLOTH_FILE} in {d}: {exc}") from None
     return Episode(d, result, faces, initial, final, thickness)
 
 

@@ -3,12 +3,21 @@ and moved into place once complete (a run that fails leaves no folder that looks
 
 from __future__ import annotations
 
+import argparse
 import os
 import shutil
 import tempfile
 from pathlib import Path
 
 from foldbot.errors import OutputError
+
+
+def output_path(text: str) -> Path:
+    """An `--out` value as argparse reads it: a path, never the empty string (which Path would
+    take for the current folder, writing a run's files among whatever is there)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"must name a folder or file, got {text!r}")
+    return Path(text)
 
 
 def prepare_output(out: Path) -> Path:

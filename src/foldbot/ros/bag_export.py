@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import os
+import tempfile
 from pathlib import Path
 
 import imageio.v3 as iio
@@ -35,15 +36,39 @@ def _typestore():
     return store
 
 
+def _check_writable(bag_path: Path) -> None:
+    """OutputError unless `bag_path`'s folder is (or can be made) a folder that takes a new file:
+    checked by writing one, the one sure test (read-only mounts, permissions, root)."""
+    parent = bag_path.parent
+    if parent.exists() and not parent.is_dir():
+        raise OutputError(
+            f"cannot write the bag {bag_path}: {parent} is not a folder; name a .bag file in a "
+            "writable folder"
+        )
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=parent, prefix=f".{bag_path.name}.probe-"):
+            pass
+    except OSError as exc:
+        raise OutputError(
+            f"cannot write the bag {bag_path} ({exc.strerror or exc}); name a .bag file in a "
+            "writable folder"
+        ) from None
+
+
 def export_episode(episode_dir: str | Path, bag_path: str | Path, overwrite: bool = False) -> dict:
     """Write `bag_path` from `episode_dir`; returns {topic: message count}."""
     episode_dir, bag_path = Path(episode_dir), Path(bag_path)
     if bag_path.suffix != ".bag":
         raise OutputError(f"the bag file must end in .bag, got {str(bag_path)!r}")
+    if bag_path.is_dir():
+        raise OutputError(f"{bag_path} is a folder; name a .bag file to write")
     if bag_path.exists() and not overwrite:
         raise OutputError(f"{bag_path} already exists; pass --overwrite to replace it")
-    episode = load_episode(episode_dir)  # validates the folder (clear error when incomplete)
-    result = json.loads((episode_dir / "result.json").read_text())
+    # Validates the folder: a clear error naming the file when result.json or cloth.npz is
+    # malformed, or the cloth's coordinates are not finite positions (the check `score` makes).
+    episode = load_episode(episode_dir)
+    result = episode.result
     ts = _typestore()
     T = ts.types
     counts: dict[str, int] = {}
@@ -79,9 +104,9 @@ def export_episode(episode_dir: str | Path, bag_path: str | Path, overwrite: boo
             poses.append(T["geometry_msgs/msg/Pose"](position=pos, orientation=quat))
         return T["geometry_msgs/msg/PoseArray"](header=header(seconds, "world"), poses=poses)
 
-    tmp = bag_path.with_name(f".{bag_path.name}.partial")
+    _check_writable(bag_path)
+    tmp = bag_path.with_name(f".{bag_path.name}.partial-{os.getpid()}")
     tmp.unlink(missing_ok=True)
-    bag_path.parent.mkdir(parents=True, exist_ok=True)
     end = float(result.get("sim_seconds", 0.0))
     try:
         with Writer(tmp) as writer:
@@ -186,7 +211,10 @@ def export_episode(episode_dir: str | Path, bag_path: str | Path, overwrite: boo
                 T["std_msgs/msg/String"](data=json.dumps(result)),
                 end,
             )
-        os.replace(tmp, bag_path)
+        try:
+            os.replace(tmp, bag_path)
+        except OSError as exc:
+            raise OutputError(f"cannot write the bag {bag_path}: {exc.strerror or exc}") from None
     finally:
         tmp.unlink(missing_ok=True)
     return counts

@@ -4,17 +4,21 @@ ones the live run published (recorded in the same bag on cloth/state), frame by 
 from __future__ import annotations
 
 import json
+import math
 import os
 import subprocess
 import sys
 import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from foldbot.errors import FoldbotError
+from foldbot.errors import ConfigError, FoldbotError
 from foldbot.ros import SYNC_SLOP_S
 
 INPUT_TOPICS = (
@@ -29,6 +33,11 @@ PLAYED_TOPICS = (*INPUT_TOPICS, "/camera/depth/camera_info")
 """What is played to the perception node: the inputs and, where the bag holds it, the depth
 camera's own camera_info (a depth sensor beside the colour one is registered onto it)."""
 
+
+MIN_RATE, MAX_RATE = 0.01, 100.0
+"""The `rosbag play` rates a replay takes (1: as recorded)."""
+PLAY_TIMEOUT_S = 600.0
+"""The longest a replay's `rosbag play` may take (the bag's span over the rate)."""
 
 SURE_CONFIDENCE = 0.5
 """A keypoint the live run perceived at this confidence or more counts as one it was sure of."""
@@ -58,17 +67,53 @@ class ReplayReport:
         )
 
 
-def recorded_states(bag_path: Path) -> dict[float, dict]:
-    """The live run's perception outputs in the bag, by frame stamp, for the frames whose
-    images and camera_info the bag holds."""
+def check_rate(rate: float) -> None:
+    """ConfigError unless `rate` is a play rate in [MIN_RATE, MAX_RATE]."""
+    if not (math.isfinite(rate) and MIN_RATE <= rate <= MAX_RATE):
+        raise ConfigError(
+            f"--rate must be a play rate in [{MIN_RATE:g}, {MAX_RATE:g}] (1: as recorded), "
+            f"got {rate!r}"
+        )
+
+
+@contextmanager
+def read_bag(bag_path: Path) -> Iterator[Any]:
+    """The bag at `bag_path` (a rosbag.Bag), open for reading; FoldbotError naming the file
+    where rosbag cannot read it (not a bag, an empty file, a recording cut short)."""
+    import genpy
     import rosbag
 
+    try:
+        with rosbag.Bag(str(bag_path)) as bag:
+            yield bag
+    except rosbag.ROSBagUnindexedException:
+        raise FoldbotError(
+            f"{bag_path} is a bag without its index (a recording cut short): `rosbag reindex "
+            f"{bag_path}` may recover it"
+        ) from None
+    except (rosbag.ROSBagException, genpy.DeserializationError, OSError) as exc:
+        raise FoldbotError(
+            f"{bag_path} is not a ROS bag that can be read ({exc}); ros-replay plays a bag "
+            "recorded by `foldbot ros-fold --record`"
+        ) from None
+
+
+def recorded_states(bag_path: Path) -> dict[float, dict]:
+    """The live run's perception outputs in the bag, by frame stamp, for the frames whose
+    images and camera_info the bag holds; FoldbotError naming the file where it is no bag
+    rosbag reads or its /cloth/state is not perception's."""
     out, inputs = {}, {t: set() for t in INPUT_TOPICS[1:]}
-    with rosbag.Bag(str(bag_path)) as bag:
+    with read_bag(bag_path) as bag:
         for topic, msg, _t in bag.read_messages(topics=["/cloth/state", *INPUT_TOPICS[1:]]):
             if topic == "/cloth/state":
-                d = json.loads(msg.data)
-                out[round(d["stamp"], 6)] = d
+                try:
+                    d = json.loads(msg.data)
+                    out[round(d["stamp"], 6)] = d
+                except (ValueError, TypeError, KeyError) as exc:
+                    raise FoldbotError(
+                        f"{bag_path}: a /cloth/state message is not a foldbot perception "
+                        f"node's state ({type(exc).__name__}: {exc})"
+                    ) from None
             else:
                 inputs[topic].add(round(msg.header.stamp.to_sec(), 6))
     # Only frames whose inputs the bag holds can be replayed (the recorder may join late); a real
@@ -97,17 +142,30 @@ def recorded_garment(states: dict[float, dict]) -> str:
     return "towel"
 
 
+def recorded_seconds(bag_path: Path) -> float:
+    """The seconds the bag's messages span (0 for one with none)."""
+    with read_bag(bag_path) as bag:
+        if bag.get_message_count() == 0:
+            return 0.0
+        return float(bag.get_end_time() - bag.get_start_time())
+
+
 def _start(cmd: list[str], env: dict, log) -> subprocess.Popen:
     return subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT)
 
 
 def replay(
-    bag_path: str | Path, port: int, rate: float = 1.0, timeout: float = 600.0
+    bag_path: str | Path, port: int, rate: float = 1.0, timeout: float = PLAY_TIMEOUT_S
 ) -> ReplayReport:
-    """Start roscore (if none on `port`), the perception node and `rosbag play`; collect the
-    node's cloth/state for every frame and compare with the recorded ones."""
-    from foldbot.commands.ros_fold import ROS_PACKAGE_DIR, ros_env
+    """Start roscore (if none on `port`), the perception node and `rosbag play` at `rate`;
+    collect the node's cloth/state for every frame and compare with the recorded ones. Bad
+    input (a port outside 1–65535, a rate outside [MIN_RATE, MAX_RATE], a file that is no bag
+    of a recorded fold, one that would play for longer than `timeout` s) is refused
+    (FoldbotError) before anything starts."""
+    from foldbot.commands.ros_fold import ROS_PACKAGE_DIR, check_port, ros_env
 
+    check_port(port)
+    check_rate(rate)
     bag_path = Path(bag_path)
     if not bag_path.is_file():
         raise FoldbotError(f"no bag at {bag_path}")
@@ -115,6 +173,13 @@ def replay(
     if not live:
         raise FoldbotError(
             f"{bag_path} holds no /cloth/state messages (record a run with --record)"
+        )
+    seconds = recorded_seconds(bag_path)
+    if seconds / rate > timeout:
+        raise ConfigError(
+            f"{bag_path} spans {seconds:.1f} s: at --rate {rate:g} it would play for "
+            f"{seconds / rate:.0f} s, more than the {timeout:g} s a replay is given; pass a "
+            f"--rate of at least {seconds / timeout:.3g}"
         )
     env = ros_env(port)
     os.environ.update({k: env[k] for k in ("ROS_MASTER_URI", "ROS_HOSTNAME", "ROS_PACKAGE_PATH")})
@@ -166,17 +231,20 @@ def replay(
             time.sleep(0.2)
         # Every input topic has the perception node as subscriber: rosbag plays once each one's
         # connection is up, so no first frame is lost on a slow machine.
-        play = subprocess.run(
-            [
-                *("rosbag", "play", "-q", "--wait-for-subscribers", "-r", str(rate)),
-                *(str(bag_path), "--topics", *PLAYED_TOPICS),
-            ],
-            env=env,
-            stdout=log,
-            stderr=subprocess.STDOUT,
-            timeout=timeout,
-            check=False,
-        )
+        try:
+            play = subprocess.run(
+                [
+                    *("rosbag", "play", "-q", "--wait-for-subscribers", "-r", str(rate)),
+                    *(str(bag_path), "--topics", *PLAYED_TOPICS),
+                ],
+                env=env,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                timeout=timeout,
+                check=False,
+            )
+        except subprocess.TimeoutExpired:
+            raise FoldbotError(f"rosbag play of {bag_path} took more than {timeout:g} s") from None
         if play.returncode != 0:
             raise FoldbotError(f"rosbag play failed (exit code {play.returncode})")
         deadline = time.monotonic() + 60

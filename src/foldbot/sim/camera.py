@@ -63,7 +63,7 @@ def look_at(
     z = t - e
     dist = np.linalg.norm(z)
     if dist < 1e-6:
-        raise ConfigError(f"camera eye {tuple(e)} and target {tuple(t)} must differ")
+        raise ConfigError(f"camera eye {e.tolist()} and target {t.tolist()} (m) must differ")
     z /= dist
     x = np.cross(z, u)  # image right; image down = z × x, i.e. image up ≈ `up`
     if np.linalg.norm(x) < 1e-6:

@@ -191,9 +191,8 @@ def load_layout(path: str | Path) -> CellLayout:
     rest at their defaults); ConfigError naming the file and what is wrong with it."""
     p = Path(path)
     if not p.is_file():
-        raise ConfigError(
-            f"layout file {str(p)!r} does not exist (a .toml of {', '.join(LAYOUT_FIELDS)})"
-        )
+        what = "is a folder, not a file" if p.is_dir() else "does not exist"
+        raise ConfigError(f"layout file {str(p)!r} {what} (a .toml of {', '.join(LAYOUT_FIELDS)})")
     try:
         table = tomllib.loads(p.read_text())
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:

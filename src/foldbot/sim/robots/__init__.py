@@ -32,11 +32,16 @@ REACH_CHECK_HEIGHT = 0.01
 def _unreachable(name: str, layout: CellLayout, exc: Exception) -> ConfigError:
     bx, by, bz = layout.robot_base_xyz
     cx, cy = layout.workspace_center_xy
+    where, fields = f"the workspace centre ({cx:g}, {cy:g}) m", "workspace_center_xy"
+    if layout.home_xy is not None:  # home is set apart from the centre: it may be what fails
+        hx, hy = layout.home_xy
+        where = f"its home ({hx:g}, {hy:g}) m (home_xy) or {where}"
+        fields = f"home_xy, {fields}"
     return ConfigError(
-        f"the {name} mounted at ({bx:g}, {by:g}, {bz:g}) m cannot reach the workspace centre "
-        f"({cx:g}, {cy:g}) m on the table at {layout.table_height:g} m gripper down ({exc}); "
-        "move the layout's workspace_center_xy, robot_base_xyz or table_height (`foldbot "
-        "check-layout FILE.toml` maps what the arm reaches over the whole workspace)"
+        f"the {name} mounted at ({bx:g}, {by:g}, {bz:g}) m cannot reach {where} on the table "
+        f"at {layout.table_height:g} m gripper down ({exc}); move the layout's {fields}, "
+        "robot_base_xyz or table_height (`foldbot check-layout FILE.toml` maps what the arm "
+        "reaches over the whole workspace)"
     )
 
 

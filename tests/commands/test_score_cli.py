@@ -1,0 +1,113 @@
+"""`foldbot score` and `foldbot export-bag` on a damaged episode or an output they cannot write:
+one line naming the file and what is allowed, exit 2, and no bag (or partial bag) left behind."""
+
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from foldbot.cli import main
+from foldbot.io.episode import REQUIRED_RESULT_KEYS, EpisodeWriter
+
+
+def write_episode(folder: Path, **cloth: object) -> Path:
+    """A small scored episode (a 4×4 towel left flat), its cloth.npz arrays replaced by `cloth`."""
+    n = 4
+    xs = np.linspace(0.0, 0.3, n)
+    gx, gy = np.meshgrid(xs, xs)
+    initial = np.stack([gx.ravel(), gy.ravel(), np.full(n * n, 0.76)], axis=1)
+    faces = np.array(
+        [
+            tri
+            for i in range(n - 1)
+            for j in range(n - 1)
+            for tri in (
+                [i * n + j, i * n + j + 1, (i + 1) * n + j + 1],
+                [i * n + j, (i + 1) * n + j + 1, (i + 1) * n + j],
+            )
+        ]
+    )
+    result = dict.fromkeys(REQUIRED_RESULT_KEYS, 0)
+    result.update(success=False, fold_lines=[[0.15, 0.0, 0.0, 1.0]], actions=[], garment="towel")
+    with EpisodeWriter(folder) as w:
+        w.write_cloth(faces, initial, initial, 0.002)
+        w.write_result(result)
+    if cloth:
+        arrays = {"faces": faces, "initial": initial, "final": initial, "thickness": 0.002}
+        buf = io.BytesIO()
+        np.savez(buf, **{**arrays, **cloth})
+        (folder / "cloth.npz").write_bytes(buf.getvalue())
+    return folder
+
+
+def test_score_prints_the_metrics_of_a_sound_episode(tmp_path, capsys):
+    ep = write_episode(tmp_path / "ep")
+    assert main(["score", str(ep)]) == 0
+    assert "fold_error_mm" in json.loads(capsys.readouterr().out)
+
+
+@pytest.mark.parametrize(
+    ("damage", "says"),
+    [
+        (b"", "is not a readable episode file (it is empty)"),
+        (b"PK\x03\x04 and then nothing", "is not a readable episode file (a truncated or corrupt"),
+        (b"plain text", "is not a readable episode file (it is not a .npz (zip) archive)"),
+        ({"final": np.full((16, 3), "x")}, "final must be a non-empty V×3 array of numbers"),
+        ({"final": np.full((16, 3), np.nan)}, "final has NaN or inf coordinates at 16 of its 16"),
+        ({"final": np.full((16, 3), 1e300)}, "final has a vertex coordinate of 1e+300 m"),
+        ({"thickness": np.float64(-1.0)}, "thickness = -1 must be a finite number ≥ 0 (m)"),
+    ],
+)
+@pytest.mark.parametrize("command", ["score", "export-bag"])
+def test_a_damaged_cloth_npz_gets_one_line_naming_it(tmp_path, capsys, command, damage, says):
+    if isinstance(damage, bytes):
+        ep = write_episode(tmp_path / "ep")
+        (ep / "cloth.npz").write_bytes(damage)
+    else:
+        ep = write_episode(tmp_path / "ep", **damage)
+    bag = tmp_path / "out" / "ep.bag"
+    argv = [command, str(ep)] + (["--out", str(bag)] if command == "export-bag" else [])
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"foldbot {command}: error: cloth.npz in {ep}") and says in err
+    assert "Traceback" not in err and "allow_pickle" not in err and "array(" not in err
+    assert not (tmp_path / "out").exists()  # nothing written, not even the bag's folder
+
+
+def test_export_bag_onto_a_folder_or_under_a_file_is_refused(tmp_path, capsys):
+    ep = write_episode(tmp_path / "ep")
+    folder = tmp_path / "d.bag"
+    folder.mkdir()
+    for flags in ([], ["--overwrite"]):
+        assert main(["export-bag", str(ep), "--out", str(folder), *flags]) == 2
+        err = capsys.readouterr().err
+        assert f"foldbot export-bag: error: {folder} is a folder; name a .bag file" in err
+    assert list(folder.iterdir()) == []
+    (tmp_path / "afile").write_text("keep")
+    under = tmp_path / "afile" / "x.bag"
+    assert main(["export-bag", str(ep), "--out", str(under)]) == 2
+    err = capsys.readouterr().err
+    assert f"cannot write the bag {under}: {tmp_path / 'afile'} is not a folder" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile", "d.bag", "ep"]
+
+
+def test_export_bag_into_a_folder_it_cannot_write_is_refused(tmp_path, capsys):
+    ep = write_episode(tmp_path / "ep")
+    shut = tmp_path / "shut"
+    shut.mkdir()
+    shut.chmod(0o555)
+    try:
+        try:  # root (and some file systems) write there all the same: nothing to test then
+            (shut / "probe").write_bytes(b"")
+        except OSError:
+            pass
+        else:
+            pytest.skip("this user can write in a read-only folder")
+        assert main(["export-bag", str(ep), "--out", str(shut / "x.bag")]) == 2
+        err = capsys.readouterr().err
+        assert f"cannot write the bag {shut / 'x.bag'} (" in err and "Traceback" not in err
+        assert list(shut.iterdir()) == []
+    finally:
+        shut.chmod(0o755)
