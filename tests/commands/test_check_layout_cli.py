@@ -103,3 +103,15 @@ def test_a_calibrations_bad_intrinsics_are_named(tmp_path, capsys):
     path = write_calibration(tmp_path / "calibration.json", np.eye(4), info)
     assert main(["check-layout", "--camera-pose", str(path)]) == 2
     assert "camera_info K must be a 3 × 3 camera matrix" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("width", ["640", 640.5, True])
+def test_a_calibrations_image_size_must_be_whole_pixels(tmp_path, capsys, width):
+    K = [[554.0, 0, 319.5], [0, 554.0, 239.5], [0, 0, 1]]
+    path = write_calibration(
+        tmp_path / "calibration.json", np.eye(4), {"width": width, "height": 480, "K": K}
+    )
+    assert main(["check-layout", "--camera-pose", str(path)]) == 2
+    assert "camera_info's width and height must be whole numbers of pixels, got " in (
+        capsys.readouterr().err
+    )

@@ -49,6 +49,7 @@ def test_three_scenes_write_the_summary(tmp_path: Path, capsys: pytest.CaptureFi
         (["--scenes", "0"], "--scenes must be > 0"),
         (["--scenes", "-2"], "--scenes must be > 0"),
         (["--seed", "-1"], "--seed must be an integer ≥ 0, got -1"),
+        (["--edge-length", "0.01"], "--edge-length is for --garment tshirt or pants"),
         (["--save-overlays", "-1"], "--save-overlays"),
         (["--width", "8"], "width"),
         (["--towel-sides", "0.5", "0.3"], "--towel-sides must be LO HI with 0.05 ≤ LO ≤ HI"),

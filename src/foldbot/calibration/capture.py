@@ -284,11 +284,17 @@ def calibration_camera(
         return T, None
     try:
         K = np.asarray(info["K"], dtype=float)
-        width, height = int(info["width"]), int(info["height"])
+        size = info["width"], info["height"]
     except (KeyError, TypeError, ValueError) as exc:
         raise ConfigError(
             f"{str(path)!r}: camera_info must hold K (3 × 3), width and height: {exc}"
         ) from None
+    if not all(isinstance(v, int) and not isinstance(v, bool) for v in size):
+        raise ConfigError(
+            f"{str(path)!r}: camera_info's width and height must be whole numbers of pixels, "
+            f"got {size[0]!r} × {size[1]!r}"
+        )
+    width, height = size
     if K.shape != (3, 3) or not np.isfinite(K).all() or K[0, 0] <= 0 or K[1, 1] <= 0:
         raise ConfigError(f"{str(path)!r}: camera_info K must be a 3 × 3 camera matrix, got {K}")
     if width <= 0 or height <= 0:

@@ -391,6 +391,11 @@ def _validate(args: argparse.Namespace) -> None:
             raise ConfigError(message)
     CameraConfig(width=args.width, height=args.height)  # ConfigError names a bad size
     TowelSpec(resolution=args.resolution)
+    if args.edge_length is not None and args.garment == "towel":
+        raise ConfigError(
+            f"--edge-length is for --garment tshirt or pants (a towel's mesh is set by "
+            f"--resolution), got {args.edge_length} with --garment towel"
+        )
     if args.edge_length is not None:
         # The specs' own checks name a bad edge length.
         TShirtSpec(edge_length=args.edge_length)
