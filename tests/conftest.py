@@ -22,6 +22,25 @@ def no_launch(monkeypatch):
     monkeypatch.setattr(subprocess, "Popen", refuse)
 
 
+@pytest.fixture
+def unwritable_folder(tmp_path):
+    """An empty folder this user cannot write in (mode 555); the test is skipped where the
+    user writes there all the same (root, some file systems): nothing to test then."""
+    shut = tmp_path / "shut"
+    shut.mkdir()
+    shut.chmod(0o555)
+    try:
+        try:
+            (shut / "probe").write_bytes(b"")
+        except OSError:
+            pass
+        else:
+            pytest.skip("this user can write in a read-only folder")
+        yield shut
+    finally:
+        shut.chmod(0o755)
+
+
 def _spec(recipe, seed, **extra):
     return {
         "garment": "towel",

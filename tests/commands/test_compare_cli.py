@@ -3,8 +3,6 @@ not a run."""
 
 import json
 
-import pytest
-
 from foldbot.cli import main
 
 
@@ -77,22 +75,13 @@ def test_plot_onto_a_folder_is_refused_first(tmp_path, capsys, write_run):
     assert list(folder.iterdir()) == []
 
 
-def test_plot_into_a_folder_it_cannot_write_is_refused_first(tmp_path, capsys, write_run):
+def test_plot_into_a_folder_it_cannot_write_is_refused_first(
+    tmp_path, capsys, write_run, unwritable_folder
+):
     episodes = {"towel-half-vision-closed-s0000": ("half", 0, 8.0)}
     a, b = write_run(tmp_path / "a", episodes), write_run(tmp_path / "b", episodes)
-    shut = tmp_path / "shut"
-    shut.mkdir()
-    shut.chmod(0o555)
-    try:
-        try:  # root (and some file systems) write there all the same: nothing to test then
-            (shut / "probe").write_bytes(b"")
-        except OSError:
-            pass
-        else:
-            pytest.skip("this user can write in a read-only folder")
-        assert main(["compare", str(a), str(b), "--plot", str(shut / "p.png")]) == 2
-        err = capsys.readouterr().err
-        assert f"--plot {shut / 'p.png'}: cannot write in its folder {shut}" in err
-        assert "Traceback" not in err and list(shut.iterdir()) == []
-    finally:
-        shut.chmod(0o755)
+    shut = unwritable_folder
+    assert main(["compare", str(a), str(b), "--plot", str(shut / "p.png")]) == 2
+    err = capsys.readouterr().err
+    assert f"--plot {shut / 'p.png'}: cannot write in its folder {shut}" in err
+    assert "Traceback" not in err and list(shut.iterdir()) == []

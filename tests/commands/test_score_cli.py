@@ -9,26 +9,14 @@ import numpy as np
 import pytest
 
 from foldbot.cli import main
+from foldbot.garments.towel import TowelSpec, make_towel
 from foldbot.io.episode import REQUIRED_RESULT_KEYS, EpisodeWriter
 
 
 def write_episode(folder: Path, **cloth: object) -> Path:
     """A small scored episode (a 4×4 towel left flat), its cloth.npz arrays replaced by `cloth`."""
-    n = 4
-    xs = np.linspace(0.0, 0.3, n)
-    gx, gy = np.meshgrid(xs, xs)
-    initial = np.stack([gx.ravel(), gy.ravel(), np.full(n * n, 0.76)], axis=1)
-    faces = np.array(
-        [
-            tri
-            for i in range(n - 1)
-            for j in range(n - 1)
-            for tri in (
-                [i * n + j, i * n + j + 1, (i + 1) * n + j + 1],
-                [i * n + j, (i + 1) * n + j + 1, (i + 1) * n + j],
-            )
-        ]
-    )
+    mesh = make_towel(TowelSpec(0.3, 0.3, resolution=4, odd_grid=False))
+    faces, initial = mesh.faces, mesh.vertices + np.array([0.15, 0.15, 0.76])  # x, y in 0–0.3
     result = dict.fromkeys(REQUIRED_RESULT_KEYS, 0)
     result.update(success=False, fold_lines=[[0.15, 0.0, 0.0, 1.0]], actions=[], garment="towel")
     with EpisodeWriter(folder) as w:
@@ -93,21 +81,10 @@ def test_export_bag_onto_a_folder_or_under_a_file_is_refused(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["afile", "d.bag", "ep"]
 
 
-def test_export_bag_into_a_folder_it_cannot_write_is_refused(tmp_path, capsys):
+def test_export_bag_into_a_folder_it_cannot_write_is_refused(tmp_path, capsys, unwritable_folder):
     ep = write_episode(tmp_path / "ep")
-    shut = tmp_path / "shut"
-    shut.mkdir()
-    shut.chmod(0o555)
-    try:
-        try:  # root (and some file systems) write there all the same: nothing to test then
-            (shut / "probe").write_bytes(b"")
-        except OSError:
-            pass
-        else:
-            pytest.skip("this user can write in a read-only folder")
-        assert main(["export-bag", str(ep), "--out", str(shut / "x.bag")]) == 2
-        err = capsys.readouterr().err
-        assert f"cannot write the bag {shut / 'x.bag'} (" in err and "Traceback" not in err
-        assert list(shut.iterdir()) == []
-    finally:
-        shut.chmod(0o755)
+    shut = unwritable_folder
+    assert main(["export-bag", str(ep), "--out", str(shut / "x.bag")]) == 2
+    err = capsys.readouterr().err
+    assert f"cannot write the bag {shut / 'x.bag'} (" in err and "Traceback" not in err
+    assert list(shut.iterdir()) == []
