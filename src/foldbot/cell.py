@@ -2,7 +2,7 @@
 (`StepLog`).
 
 The in-process simulation implements FoldCell (`pipeline.SimCell`), and so do the ROS nodes
-(`foldbot.ros.task_node.RosCell`), so the loops (`loop`, `garment_loop`, `flatten`) run the same
+(`foldbot.ros.task_cell.RosCell`), so the loops (`loop`, `garment_loop`, `flatten`) run the same
 decisions whether the modules talk by function call or over topics.
 """
 
