@@ -94,6 +94,27 @@ def test_a_camera_turned_away_misses_part_of_the_workspace():
     assert "not seen: (0.150, -0.300)" in "\n".join(check.lines())
 
 
+@pytest.mark.parametrize(
+    ("eye", "target", "why"),
+    [
+        # Under the table looking up: it would see the table's underside, not the cloth.
+        ((0.45, 0.0, 0.3), (0.45, 0.0, 0.9), "the camera is below the table top (at z = 0.300 m"),
+        ((0.45, 0.0, 1.6), (0.45, 0.0, 2.5), "it lies behind the camera, which faces away"),
+    ],
+)
+def test_a_camera_that_cannot_look_down_at_the_table_sees_nothing_and_says_why(eye, target, why):
+    cam = CameraConfig(eye=eye, target=target)
+    placement = CameraPlacement(
+        look_at(cam.eye, cam.target, cam.up), cam.K, cam.width, cam.height, "moved"
+    )
+    check = check_layout(DEFAULT_LAYOUT, placement, grid=3)
+    assert not check.in_view.any() and check.mm_per_px is None
+    assert f"sees 0 of 9 points on the table, no resolution at the workspace centre: {why}" in (
+        "\n".join(check.lines())
+    )
+    assert check.record()["camera"]["mm_per_px"] is None  # JSON has no infinity
+
+
 def test_the_cameras_footprint_projects_back_onto_the_image_corners():
     cam = sim_camera()
     foot = cam.footprint(DEFAULT_LAYOUT.table_height)

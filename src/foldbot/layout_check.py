@@ -10,7 +10,6 @@ here steps physics or touches a simulated cell.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -136,9 +135,11 @@ class LayoutCheck:
     height."""
     camera: CameraPlacement
     in_view: np.ndarray
-    """len(ys) × len(xs): the workspace point on the table top is inside the camera's image."""
-    mm_per_px: float
-    """The image's resolution on the table at the workspace centre (mm per pixel along u)."""
+    """len(ys) × len(xs): the workspace point on the table top is inside the camera's image,
+    the camera above the table (from below it sees the table's underside)."""
+    mm_per_px: float | None
+    """The image's resolution on the table at the workspace centre (mm per pixel along u); None
+    where the camera does not look down at it (below the table top, or facing away)."""
     arm_names: tuple[str, ...] = field(default=("arm",))
 
     @property
@@ -207,7 +208,7 @@ class LayoutCheck:
         seen = int(self.in_view.sum())
         out.append(
             f"camera ({self.camera.source}): sees {seen} of {self.points} points on the table, "
-            f"{self.mm_per_px:.2f} mm per pixel at the workspace centre"
+            + self.resolution_words("the workspace centre")
         )
         if seen < self.points:
             missed = [
@@ -226,6 +227,20 @@ class LayoutCheck:
             "(workspace_center_xy, workspace_size), the arm (robot_base_xyz) or the camera"
         )
         return out
+
+    def resolution_words(self, centre: str) -> str:
+        """The image's resolution at `centre` (the workspace's), or why it has none there."""
+        if self.mm_per_px is not None:
+            return f"{self.mm_per_px:.2f} mm per pixel at {centre}"
+        eye_z = float(self.camera.T_world_camera[2, 3])
+        if eye_z <= self.layout.table_height:
+            return (
+                f"no resolution at {centre}: the camera is below the table top (at z = {eye_z:.3f} m, "
+                f"the table at {self.layout.table_height:.3f} m)"
+            )
+        return (
+            f"no resolution at {centre}: it lies behind the camera, which faces away from the table"
+        )
 
     def record(self) -> dict[str, Any]:
         """layout_check.json's content (plain JSON)."""
@@ -330,10 +345,11 @@ def check_layout(
         world.close()
     gx, gy = np.meshgrid(xs, ys)
     table = np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, layout.table_height)], axis=1)
-    in_view = camera.in_view(table).reshape(gx.shape)
+    above = bool(camera.T_world_camera[2, 3] > layout.table_height)
+    in_view = camera.in_view(table).reshape(gx.shape) & above
     cx, cy = layout.workspace_center_xy
     _, z = camera.project(np.array([[cx, cy, layout.table_height]]))
-    mm_per_px = 1000.0 * float(z[0]) / float(camera.K[0, 0]) if z[0] > 0 else math.inf
+    mm_per_px = 1000.0 * float(z[0]) / float(camera.K[0, 0]) if above and z[0] > 0 else None
     return LayoutCheck(
         layout=layout,
         robot=robot,

@@ -217,6 +217,11 @@ class EpisodeConfig:
             )
         if self.garment_edge_length is not None:
             require(
+                self.garment != "towel",
+                f"garment_edge_length ({self.garment_edge_length!r} m) sets a T-shirt's or pants' "
+                "mesh; a towel's is towel.resolution's",
+            )
+            require(
                 0.005 <= self.garment_edge_length <= 0.1,
                 f"garment_edge_length must be in [0.005, 0.1] m, got {self.garment_edge_length!r}",
             )

@@ -101,14 +101,24 @@ def test_a_calibration_file_gives_the_pose_or_says_what_is_wrong(tmp_path):
     good = tmp_path / "calibration.json"
     T = np.eye(4)
     T[:3, 3] = [1.0, 0.0, 1.7]
-    good.write_text(
-        json.dumps({"T_world_camera": T.tolist(), "parent_frame": "world", "child_frame": "cam"})
-    )
+    frames = {"parent_frame": "world", "child_frame": "camera_color_optical_frame"}
+    good.write_text(json.dumps({"T_world_camera": T.tolist(), **frames}))
     words = calibration_pose_words(good)
-    assert words[7:] == ["world", "cam"] and [float(w) for w in words[:3]] == [1.0, 0.0, 1.7]
+    assert words[7:] == ["world", "camera_color_optical_frame"]
+    assert [float(w) for w in words[:3]] == [1.0, 0.0, 1.7]
+    # The nodes look the camera up as world → camera_color_optical_frame: other frames are named.
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"T_world_camera": T.tolist(), **frames, "child_frame": "cam"}))
+    with pytest.raises(ConfigError, match="child_frame must be 'camera_color_optical_frame'"):
+        calibration_pose_words(bad)
+    bad.write_text(json.dumps({"T_world_camera": T.tolist(), **frames, "parent_frame": None}))
+    with pytest.raises(ConfigError, match="parent_frame must name a frame, got null"):
+        calibration_pose_words(bad)
+    bad.write_text(json.dumps({"T_world_camera": [[None] * 4] * 4, **frames}))
+    with pytest.raises(ConfigError, match=r"rigid 4 × 4 transform, got \[\[null, null"):
+        calibration_pose_words(bad)
     with pytest.raises(ConfigError, match="no such file"):
         calibration_pose_words(tmp_path / "missing.json")
-    bad = tmp_path / "bad.json"
     bad.write_text(json.dumps({"views": []}))
     with pytest.raises(ConfigError, match=r"is not a calibration\.json"):
         calibration_pose_words(bad)

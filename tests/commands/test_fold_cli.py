@@ -66,6 +66,12 @@ def test_subcommand_help(cmd, capsys):
         (["--resolution", "2"], "resolution"),
         (["--resolution", "99"], "resolution"),
         (["--garment-yaw", "0"], "turns a T-shirt or pants"),
+        (["--garment", "pants", "--width", "0.4"], "--width shapes a towel; the pants' size"),
+        (
+            ["--garment", "tshirt", "--no-odd-grid", "--max-vertices", "99"],
+            "--no-odd-grid, --max-vertices shape a towel; a T-shirt's size is the seed's draw",
+        ),
+        (["--garment-edge-length", "0.02"], "--garment-edge-length sets a tshirt's or pants'"),
         (["--replicate", "-1"], "replicate must be an integer in [0, 999]"),
         (["--loop-option", "top_layer_first"], "NAME=VALUE"),
         (["--loop-option", "stack_inset=-0.01"], "stack_inset = -0.01 must be a length in m"),

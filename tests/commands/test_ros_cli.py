@@ -10,6 +10,7 @@ from calibration_files import write_calibration
 
 from foldbot.cli import main
 from foldbot.commands.ros_fold import add_arguments, fold_args_text
+from foldbot.ros.node_args import parse_fold_args
 
 
 @pytest.mark.parametrize(
@@ -399,9 +400,14 @@ def test_export_of_a_folder_that_is_no_episode_names_it(tmp_path, capsys):
 def test_fold_options_reach_the_nodes():
     parser = argparse.ArgumentParser()
     add_arguments(parser)
-    assert "--odd-grid" in fold_args_text(parser.parse_args(["--out", "e"])).split()
-    words = fold_args_text(parser.parse_args(["--out", "e", "--no-odd-grid"])).split()
-    assert "--no-odd-grid" in words
+    words = fold_args_text(parser.parse_args(["--out", "e"])).split()
+    assert not {"--odd-grid", "--width", "--resolution"} & set(words)  # the nodes' defaults
+    towel = ["--no-odd-grid", "--width", "0.28", "--resolution", "9", "--max-vertices", "60"]
+    words = fold_args_text(parser.parse_args(["--out", "e", *towel])).split()
+    assert all(word in words for word in towel)
+    text = fold_args_text(parser.parse_args(["--out", "e", "--garment", "tshirt"]))
+    # A garment gets no towel option, which its fold would refuse.
+    assert parse_fold_args(text)[1].garment == "tshirt"
 
 
 def test_a_layout_file_reaches_the_nodes_by_its_absolute_path(tmp_path, monkeypatch):

@@ -44,8 +44,25 @@ def test_divergence_is_detected(world):
     p.resetBasePositionAndOrientation(
         cloth.body_id, [5.0, 0.0, 3.0], [0, 0, 0, 1], physicsClientId=world.client
     )
-    with pytest.raises(SimulationDivergedError, match="diverged"):
+    with pytest.raises(SimulationDivergedError, match="diverged") as exc:
         world.step(2)
+    # Only the bounds broken are named: 5 m out and ~2.25 m up, not under the table.
+    assert "from the workspace centre (limit 1.00 m)" in str(exc.value)
+    assert "over the table (limit 1.5 m)" in str(exc.value) and "under" not in str(exc.value)
+
+
+def test_a_vertex_through_the_table_is_named_with_its_depth(world):
+    mesh = make_towel(TowelSpec(0.2, 0.2, 6))
+    cloth = SoftCloth(world.client, mesh, ClothConfig(), world.layout.table_height, (0.45, 0.0))
+    v = cloth.node_positions()
+    v[0, 2] = world.layout.table_height - 0.0503  # just past the 50 mm allowed
+    cloth.set_node_positions(v)
+    with pytest.raises(SimulationDivergedError) as exc:
+        cloth.check_finite_and_bounded((0.45, 0.0), 1.0)
+    assert str(exc.value) == (
+        "cloth simulation diverged: a vertex lies 50.3 mm under the table top (limit 50 mm: it "
+        "went through)"
+    )
 
 
 def test_a_cloth_sliding_across_the_table_is_a_divergence(world):

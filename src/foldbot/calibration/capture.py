@@ -236,8 +236,9 @@ def _read_calibration(path: Path) -> tuple[dict[str, Any], np.ndarray]:
     wrong with the file."""
     try:
         record = json.loads(path.read_text())
-        T = np.asarray(record["T_world_camera"], dtype=float)
-        _frames = (record["parent_frame"], record["child_frame"])  # both must be named
+        raw_T = record["T_world_camera"]
+        T = np.asarray(raw_T, dtype=float)
+        frames = {name: record[name] for name in ("parent_frame", "child_frame")}
     except FileNotFoundError:
         raise ConfigError(f"{str(path)!r}: no such file") from None
     except (OSError, ValueError, KeyError, TypeError) as exc:
@@ -247,8 +248,12 @@ def _read_calibration(path: Path) -> tuple[dict[str, Any], np.ndarray]:
         ) from None
     if not _is_rigid(T):
         raise ConfigError(
-            f"{str(path)!r}: T_world_camera must be a rigid 4 × 4 transform, got {T.tolist()}"
+            f"{str(path)!r}: T_world_camera must be a rigid 4 × 4 transform, got "
+            f"{json.dumps(raw_T)}"
         )
+    for name, frame in frames.items():
+        if not isinstance(frame, str) or not frame.strip():
+            raise ConfigError(f"{str(path)!r}: {name} must name a frame, got {json.dumps(frame)}")
     return record, T
 
 
@@ -266,9 +271,16 @@ def _is_rigid(T: np.ndarray) -> bool:
 
 def calibration_pose_words(path: str | Path) -> list[str]:
     """The camera pose a calibration.json (`foldbot calibrate`, `foldbot ros-calibrate`) holds,
-    as static_transform_publisher's words; ConfigError naming what is wrong with the file."""
+    as static_transform_publisher's words; ConfigError naming what is wrong with the file,
+    frames included: the nodes look the camera up as WORLD_FRAME → CAMERA_FRAME."""
     record, T = _read_calibration(Path(path))
-    return pose_words(T, str(record["parent_frame"]), str(record["child_frame"]))
+    for name, frame in (("parent_frame", WORLD_FRAME), ("child_frame", CAMERA_FRAME)):
+        if record[name] != frame:
+            raise ConfigError(
+                f"{str(path)!r}: {name} must be {frame!r} (the nodes look the camera up as "
+                f"{WORLD_FRAME} → {CAMERA_FRAME}), got {record[name]!r}"
+            )
+    return pose_words(T, WORLD_FRAME, CAMERA_FRAME)
 
 
 def calibration_camera(

@@ -250,17 +250,20 @@ def add_episode_arguments(parser: argparse.ArgumentParser, output: bool = True) 
     parser.add_argument(
         "--width",
         type=float,
-        default=0.30,
-        help="towel width in m (0.05–1.0; the camera sees a whole towel up to about 0.6 m, "
-        "a larger one is refused before the arm moves)",
+        default=None,
+        help="towel width in m (0.05–1.0, default 0.30; the camera sees a whole towel up to "
+        "about 0.6 m, a larger one is refused before the arm moves)",
     )
     parser.add_argument(
-        "--height", type=float, default=0.30, help="towel height in m (0.05–1.0; as --width)"
+        "--height",
+        type=float,
+        default=None,
+        help="towel height in m (0.05–1.0, default 0.30; as --width)",
     )
     parser.add_argument(
         "--resolution",
         type=int,
-        default=16,
+        default=None,
         help="cloth vertices along the towel's longer side (4–40, default 16)",
     )
     parser.add_argument(
@@ -275,7 +278,7 @@ def add_episode_arguments(parser: argparse.ArgumentParser, output: bool = True) 
     parser.add_argument(
         "--odd-grid",
         action=argparse.BooleanOptionalAction,
-        default=True,
+        default=None,
         help="odd vertex counts along both sides, so the half folds' lines are vertex rows: a "
         "mass-spring mesh creases only at vertices (default; --resolution 16 becomes 17). "
         "--no-odd-grid keeps the proportional counts",
@@ -367,13 +370,7 @@ def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
         park=args.park,
         arms=args.arms,
         jaw_catch=args.jaw_catch,
-        towel=TowelSpec(
-            width=args.width,
-            height=args.height,
-            resolution=args.resolution,
-            odd_grid=args.odd_grid,
-            max_vertices=args.max_vertices,
-        ),
+        towel=towel_from_args(args),
         garment_edge_length=args.garment_edge_length,
         garment_yaw=math.radians(args.garment_yaw),
         cloth=cloth,
@@ -388,6 +385,36 @@ def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
         flatten_options=flatten_options_from_args(args.flatten_option),
         **faults_from_args(args),
     )
+
+
+TOWEL_OPTIONS = ("width", "height", "resolution", "odd_grid", "max_vertices")
+"""The options that shape a towel's mesh (None where not given); a T-shirt's or pants' size is
+the seed's draw and its mesh --garment-edge-length's."""
+TOWEL_DEFAULTS = TowelSpec(odd_grid=True)
+"""The towel the command folds where its options are not given (odd grid: see --odd-grid)."""
+
+
+def towel_from_args(args: argparse.Namespace) -> TowelSpec:
+    """The towel the options shape; ConfigError where a towel option is given for a T-shirt or
+    pants, or --garment-edge-length for a towel (each would be silently unused)."""
+    given = [name for name in TOWEL_OPTIONS if getattr(args, name) is not None]
+    if args.garment != "towel" and given:
+        flags = [
+            ("--" if getattr(args, name) is not False else "--no-") + name.replace("_", "-")
+            for name in given
+        ]
+        whose = {"tshirt": "a T-shirt's", "pants": "the pants'"}[args.garment]
+        raise ConfigError(
+            f"{', '.join(flags)} {'shapes' if len(flags) == 1 else 'shape'} a towel; {whose} "
+            "size is the seed's draw and its mesh --garment-edge-length's: drop "
+            + ("it" if len(flags) == 1 else "them")
+        )
+    if args.garment == "towel" and args.garment_edge_length is not None:
+        raise ConfigError(
+            "--garment-edge-length sets a tshirt's or pants' mesh; a towel's is --resolution's "
+            "(and --max-vertices'): drop it"
+        )
+    return dataclasses.replace(TOWEL_DEFAULTS, **{name: getattr(args, name) for name in given})
 
 
 def faults_from_args(args: argparse.Namespace) -> dict[str, float]:

@@ -25,7 +25,7 @@ from foldbot import errors
 from foldbot.calibration.capture import calibration_pose_words
 from foldbot.commands import fold
 from foldbot.errors import ConfigError, FoldbotError, OutputError
-from foldbot.io.episode import EpisodeWriter, is_episode_dir
+from foldbot.io.episode import ERROR_FILE, EpisodeWriter, failed_dir, is_episode_dir
 from foldbot.io.staging import output_path
 from foldbot.ros.node_args import (
     ARM_INTERFACES,
@@ -315,6 +315,15 @@ def file_stamp(path: Path) -> int | None:
     return path.stat().st_mtime_ns if path.is_file() else None
 
 
+def drop_stopped_record(out: Path, before: int | None) -> None:
+    """Remove the `DIR.failed/` the task node left when the command was stopped (its error is
+    the shutdown's, not the fold's): a stopped ros-fold, like a stopped fold, leaves nothing.
+    `before`: its error.json's stamp at launch (an earlier run's record stays)."""
+    stamp = file_stamp(failed_dir(out) / ERROR_FILE)
+    if stamp is not None and stamp != before:
+        shutil.rmtree(failed_dir(out), ignore_errors=True)
+
+
 def check_bag_recorded(bag: Path, before: int | None) -> None:
     """FoldbotError unless the run left its bag at `bag`: a file that was not there (`before`
     None), or one written since (`before`: file_stamp of the bag --overwrite replaces)."""
@@ -415,8 +424,7 @@ def fold_args_text(args: argparse.Namespace) -> str:
         *("--perception", args.perception, "--seed", str(args.seed), "--park", args.park),
         *("--replicate", str(args.replicate), "--jaw-catch", args.jaw_catch),
         *("--start", args.start),
-        *("--width", repr(args.width), "--height", repr(args.height)),
-        *("--resolution", str(args.resolution), "--video-fps", repr(args.video_fps)),
+        *("--video-fps", repr(args.video_fps)),
         *("--out", str(Path(args.out).resolve())),
     ]
     if args.mass is not None:
@@ -426,15 +434,27 @@ def fold_args_text(args: argparse.Namespace) -> str:
     if args.garment_edge_length is not None:
         words += ["--garment-edge-length", repr(args.garment_edge_length)]
     words += ["--garment-yaw", repr(args.garment_yaw)]
-    words.append("--odd-grid" if args.odd_grid else "--no-odd-grid")
-    if args.max_vertices is not None:
-        words += ["--max-vertices", str(args.max_vertices)]
+    words += towel_words(args)
     if args.layout is not None:  # its absolute path: the nodes run elsewhere
         words += ["--layout", str(Path(args.layout).resolve())]
     words += camera_words(args)
     if args.overwrite:
         words.append("--overwrite")
     return shlex.join(words)
+
+
+def towel_words(args: argparse.Namespace) -> list[str]:
+    """The towel options given (fold.TOWEL_OPTIONS), as fold's words; those not given keep
+    fold's defaults in the nodes too."""
+    words: list[str] = []
+    for name in fold.TOWEL_OPTIONS:
+        value = getattr(args, name)
+        flag = "--" + name.replace("_", "-")
+        if isinstance(value, bool):
+            words.append(flag if value else "--no-" + flag[2:])
+        elif value is not None:
+            words += [flag, repr(value)]
+    return words
 
 
 def camera_words(args: argparse.Namespace) -> list[str]:
@@ -613,6 +633,7 @@ def run(args: argparse.Namespace) -> int:
     ]
     result_file = out / "result.json"
     before = file_stamp(result_file)
+    failed_before = file_stamp(failed_dir(out) / ERROR_FILE)
     with tempfile.TemporaryDirectory(prefix="foldbot-ros-") as tmp:
         error_file = Path(tmp) / "error.json"
         proc = subprocess.Popen([*cmd, f"error_file:={error_file}"], env=env)
@@ -620,6 +641,7 @@ def run(args: argparse.Namespace) -> int:
             proc.wait()
         except BaseException:  # Ctrl-C, or `kill` (foldbot.cli.Terminated)
             stop_launch(proc)
+            drop_stopped_record(out, failed_before)
             raise
         failure = json.loads(error_file.read_text()) if error_file.is_file() else None
     if file_stamp(result_file) in (None, before):

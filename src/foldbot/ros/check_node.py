@@ -331,7 +331,7 @@ def run_checks(
                 "the workspace in view",
                 seen == found.points,
                 f"{seen} of {found.points} workspace points inside the image, "
-                f"{found.mm_per_px:.2f} mm per pixel at its centre",
+                + found.resolution_words("its centre"),
             )
         )
         extra["T_world_camera"] = T_cam.tolist()

@@ -117,6 +117,12 @@ class ClothConfig:
         return self.friction / self.body_friction
 
 
+MAX_DEPTH_UNDER_TABLE_M = 0.05
+"""A cloth vertex this far under the table top has gone through it: the simulation diverged."""
+MAX_HEIGHT_OVER_TABLE_M = 1.5
+"""… and one this far over it has been flung: no carry lifts the cloth so high."""
+
+
 def yaw_rotation(yaw: float) -> np.ndarray:
     """3×3 rotation about world z."""
     c, s = math.cos(yaw), math.sin(yaw)
@@ -246,12 +252,22 @@ class SoftCloth:
         d_xy = np.linalg.norm(v[:, :2] - np.asarray(center_xy), axis=1).max()
         z_lo = v[:, 2].min() - self.table_height
         z_hi = v[:, 2].max() - self.table_height
-        if d_xy > radius or z_lo < -0.05 or z_hi > 1.5:
-            raise SimulationDivergedError(
-                f"cloth simulation diverged: a vertex lies {d_xy:.2f} m from the workspace centre "
-                f"(limit {radius:.2f} m), heights {z_lo:+.3f}..{z_hi:+.3f} m relative to the table "
-                "(allowed −0.05..+1.5 m)"
+        broken = []
+        if d_xy > radius:
+            broken.append(
+                f"a vertex lies {d_xy:.2f} m from the workspace centre (limit {radius:.2f} m)"
             )
+        if z_lo < -MAX_DEPTH_UNDER_TABLE_M:
+            broken.append(
+                f"a vertex lies {-z_lo * 1000:.1f} mm under the table top (limit "
+                f"{MAX_DEPTH_UNDER_TABLE_M * 1000:g} mm: it went through)"
+            )
+        if z_hi > MAX_HEIGHT_OVER_TABLE_M:
+            broken.append(
+                f"a vertex lies {z_hi:.2f} m over the table (limit {MAX_HEIGHT_OVER_TABLE_M:g} m)"
+            )
+        if broken:
+            raise SimulationDivergedError("cloth simulation diverged: " + "; ".join(broken))
         return v
 
 
