@@ -176,7 +176,3 @@ def test_a_fold_ending_in_an_error_keeps_the_pictures_of_its_stages(tmp_path):
         "overlay_plan2.png",
         "overlay_stage1.png",
     ]
-
-
-# Two arms asked to carry two points that lie one behind the other on the right of the towel:
-# whichever arm takes the far one, its wrist passes through the other's forearm on the way in.

@@ -525,13 +525,25 @@ def test_bad_fields_get_a_clear_error(tiny_suite_data, edit, needles):
         assert needle in msg
 
 
-def test_bad_toml_and_name_mismatch(tmp_path):
+def test_bad_toml_and_a_missing_file(tmp_path):
     bad = tmp_path / "broken.toml"
     bad.write_text("name = [unclosed\n")
     with pytest.raises(ConfigError, match="not valid TOML"):
         load_suite(str(bad))
     with pytest.raises(ConfigError, match="does not exist"):
         load_suite(str(tmp_path / "missing.toml"))
+
+
+def test_a_suite_in_the_suites_folder_is_named_as_its_file(tmp_path, monkeypatch):
+    import foldbot.bench.suite as suite_module
+
+    text = (SUITES_DIR / "smoke.toml").read_text()
+    assert 'name = "smoke"' in text
+    (tmp_path / "a.toml").write_text(text.replace('name = "smoke"', 'name = "b"'))
+    assert load_suite(str(tmp_path / "a.toml")).name == "b"  # a file elsewhere names itself
+    monkeypatch.setattr(suite_module, "SUITES_DIR", tmp_path.resolve())
+    with pytest.raises(ConfigError, match="name = 'b' must match the file name"):
+        load_suite("a")
 
 
 def test_repository_suite_names_match_their_files():

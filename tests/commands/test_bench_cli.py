@@ -372,7 +372,8 @@ def test_a_bench_stopped_by_sigterm_stops_its_episodes_and_leaves_none_half_writ
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 128 + signal.SIGTERM, err[-2000:]
-    assert time.monotonic() - started < 10  # not the episode's whole length (~40 s)
+    # Not waited for: the episode alone takes ~40 s here (a hang guard, not a speed target).
+    assert time.monotonic() - started < 30
     assert "terminated (SIGTERM)" in err
     assert list((out / "episodes").iterdir()) == []
     for _ in range(100):  # the worker is gone (killed, then reaped by bench or by init)

@@ -353,7 +353,7 @@ def test_a_suite_episode_takes_options_over_the_suites_own_as_bench_does():
         config_from_args(parser.parse_args([*flat, "--flatten-option", "finish_coverage=0.99"]))
 
 
-def test_faults_reach_the_episode_alone_or_with_a_suite_and_not_a_running_cell(no_launch):
+def test_faults_reach_the_episode_alone_or_with_a_suite_and_not_a_running_cell(no_launch, capsys):
     """--fault-slip and --fault-grasp-offset set the simulated cell's injected faults, also on
     a suite's episode (a trial of the loop's recovery); `ros-fold` hands them to its nodes
     (tests/commands/test_ros_cli.py), a running cell (`ros-cell`) has no such options."""
@@ -372,8 +372,10 @@ def test_faults_reach_the_episode_alone_or_with_a_suite_and_not_a_running_cell(n
     assert cfg == dataclasses.replace(
         spec.to_config(), fault_slip=0.3, fault_grasp_offset=0.06, video_fps=10.0
     )
-    with pytest.raises(SystemExit):  # a grasp aimed off the cloth is the fold's; ros-cell slips
-        main(["ros-cell", "--fault-grasp-offset", "0.06"])
+    with pytest.raises(SystemExit) as exc:  # a grasp aimed off the cloth is the fold's
+        main(["ros-cell", "--fault-grasp-offset", "0.06"])  # ros-cell's fault is a slip
+    assert exc.value.code == 2
+    assert "unrecognized arguments: --fault-grasp-offset 0.06" in capsys.readouterr().err
 
 
 def test_a_suite_episode_for_a_seed_the_suite_does_not_list():

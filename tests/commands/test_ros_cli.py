@@ -393,7 +393,9 @@ def test_a_bag_ros_replay_cannot_play_is_named(make, needle, tmp_path, capsys, n
 def test_export_of_a_folder_that_is_no_episode_names_it(tmp_path, capsys):
     (tmp_path / "ep").mkdir()
     assert main(["export-bag", str(tmp_path / "ep"), "--out", str(tmp_path / "x.bag")]) == 2
-    assert "ep" in capsys.readouterr().err
+    assert f"{str(tmp_path / 'ep')!r} is not an episode folder; it must contain result.json" in (
+        capsys.readouterr().err
+    )
     assert not (tmp_path / "x.bag").exists()
 
 

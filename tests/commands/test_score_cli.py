@@ -11,6 +11,7 @@ import pytest
 from foldbot.cli import main
 from foldbot.garments.towel import TowelSpec, make_towel
 from foldbot.io.episode import REQUIRED_RESULT_KEYS, EpisodeWriter
+from foldbot.metrics import score_episode
 
 
 def write_episode(folder: Path, **cloth: object) -> Path:
@@ -33,7 +34,15 @@ def write_episode(folder: Path, **cloth: object) -> Path:
 def test_score_prints_the_metrics_of_a_sound_episode(tmp_path, capsys):
     ep = write_episode(tmp_path / "ep")
     assert main(["score", str(ep)]) == 0
-    assert "fold_error_mm" in json.loads(capsys.readouterr().out)
+    printed = json.loads(capsys.readouterr().out)
+    with np.load(ep / "cloth.npz") as cloth:
+        expected = score_episode(
+            cloth["initial"], cloth["final"], cloth["faces"], [[0.15, 0.0, 0.0, 1.0]], 0.002
+        )
+    assert printed == json.loads(json.dumps(expected.as_dict()))
+    # A towel left flat: nothing folded, nothing gained, the table still covered.
+    assert printed["success"] is False and printed["normalized_performance"] == pytest.approx(0)
+    assert printed["coverage"] == pytest.approx(1.0, abs=0.02) and printed["fold_error_mm"] > 50
 
 
 @pytest.mark.parametrize(

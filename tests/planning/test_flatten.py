@@ -53,9 +53,11 @@ def test_the_expected_outline_stays_inside_the_workspace():
     cfg = FlattenConfig()
     # A cloth lying against the far edge of the workspace.
     fit = fit_expected_outline(rect(0.70, 0.0, 0.10, 0.10), W, H, cfg)
-    x0, x1, _y0, _y1 = cfg.workspace
+    x0, x1, y0, y1 = cfg.workspace
     assert fit.corners[:, 0].max() <= x1 - cfg.margin + 0.006
     assert fit.corners[:, 0].min() >= x0 + cfg.margin - 0.006
+    assert fit.corners[:, 1].max() <= y1 - cfg.margin + 0.006
+    assert fit.corners[:, 1].min() >= y0 + cfg.margin - 0.006
 
 
 def test_pull_goes_to_the_biggest_shortfall():
@@ -129,6 +131,7 @@ def test_top_layer_grasp_closes_just_under_the_perceived_surface():
         assert pull.action.grasp[2] == pytest.approx(TABLE + 0.016 - cfg.top_depth, abs=1e-6)
     # Every layer at the table, by default.
     _fit, pulls = plan_pulls(state_of(outline), W, H, FlattenConfig(), surface, yaw=0.0)
+    assert pulls
     assert all(p.action.grasp[2] == pytest.approx(TABLE + 0.004) for p in pulls)
 
 

@@ -619,7 +619,6 @@ def test_scoring_on_a_cell_that_has_stopped_says_so(tmp_path):
 
 def test_a_real_cell_needs_its_master_running(tmp_path):
     port = free_port()
-    began = time.monotonic()
     proc = foldbot(
         "ros-fold", "--cell", "real", "--out", str(tmp_path / "e"), "--port", str(port),
         "--master-wait", "1.5",
@@ -627,7 +626,6 @@ def test_a_real_cell_needs_its_master_running(tmp_path):
     assert proc.returncode == 2
     assert f"no ROS master answers at http://localhost:{port} within 1.5 s" in proc.stderr
     assert not (tmp_path / "e").exists()
-    assert time.monotonic() - began < 12  # not the default 15 s
 
 
 def test_a_failed_ros_fold_names_the_task_nodes_error(tmp_path):

@@ -31,6 +31,7 @@ def test_bad_sim_config(kwargs, needle):
 def test_close_is_idempotent():
     w = SimWorld()
     w.close()
+    assert not p.isConnected(w.client)
     w.close()
 
 
