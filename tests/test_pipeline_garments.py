@@ -175,6 +175,35 @@ def test_a_garment_grasp_aimed_off_the_cloth_is_seen_to_fail_and_retried(tmp_pat
     assert np.isfinite(result["fold_error_mm"])
 
 
+# The crumpled heap a `foldbot fold` command's flattening starts from, again: the command's own
+# episode config, settled and crumpled as run_episode does it, the first simulation in a fresh
+# process (so to the bit); its coverage and self-crossings (GROUND TRUTH).
+CRUMPLED = """
+import json, sys
+import foldbot  # first: caps numpy's SIMD level before numpy loads (foldbot.simd)
+from foldbot import metrics
+from foldbot.cli import build_parser
+from foldbot.commands.fold import config_from_args
+from foldbot.pipeline import build_sim_cell, crumple_start
+from foldbot.sim.cloth import settle
+from foldbot.sim.world import SimWorld
+
+cfg = config_from_args(build_parser().parse_args(sys.argv[1:]))
+with SimWorld(cfg.sim) as world:
+    parts = build_sim_cell(cfg, world)
+    try:
+        settle(world, parts.cloth)
+        crumple_start(cfg, world, parts.cloth)
+        heap, faces = parts.oracle.cloth_vertices(), parts.mesh.faces
+        print(json.dumps({
+            "coverage": metrics.coverage(heap, faces, parts.mesh.area),
+            "self_crossings": metrics.self_crossings(heap, faces),
+        }))
+    finally:
+        parts.model_world.close()
+"""
+
+
 @pytest.mark.slow
 def test_crumpled_towel_is_flattened_then_folded(tmp_path):
     # A fresh process: Bullet's soft-body state is process-global, and a crumpled heap is where
@@ -186,6 +215,11 @@ def test_crumpled_towel_is_flattened_then_folded(tmp_path):
         [sys.executable, "-m", "foldbot.cli", *args], capture_output=True, timeout=900, check=True
     )
     result = json.loads((out / "result.json").read_text())
+    heap = subprocess.run(
+        [sys.executable, "-c", CRUMPLED, *args], capture_output=True, text=True, timeout=300,
+        check=True,
+    )  # fmt: skip
+    heap = json.loads(heap.stdout.strip().splitlines()[-1])
     f = result["flatten"]
     assert f["coverage_start"] < 0.85  # the seed crumpled it
     assert f["coverage_end"] > f["coverage_start"] + 0.05  # the pulls spread it out
@@ -196,7 +230,9 @@ def test_crumpled_towel_is_flattened_then_folded(tmp_path):
     # flattened cloth the fold started from (cloth.npz's initial)
     cloth = np.load(out / "cloth.npz")
     assert f["self_crossings_end"] == self_crossings(cloth["initial"], cloth["faces"])
-    assert isinstance(f["self_crossings_start"], int) and f["self_crossings_start"] >= 0
+    # and the heap it started from: the same seed's crumple, recomputed
+    assert f["coverage_start"] == heap["coverage"]
+    assert f["self_crossings_start"] == heap["self_crossings"]
     assert len(f["pulls"]) >= f["actions"]
     assert (out / "overlay_flattened.png").is_file()
     assert (out / "flatten.png").is_file()  # every pull pictured

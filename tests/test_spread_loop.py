@@ -11,6 +11,7 @@ import pytest
 # A fresh interpreter: an episode is reproducible only as the first simulation in its process.
 SCRIPT = """
 import contextlib, json, sys
+import foldbot  # first: caps numpy's SIMD level before numpy loads (foldbot.simd)
 import numpy as np
 from foldbot import metrics
 from foldbot.flatten import run_flatten, run_spreads
@@ -26,6 +27,7 @@ from foldbot.sim.world import SimWorld
 seed = int(sys.argv[1])
 fault = float(sys.argv[2])  # m: the first spread aimed this far outside its corners
 configs = json.loads(sys.argv[3])  # FlattenConfig and SpreadConfig fields, or null
+logged = []  # what the flattening logs, line by line
 cfg = EpisodeConfig(seed=seed, towel=TowelSpec(0.3, 0.3, 8), video_fps=0.0, arms=2)
 with SimWorld(cfg.sim) as world, contextlib.ExitStack() as stack:
     parts = build_sim_cell(cfg, world)
@@ -42,15 +44,15 @@ with SimWorld(cfg.sim) as world, contextlib.ExitStack() as stack:
     if configs is not None:
         rec = run_spreads(
             FlattenConfig(**configs["flatten"]), SpreadConfig(**configs["spread"]), cell,
-            (0.3, 0.3), log=lambda s: None,
+            (0.3, 0.3), log=logged.append,
         )
     elif fault > 0:
         rec = run_spreads(
             FlattenConfig(max_actions=2), SpreadConfig(fault_grasp_offset=fault), cell,
-            (0.3, 0.3), log=lambda s: None,
+            (0.3, 0.3), log=logged.append,
         )
     else:
-        rec = run_flatten(FlattenConfig(max_actions=1), cell, (0.3, 0.3), log=lambda s: None)
+        rec = run_flatten(FlattenConfig(max_actions=1), cell, (0.3, 0.3), log=logged.append)
     after = metrics.coverage(parts.oracle.cloth_vertices(), faces, area)
 print(json.dumps({
     "before": before,
@@ -59,6 +61,7 @@ print(json.dumps({
     "final": rec.final_coverage,
     "actions": rec.actions,
     "captions": rec.captions,
+    "log": logged,
 }))
 """
 
@@ -108,8 +111,8 @@ def test_the_spread_is_recorded_with_both_arms(spread):
 
 @pytest.fixture(scope="module")
 def heap_too_small_to_spread():
-    # Seed 0's 30 cm towel crumples into a heap whose corners lie so close together that every
-    # pair would bring the two grippers into each other (planned, nothing moved).
+    # Seed 0's 30 cm towel crumples into a heap so small that every pair of its corners lies
+    # where a gripper's palm would press into it (no spread planned, nothing moved).
     return flatten_crumpled(0)
 
 
@@ -120,6 +123,15 @@ def test_where_no_spread_is_feasible_one_arm_pulls(heap_too_small_to_spread):
     assert action["label"].startswith("pull ")
     assert len(action["grasp"]) == 3 and len(action["place"]) == 3
     assert heap_too_small_to_spread["captions"][0].startswith(f"1: {action['label']}")
+    # The log says why no spread was made, then that one arm pulls instead, and the pull.
+    log = heap_too_small_to_spread["log"]
+    assert log[0].startswith("flatten: perceived coverage") and log[0].endswith(", spreading")
+    why = "  every pair of corners lies where the palm would press into the heap"
+    instead = "  no spread is feasible here; one pull instead"
+    assert why in log and instead in log and log.index(why) < log.index(instead)
+    assert not any(line.startswith("flatten 1: spread") for line in log)
+    pulled = log[log.index(instead) :]
+    assert any(line.startswith(f"flatten 1: {action['label']} ") for line in pulled)
 
 
 @pytest.mark.slow

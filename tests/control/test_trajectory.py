@@ -16,7 +16,10 @@ from foldbot.control.trajectory import (
     time_parametrize,
 )
 from foldbot.errors import ConfigError
+from foldbot.garments.towel import TowelSpec, make_towel
 from foldbot.planning.motion import MotionConfig, Segment, carry_arc, line_path
+from foldbot.sim.cloth import ClothConfig, SoftCloth, settle
+from foldbot.sim.grasp import ClothGrasp
 from foldbot.sim.robots import make_robot
 from foldbot.sim.robots.base import Robot
 from foldbot.sim.world import SimWorld
@@ -240,33 +243,25 @@ def test_bad_inputs_raise_config_error_naming_the_value(kwargs: dict, message: s
 
 
 # ---------------------------------------------------------------------------- executor on a UR5
-class _FakeGrasp:
-    """Records gripper events (ClothGrasp needs a cloth; these tests only check they happen)."""
-
-    def __init__(self) -> None:
-        self.events: list[str] = []
-
-    def close(self) -> str:
-        self.events.append("close")
-        return "closed"
-
-    def open(self) -> None:
-        self.events.append("open")
-
-
 @pytest.fixture(scope="module")
-def cell() -> Iterator[tuple[SimWorld, Robot]]:
+def cell() -> Iterator[tuple[SimWorld, Robot, SoftCloth]]:
+    """The UR5 and a settled 20 cm towel, 5 vertices a side, at the workspace centre (25 cm
+    under the parked TCP)."""
     world = SimWorld()
-    robot = make_robot("ur5", world.client, world.layout)
-    yield world, robot
+    lay = world.layout
+    robot = make_robot("ur5", world.client, lay)
+    mesh = make_towel(TowelSpec(0.2, 0.2, 5))
+    cloth = SoftCloth(world.client, mesh, ClothConfig(), lay.table_height, lay.workspace_center_xy)
+    settle(world, cloth)
+    yield world, robot, cloth
     world.close()
 
 
 @pytest.fixture()
-def executor(cell: tuple[SimWorld, Robot]) -> ArmExecutor:
-    world, robot = cell
+def executor(cell: tuple[SimWorld, Robot, SoftCloth]) -> ArmExecutor:
+    world, robot, cloth = cell
     robot.reset_joints(robot.home_q)
-    return ArmExecutor(world, robot, _FakeGrasp())  # type: ignore[arg-type]
+    return ArmExecutor(world, robot, ClothGrasp(world, robot, cloth))
 
 
 def test_carry_arc_keeps_its_cartesian_shape_and_speed(executor: ArmExecutor) -> None:
@@ -291,9 +286,16 @@ def test_carry_arc_keeps_its_cartesian_shape_and_speed(executor: ArmExecutor) ->
 
 
 def test_executor_follows_a_short_segment_within_limits(executor: ArmExecutor) -> None:
-    world, robot = executor.world, executor.robot
-    start = robot.tcp_pose()[0]
-    target = start + np.array([0.05, 0.03, -0.06])
+    """A short diagonal descent onto the towel's corner, the jaws closed at its end: the arm
+    follows it within the UR5's limits and the grasp holds the corner; the way back lifts it,
+    and the jaws open there."""
+    world, robot, grasp = executor.world, executor.robot, executor.grasp
+    corner_id = grasp.cloth.mesh.keypoints["corner_00"]
+    target = grasp.cloth.sim_vertices()[corner_id] + np.array([0.0, 0.0, 0.004])
+    start = target - np.array([0.05, 0.03, -0.06])
+    (to_start,) = executor.plan([Segment("to start", line_path(robot.tcp_pose()[0], start), 0.3)])
+    robot.reset_joints(to_start.joint_path[-1])
+    open_before = robot.gripper_opening()
     measured: list[np.ndarray] = []
     world.add_step_hook(lambda w: measured.append(robot.joint_velocities()))
     try:
@@ -302,15 +304,29 @@ def test_executor_follows_a_short_segment_within_limits(executor: ArmExecutor) -
         world._step_hooks.pop()
     assert log.max_tracking_error < 5e-3
     assert np.linalg.norm(robot.tcp_pose()[0] - target) < 2e-3
-    assert log.duration == pytest.approx(len(measured) * world.time_step)
+    # The gripper's close settles after the motion: `measured` counts its steps too.
+    close_steps = round(0.4 / world.time_step)
+    assert log.duration == pytest.approx((len(measured) - close_steps) * world.time_step)
     assert log.duration > np.linalg.norm(target - start) / 0.2
     assert 0.0 < log.peak_joint_velocity <= 3.15
     assert 0.0 < log.peak_joint_acceleration <= 8.0
     # The simulated joints, too, stay within the velocity limits (they lag a little behind).
     assert np.abs(np.array(measured)).max() <= 3.15
-    assert log.grasp == "closed" and executor.grasp.events == ["close"]  # type: ignore[attr-defined]
-    log = executor.run(Segment("back", line_path(robot.tcp_pose()[0], start), 0.2, "open"))
-    assert log.grasp is None and executor.grasp.events == ["close", "open"]  # type: ignore[attr-defined]
+    # The jaws closed on the corner: the grasp holds it, and they stand nearly shut.
+    assert log.grasp is not None and log.grasp.success, log.grasp
+    assert corner_id in log.grasp.vertex_ids and grasp.holding
+    closed = robot.gripper_opening()
+    assert closed < 0.01 < open_before
+    heights: list[float] = []
+    world.add_step_hook(lambda w: heights.append(grasp.cloth.sim_vertices()[corner_id, 2]))
+    try:
+        log = executor.run(Segment("back", line_path(robot.tcp_pose()[0], start), 0.2, "open"))
+    finally:
+        world._step_hooks.pop()
+    # The held corner rose with the jaws on the way back, and was let go there: open again.
+    assert max(heights) > target[2] + 0.05
+    assert log.grasp is None and not grasp.holding and grasp.held == ()
+    assert robot.gripper_opening() > closed + 0.05
 
 
 def test_executor_runs_a_planned_segment_from_where_the_arm_is(executor: ArmExecutor) -> None:

@@ -3,6 +3,10 @@ corners, the reward as the fold error's decrease, the recipe's carries folding a
 the same seed giving the same episode, a divergence reported, and bad input refused. Towels of
 5 vertices a side (every corner a mesh point the jaws find) keep each episode to seconds."""
 
+import json
+import subprocess
+import sys
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -18,8 +22,12 @@ from foldbot.envs import (
 from foldbot.envs.policies import RandomPolicy, RecipePolicy
 from foldbot.envs.towel_fold import fold_episode_config
 from foldbot.errors import ConfigError, FoldbotError
+from foldbot.planning.actions import edge_middle
+from foldbot.planning.recipes import carries_stack, folded_as, plan_stage, recipe_stages
 
 SMALL = {"resolution": 5, "image_size": (48, 64)}
+SQUARE = {"near_left": (0.3, 0.15), "near_right": (0.3, -0.15), "far_right": (0.6, -0.15),
+          "far_left": (0.6, 0.15)}  # fmt: skip
 
 
 @pytest.fixture
@@ -84,17 +92,82 @@ def test_the_same_seed_gives_the_same_fold(env):
     assert one[1] == two[1] and one[2]["fold_error_mm"] == two[2]["fold_error_mm"]
 
 
+# A fresh interpreter settles seed 1's flat towel as an episode's own process does (the first
+# simulation in its process, so to the bit) and prints each recipe's goal error for it: the
+# recipe's fold lines on the settled towel's true corners, composed into every vertex's goal.
+GOAL = """
+import json, sys
+from foldbot.envs.towel_fold import TowelFoldConfig, fold_episode_config
+from foldbot.metrics import fold_error_mm, fold_goal
+from foldbot.pipeline import build_sim_cell, true_start_keypoints
+from foldbot.planning.recipes import recipe_fold_lines
+from foldbot.sim.cloth import settle
+from foldbot.sim.world import SimWorld
+
+seed, recipes = int(sys.argv[1]), sys.argv[2:]
+cfg = fold_episode_config(TowelFoldConfig(resolution=5), seed)
+with SimWorld(cfg.sim) as world:
+    parts = build_sim_cell(cfg, world)
+    try:
+        settle(world, parts.cloth)
+        flat = parts.oracle.cloth_vertices()
+        corners = true_start_keypoints(cfg, parts.mesh, flat)
+        out = {}
+        for recipe in recipes:
+            lines = recipe_fold_lines(recipe, corners)
+            goal, _layers = fold_goal(flat, lines, parts.cloth.thickness)
+            out[recipe] = {"fold_error_mm": fold_error_mm(flat, goal), "lines": len(lines)}
+    finally:
+        parts.model_world.close()
+print(json.dumps(out))
+"""
+
+
 def test_the_goal_is_the_recipes_and_differs_by_recipe():
     """A quarter fold's goal lies further from the flat towel than a half fold's (two folds),
-    and the recipe policy plans two stages for it."""
-    errors = {}
+    and the recipe policy plans two stages for it. Each reset's fold error is the settled flat
+    towel's distance to its recipe's goal (recipe_fold_lines on the true corners, fold_goal)."""
+    out = subprocess.run(
+        [sys.executable, "-c", GOAL, "1", "half", "quarter"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=True,
+    )
+    goals = json.loads(out.stdout.strip().splitlines()[-1])
+    assert goals["half"]["lines"] == 1 and goals["quarter"]["lines"] == 2
+    errors, carries = {}, []
     for recipe in ("half", "quarter"):
         env = TowelFoldEnv(recipe=recipe, **SMALL)
         try:
-            errors[recipe] = env.reset(seed=1)[1]["fold_error_mm"]
+            _obs, info = env.reset(seed=1)
+            errors[recipe] = info["fold_error_mm"]
+            if recipe == "quarter":  # its carries, stage by stage, as the policy plans them
+                policy = RecipePolicy(env)
+                while (action := policy(info)) is not None:
+                    carries.append((policy.stage, [a.label for a in policy.last]))
+                    _obs, _reward, terminated, truncated, info = env.step(action)
+                    assert info.get("grasp_success"), info.get("grasp_reason") or info
+                    assert not (terminated or truncated)
         finally:
             env.close()
+    # The reset's fold error is the flat towel's distance to the recipe's own goal.
+    for recipe in ("half", "quarter"):
+        assert errors[recipe] == pytest.approx(goals[recipe]["fold_error_mm"], rel=1e-6)
     assert errors["quarter"] > errors["half"]
+    # Quarter is folded as quarter_y: two stages, the first's two corners carried one by one,
+    # the second's folded stack carried once, by its edge's middle.
+    assert policy.recipe == folded_as("quarter") == "quarter_y"
+    assert recipe_stages("quarter_y") == 2 and policy.stage == 2
+    assert carries_stack("quarter_y", 1) and not carries_stack("quarter_y", 0)
+    assert [stage for stage, _ in carries] == [1, 1, 2]
+    assert all(len(labels) == 1 for _, labels in carries)
+    # Which corners each stage carries is the recipe's (plan_stage on any square's corners).
+    square = {n: np.array([x, y, 0.75]) for n, (x, y) in SQUARE.items()}
+    stage_0 = plan_stage("quarter_y", 0, square).actions
+    stage_1 = edge_middle(plan_stage("quarter_y", 1, square).actions)
+    assert [labels[0] for _, labels in carries] == [a.label for a in stage_0] + [stage_1.label]
+    assert info["fold_error_mm"] < 0.5 * errors["quarter"]  # the carries fold toward the goal
 
 
 def test_a_carry_that_grasps_bare_table_misses_and_the_episode_truncates():
@@ -162,8 +235,20 @@ def test_a_suite_laid_out_elsewhere_moves_the_workspace_and_still_folds(tmp_path
 
 
 def test_the_random_policy_drives_it(env):
-    action = RandomPolicy(env, seed=2)({})
+    """A seeded uniform draw over the action space, stepped: one carry from its pick, rewarded
+    with the fold error's decrease (m)."""
+    _obs, first = env.reset(seed=1)
+    action = RandomPolicy(env, seed=2)(first)
     assert env.action_space.contains(action)
+    np.testing.assert_array_equal(action, RandomPolicy(env, seed=2)(first))  # its own seed's
+    obs, reward, terminated, truncated, info = env.step(action)
+    assert env.observation_space.contains(obs)
+    assert info["steps"] == 1 and info["seed"] == 1
+    assert reward == pytest.approx((first["fold_error_mm"] - info["fold_error_mm"]) / 1000)
+    assert terminated == info["is_success"] and not truncated  # 1 of its 6 steps
+    if info["infeasible"] is None:  # the arm went where the action says
+        pick, _place = env.action_to_world(action)
+        np.testing.assert_allclose(info["grasp"][:2], pick, atol=1e-6)
 
 
 def test_the_recipe_policy_drives_only_towelfold():

@@ -84,14 +84,33 @@ def test_tshirt_retail_stages(yaw):
     assert abs(d1 @ d3) < 1e-9 * np.linalg.norm(d1) * np.linalg.norm(d3) + 1e-12
 
 
-def test_plan_is_rotation_equivariant():
-    a = plan_garment("retail", placed(TSHIRT_UV, 0.0))
-    b = plan_garment("retail", placed(TSHIRT_UV, 0.0, origin=(0.0, 0.0)))
-    shift = np.array([0.45, 0.0, 0.0])
-    for sa, sb in zip(a.stages, b.stages, strict=True):
-        for x, y in zip(sa.actions, sb.actions, strict=True):
-            assert np.allclose(x.grasp, y.grasp + shift)
-            assert np.allclose(x.place, y.place + shift)
+def _turned(xyz, yaw: float, centre=(0.45, 0.0), shift=(0.0, 0.0)) -> np.ndarray:
+    """A point (x, y, z) turned by `yaw` about `centre` in the table's plane, then moved by
+    `shift` (m); z kept."""
+    c, s, o = math.cos(yaw), math.sin(yaw), np.asarray(centre)
+    x, y = np.asarray(xyz, float)[:2] - o
+    return np.array([*(o + np.array([c * x - s * y, s * x + c * y]) + shift), xyz[2]])
+
+
+@pytest.mark.parametrize(("recipe", "uv"), [("retail", TSHIRT_UV), ("leg_over_leg", PANTS_UV)])
+def test_plan_is_rotation_equivariant(recipe, uv):
+    """The garment turned by 0.4 rad about where it lies (and then moved 5 cm in x, 10 cm in y): every grasp,
+    place and fold line is the unturned plan's, turned (and moved) alike."""
+    yaw, shift = 0.4, np.array([-0.05, 0.1])
+    base = plan_garment(recipe, placed(uv, 0.0), place_lift=0.004, thickness=0.006)
+    for origin, moved in (((0.45, 0.0), (0.0, 0.0)), ((0.40, 0.1), shift)):
+        plan = plan_garment(recipe, placed(uv, yaw, origin), place_lift=0.004, thickness=0.006)
+        assert [len(s.actions) for s in plan.stages] == [len(s.actions) for s in base.stages]
+        for sa, sb in zip(base.stages, plan.stages, strict=True):
+            assert (sb.from_tip, sb.top_first) == (sa.from_tip, sa.top_first)
+            for x, y in zip(sa.actions, sb.actions, strict=True):
+                assert y.label == x.label
+                np.testing.assert_allclose(y.grasp, _turned(x.grasp, yaw, shift=moved), atol=1e-9)
+                np.testing.assert_allclose(y.place, _turned(x.place, yaw, shift=moved), atol=1e-9)
+            # The fold line: its point turned (and moved), its direction turned.
+            point = _turned([*sa.fold_line[:2], 0.0], yaw, shift=moved)[:2]
+            direction = _turned([*sa.fold_line[2:], 0.0], yaw, centre=(0.0, 0.0))[:2]
+            np.testing.assert_allclose(sb.fold_line, [*point, *direction], atol=1e-9)
 
 
 def test_pants_leg_over_leg():
