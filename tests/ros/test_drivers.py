@@ -24,6 +24,26 @@ def test_tolerances_follow_control_msgs_conventions():
         tolerances([tol("x", 0.1)], ["a", "b"])
 
 
+def test_a_slip_is_the_fingers_closing_on_not_cloth_pushing_them_open():
+    import numpy as np
+
+    from foldbot.ros.drivers import closing_travel
+
+    held = np.array([0.010, -0.010])  # two fingers closed on cloth from ±0.04
+    closing = np.array([-1.0, 1.0])  # the first closes toward −, the second toward +
+    # Closing on by 3 mm (the cloth slipped out): 3 mm of travel.
+    assert closing_travel(held + [-0.003, 0.003], held, closing) == pytest.approx(0.003)
+    assert closing_travel(held + [-0.003, 0.0], held, closing) == pytest.approx(0.003)
+    # Pushed open by 3 mm (cloth bunching between the pads): none.
+    assert closing_travel(held + [0.003, -0.003], held, closing) == 0.0
+    # One pushed open, the other closing on 1 mm: the closing one counts.
+    assert closing_travel(held + [0.003, 0.001], held, closing) == pytest.approx(0.001)
+    # A direction not known (a finger that did not move as it closed, or none recorded): either
+    # way counts, as it did before directions were known.
+    assert closing_travel(held + [0.003, 0.0], held, np.array([0.0, 1.0])) == pytest.approx(0.003)
+    assert closing_travel(held + [0.003, -0.002], held, None) == pytest.approx(0.003)
+
+
 @pytest.mark.slow
 def test_the_sim_node_answers_as_a_real_arms_drivers(tmp_path):
     out = probe_drivers(tmp_path, "driver_probe.py")

@@ -200,9 +200,10 @@ def add_finger_watch(parser: argparse.ArgumentParser) -> None:
         type=float,
         default=None,
         metavar="X",
-        help="with --arm-interface actions: how far a watched finger joint may move, in its own "
-        "units (m for the robot model's prismatic fingers, rad for a revolute one), after the "
-        "jaws stalled on cloth before the hold counts as lost (default: for the robot model's "
+        help="with --arm-interface actions: how far a watched finger joint may move on the way "
+        "it closed, in its own units (m for the robot model's prismatic fingers, rad for a "
+        "revolute one), after the jaws stalled on cloth before the hold counts as lost (pushed "
+        "open is no slip; default: for the robot model's "
         f"fingers a quarter of the cloth's thickness, at most {SLIP_FINGER_TRAVEL:g} m; for "
         f"--finger-joints NAMES {SLIP_FINGER_TRAVEL:g})",
     )

@@ -49,6 +49,20 @@ the gap asked for, at most their largest."""
 OPEN_GAP_M = 0.085
 """The gap the task node commands to open the jaws (a Robotiq 2F-85's full stroke); a driver
 clamps it to its own gripper's largest, as the sim node does."""
+
+
+def closing_travel(fingers: np.ndarray, held: np.ndarray, closing: np.ndarray | None) -> float:
+    """How far the fingers have moved on from where the jaws held (`held`), counted the way
+    they close: `closing` is each finger's closing direction (+1, −1; 0 or None: not known,
+    either way counts). A slip closes the fingers further; cloth bunching between them pushes
+    them open, which is no slip."""
+    delta = np.asarray(fingers, dtype=float) - np.asarray(held, dtype=float)
+    if closing is None:
+        return float(np.abs(delta).max())
+    along = np.where(closing != 0, delta * closing, np.abs(delta))
+    return float(max(along.max(), 0.0))
+
+
 _STATUS_NAMES = {v: k for k, v in vars(GoalStatus).items() if k.isupper() and isinstance(v, int)}
 
 
@@ -453,8 +467,9 @@ class ActionArm:
         so no wait outlasts a cell that has stopped. `actions`: the arm's FollowJointTrajectory
         and GripperCommand action names (foldbot.ros.driver_actions). `finger_joints`: the
         gripper's joints on /joint_states, watched for a slip (watch_hold); none or absent
-        there, no slip is seen. `slip_travel`: how far one may move (in its own units), with
-        no gripper goal sent since the jaws stalled on cloth, before the hold counts as lost:
+        there, no slip is seen. `slip_travel`: how far one may move on the way it closes (in its
+        own units), with no gripper goal sent since the jaws stalled on cloth, before the hold
+        counts as lost:
         a gripper under position control closes on once what it held has slipped out."""
         self.arm_joints = arm_joints
         self.failure = failure
@@ -469,6 +484,11 @@ class ActionArm:
         """Whether the last gripper goal closed the jaws and they stalled on something."""
         self._hold_ref: np.ndarray | None = None
         """The fingers where the jaws hold (watch_hold), while a slip is watched for."""
+        self._open_ref: np.ndarray | None = None
+        """The fingers when the last closing gripper goal was sent (where they closed from)."""
+        self._closing_dir: np.ndarray | None = None
+        """Each finger's closing direction (+1, −1, 0: it did not move), from where it closed
+        from to where it held; None where not known."""
         self.lost: tuple[float, float] | None = None
         """(stamp, travel) of the /joint_states that showed the hold lost (take_lost)."""
         self._lock = threading.Lock()
@@ -497,7 +517,7 @@ class ActionArm:
         """A slip, where one is watched for: the fingers moved on from where the jaws held."""
         if self._hold_ref is None or self.lost is not None:
             return
-        travel = float(np.abs(fingers - self._hold_ref).max())
+        travel = closing_travel(fingers, self._hold_ref, self._closing_dir)
         if travel > self.slip_travel:
             self.lost = (stamp, travel)
 
@@ -505,7 +525,8 @@ class ActionArm:
         """Where the jaws hold cloth (the last gripper goal closed them and they stalled on it)
         and /joint_states names the fingers: take the fingers from the first /joint_states
         stamped at or after `since` (s, the cell's clock) as where they hold, and from then on
-        watch for them moving on (a slip; take_lost). A gripper goal sent ends the watch."""
+        watch for them moving on the way they closed (a slip; take_lost; pushed open by cloth
+        bunching between them is none). A gripper goal sent ends the watch."""
         with self._lock:
             self._hold_ref, self.lost = None, None
         if not self.holding or not self.finger_joints:
@@ -514,6 +535,10 @@ class ActionArm:
         with self._lock:
             if self.fingers is not None:
                 self._hold_ref = self.fingers.copy()
+                self._closing_dir = None
+                if self._open_ref is not None:
+                    moved = self._hold_ref - self._open_ref
+                    self._closing_dir = np.where(np.abs(moved) > 1e-6, np.sign(moved), 0.0)
 
     def take_lost(self) -> tuple[float, float] | None:
         """(stamp, travel) where the watched hold was seen lost, or None; ends the watch (the
@@ -693,6 +718,7 @@ class ActionArm:
         does): several arms' grippers then act at once. It ends any watch for a slip."""
         with self._lock:
             self._hold_ref = None
+            self._open_ref = self.fingers.copy() if close and self.fingers is not None else None
         self.holding = False
         self._closing = close
         self.gripper.send_goal(_gripper_goal(close))
