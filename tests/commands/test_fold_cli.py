@@ -86,6 +86,7 @@ def test_subcommand_help(cmd, capsys):
         ),
         (["--suite", "smoke", "--arms", "2"], "--suite smoke sets the episode; drop --arms"),
         (["--suite", "smoke", "--mass", "0.2"], "drop --mass"),
+        (["--suite", "smoke", "--no-odd-grid"], "drop --no-odd-grid (beside --suite"),
         (["--suite", "nosuch"], "unknown suite 'nosuch'"),
         (["--suite", "smoke", "--seed", "-1"], "--seed must be an integer ≥ 0, got -1"),
         (

@@ -503,7 +503,7 @@ def pick_suite_episode(args: argparse.Namespace) -> EpisodeSpec:
     defaults = argparse.ArgumentParser(add_help=False)
     add_arguments(defaults)
     given = [
-        "--" + name.replace("_", "-")
+        ("--no-" if getattr(args, name, default) is False else "--") + name.replace("_", "-")
         for name, default in vars(defaults.parse_args(["--out", "-"])).items()
         if name not in SUITE_PICKS + SUITE_FREE + SUITE_OVER + SUITE_CAMERA + SUITE_FAULTS
         and getattr(args, name, default) != default
