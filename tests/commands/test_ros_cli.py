@@ -141,6 +141,20 @@ from foldbot.ros.node_args import parse_fold_args
             "--finger-travel must be > 0, got 0.0",
         ),
         (
+            ["ros-fold", "--out", "{tmp}/e", "--gripper-effort", "40"],
+            "--gripper-effort: the effort goes in the drivers' GripperCommand goals",
+        ),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--arm-interface", "actions", "--gripper-effort"]
+            + ["nan"],
+            "--gripper-effort must be newtons in [0, 1000] (0: no limit), got nan",
+        ),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--arm-interface", "actions", "--gripper-effort"]
+            + ["-5"],
+            "--gripper-effort must be newtons in [0, 1000] (0: no limit), got -5.0",
+        ),
+        (
             ["ros-fold", "--out", "{tmp}/e", "--arm-interface", "actions"]
             + ["--finger-joints", "finger_joint,,x"],
             "finger joints must be comma-separated joint names, 'none', or empty",
@@ -642,6 +656,22 @@ def test_a_calibration_reaches_the_simulated_cells_nodes(tmp_path, monkeypatch):
     real = fold_parser.parse_args([*options, "--out", "e", "--cell", "real"])
     real.camera_calibration = None  # ros_fold.run: a real cell's camera is where it is
     assert "--camera-pose" not in fold_args_text(real).split()
+
+
+def test_the_driver_options_reach_roslaunch_only_where_given():
+    from foldbot.commands.ros_fold import check_finger_watch
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    args = parser.parse_args(["--out", "e"])
+    assert check_finger_watch(args, "actions") == []  # the launch file's defaults
+    given = ["--finger-joints", "finger_joint", "--finger-travel", "0.02", "--gripper-effort", "40"]
+    args = parser.parse_args(["--out", "e", *given])
+    assert check_finger_watch(args, "actions") == [
+        "finger_joints:=finger_joint",
+        "finger_travel:=0.02",
+        "gripper_effort:=40.0",
+    ]
 
 
 def test_finger_joints_are_the_robots_none_or_named():

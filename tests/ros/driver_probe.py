@@ -76,15 +76,20 @@ def jaws_at_rest() -> float:
         assert time.monotonic() < deadline, "the jaws never came to rest"
 
 
-for name, position in (("close", 0.0), ("part", 0.06), ("open", 0.085), ("bad", -1.0)):
+for name, position, effort in (
+    ("close", 0.0, 0.0), ("part", 0.06, 0.0), ("open", 0.085, 0.0), ("bad", -1.0, 0.0),
+    ("soft_close", 0.0, 15.0), ("hard_open", 0.085, 500.0), ("bad_effort", 0.0, float("nan")),
+):  # fmt: skip
     goal = msg.GripperCommandGoal()
     goal.command.position = position
+    goal.command.max_effort = effort
     gripper.send_goal(goal)
     gripper.wait_done(f"the gripper goal {name!r}", 60)
     r = gripper.get_result()
     out[name] = [gripper.get_state(), r.stalled, r.reached_goal, gripper.get_goal_status_text()]
-    if name != "bad":
+    if not name.startswith("bad"):
         out[name].append(jaws_at_rest())
+        out[name].append(r.effort)
 # A gripper goal sent while the arm moves waits for the motion's end (one goal at a time).
 q1 = np.array([joints[n] for n in names])
 away = q1 + np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.2])

@@ -24,6 +24,15 @@ def test_tolerances_follow_control_msgs_conventions():
         tolerances([tol("x", 0.1)], ["a", "b"])
 
 
+def test_gripper_goals_close_to_nothing_open_wide_and_carry_the_effort_asked_for():
+    from foldbot.ros.drivers import OPEN_GAP_M, _gripper_goal
+
+    close, opened = _gripper_goal(True), _gripper_goal(False)
+    assert (close.command.position, close.command.max_effort) == (0.0, 0.0)  # 0: no limit
+    assert (opened.command.position, opened.command.max_effort) == (OPEN_GAP_M, 0.0)
+    assert _gripper_goal(True, 40.0).command.max_effort == 40.0
+
+
 def test_a_slip_is_the_fingers_closing_on_not_cloth_pushing_them_open():
     import numpy as np
 
@@ -69,6 +78,16 @@ def test_the_sim_node_answers_as_a_real_arms_drivers(tmp_path):
     assert out["close"][4] == pytest.approx(0.002, abs=1e-3)
     assert out["part"][:3] == [ok, False, True] and out["part"][4] == pytest.approx(0.06, abs=2e-3)
     assert out["open"][4] == pytest.approx(0.08, abs=2e-3)
+    # max_effort: no limit (0) pushes with the fingers' own 40 N; a smaller one with it, a
+    # larger one with the fingers' 40 N; NaN is refused by name.
+    assert out["close"][5] == out["open"][5] == 40.0
+    assert out["soft_close"][:3] == [ok, False, True] and out["soft_close"][5] == 15.0
+    assert out["soft_close"][4] == pytest.approx(0.002, abs=1e-3)  # shut all the same
+    assert out["hard_open"][5] == 40.0
+    assert (
+        out["bad_effort"][0] != ok
+        and "command.max_effort must be a force" in (out["bad_effort"][3])
+    )
     assert out["bad"][0] != ok and "must be a gap" in out["bad"][3]
     # A close sent while the arm moves (as the task node sends it, --gripper-lead) starts as
     # the motion ends, not before and not a round trip later (/joint_states every 0.02 s).

@@ -32,6 +32,7 @@ from foldbot.ros.node_args import (
     CELLS,
     GRIPPER_LEAD_S,
     MAX_CLOTH_THICKNESS,
+    MAX_GRIPPER_EFFORT_N,
     SLIP_FINGER_TRAVEL,
     TOGETHER_LEAD_S,
     finger_joint_names,
@@ -185,7 +186,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def add_finger_watch(parser: argparse.ArgumentParser) -> None:
-    """--finger-joints and --finger-travel: the watch for a slip through the drivers."""
+    """--finger-joints and --finger-travel: the watch for a slip through the drivers; and
+    --gripper-effort, the force the gripper goals ask for."""
     parser.add_argument(
         "--finger-joints",
         default=None,
@@ -206,6 +208,15 @@ def add_finger_watch(parser: argparse.ArgumentParser) -> None:
         "open is no slip; default: for the robot model's "
         f"fingers a quarter of the cloth's thickness, at most {SLIP_FINGER_TRAVEL:g} m; for "
         f"--finger-joints NAMES {SLIP_FINGER_TRAVEL:g})",
+    )
+    parser.add_argument(
+        "--gripper-effort",
+        type=float,
+        default=None,
+        metavar="N",
+        help="with --arm-interface actions: the max_effort (N) of every GripperCommand goal "
+        f"(0–{MAX_GRIPPER_EFFORT_N:g}; default 0, control_msgs' 'no limit', which some drivers "
+        "read otherwise: Robotiq's 2F action server clamps it to its weakest grip)",
     )
 
 
@@ -242,8 +253,9 @@ def add_real_time_factor(parser: argparse.ArgumentParser, where: str) -> None:
 
 
 def check_finger_watch(args: argparse.Namespace, interface: str) -> list[str]:
-    """roslaunch's finger_joints and finger_travel arguments from --finger-joints and
-    --finger-travel (none where not given); ConfigError where they cannot apply or are bad."""
+    """roslaunch's finger_joints, finger_travel and gripper_effort arguments from
+    --finger-joints, --finger-travel and --gripper-effort (none where not given); ConfigError
+    where they cannot apply or are bad."""
     given = [
         f for f, v in (("--finger-joints", args.finger_joints), ("--finger-travel", args.finger_travel))
         if v is not None
@@ -252,6 +264,17 @@ def check_finger_watch(args: argparse.Namespace, interface: str) -> list[str]:
         raise ConfigError(
             f"{' and '.join(given)}: the fingers are watched for a slip through the drivers' "
             f"actions (--arm-interface actions, --cell real's); got --arm-interface {interface}"
+        )
+    effort = args.gripper_effort
+    if effort is not None and interface != "actions":
+        raise ConfigError(
+            "--gripper-effort: the effort goes in the drivers' GripperCommand goals "
+            f"(--arm-interface actions, --cell real's); got --arm-interface {interface}"
+        )
+    if effort is not None and not (math.isfinite(effort) and 0 <= effort <= MAX_GRIPPER_EFFORT_N):
+        raise ConfigError(
+            f"--gripper-effort must be newtons in [0, {MAX_GRIPPER_EFFORT_N:g}] (0: no limit), "
+            f"got {effort!r}"
         )
     words = []
     if args.finger_joints is not None:
@@ -262,6 +285,8 @@ def check_finger_watch(args: argparse.Namespace, interface: str) -> list[str]:
         if not (math.isfinite(travel) and travel > 0):
             raise ConfigError(f"--finger-travel must be > 0, got {travel!r}")
         words.append(f"finger_travel:={travel!r}")
+    if effort is not None:
+        words.append(f"gripper_effort:={effort!r}")
     return words
 
 

@@ -3,8 +3,9 @@
 `SimDrivers` makes the sim node serve what ur_robot_driver and a gripper driver serve: a
 control_msgs/FollowJointTrajectory action (joint names in any order, path and goal tolerances,
 feedback with the commanded, measured and error joints, the result's error codes) and a
-control_msgs/GripperCommand action (position = the jaws' gap in m; the result says whether the
-jaws stalled on something). `ActionArm` is the task node's side: it sends those goals and reads
+control_msgs/GripperCommand action (position = the jaws' gap in m, max_effort the most each
+finger pushes with, in N, ≤ 0 no limit; the result says whether the jaws stalled on something,
+and the effort used). `ActionArm` is the task node's side: it sends those goals and reads
 the cell back the way it would on a real arm, from /joint_states and the camera stream, so the
 same task node drives a real UR5 by remapping these names onto its drivers'. A two-arm cell has
 a pair of drivers per arm, each under its arm's namespace (foldbot.ros.driver_actions), and
@@ -396,13 +397,23 @@ class SimDrivers:
         executor = node.executors[handover.arm]
         robot, grasp = executor.robot, executor.grasp
         position = handover.goal.command.position
+        effort = handover.goal.command.max_effort
         result = control_msgs.GripperCommandResult
         if not (np.isfinite(position) and position >= 0.0):
             handover.result = result(position=grasp.jaw_gap())
             handover.text = f"command.position must be a gap ≥ 0 m, got {position!r}"
             return
+        if not np.isfinite(effort):
+            handover.result = result(position=grasp.jaw_gap())
+            handover.text = (
+                f"command.max_effort must be a force in N (≤ 0: no limit), got {effort!r}"
+            )
+            return
+        # The fingers push with max_effort where it is under the model's own force (≤ 0: no
+        # limit, as control_msgs defines it), as a gripper driver limits its motor.
+        force = robot.FINGER_FORCE if effort <= 0.0 else min(float(effort), robot.FINGER_FORCE)
         if position < CLOSE_BELOW * robot.max_opening:
-            g = grasp.close()
+            g = grasp.close(force=force)
             node.pub["grasp"].publish(
                 convert.string_msg(
                     {
@@ -416,20 +427,25 @@ class SimDrivers:
             # Jaws that stop on the cloth have stalled on it, as a real gripper reports a held
             # object; closed on nothing, they reach the commanded gap.
             handover.result = result(
-                position=grasp.jaw_gap(), stalled=g.success, reached_goal=not g.success
+                position=grasp.jaw_gap(),
+                effort=force,
+                stalled=g.success,
+                reached_goal=not g.success,
             )
             handover.text = g.reason
         else:
             # To the gap asked for, up to the jaws' largest (a driver clamps to its stroke).
-            grasp.open(min(float(position), robot.max_opening))
-            handover.result = result(position=grasp.jaw_gap(), reached_goal=True)
+            grasp.open(min(float(position), robot.max_opening), force=force)
+            handover.result = result(position=grasp.jaw_gap(), effort=force, reached_goal=True)
         handover.succeeded = True
 
 
-def _gripper_goal(close: bool):
-    """A GripperCommand goal: a zero gap closes, OPEN_GAP_M opens."""
+def _gripper_goal(close: bool, effort: float = 0.0):
+    """A GripperCommand goal: a zero gap closes, OPEN_GAP_M opens; `effort` its max_effort (N;
+    0: no limit, as control_msgs defines it)."""
     goal = control_msgs.GripperCommandGoal()
     goal.command.position = 0.0 if close else OPEN_GAP_M
+    goal.command.max_effort = float(effort)
     return goal
 
 
@@ -462,6 +478,7 @@ class ActionArm:
         actions: tuple[str, str] = (TOPICS["trajectory_action"], TOPICS["gripper_action"]),
         finger_joints: list[str] | None = None,
         slip_travel: float = SLIP_FINGER_TRAVEL,
+        gripper_effort: float = 0.0,
     ) -> None:
         """`failure()` raises when the cell has reported an error (the sim node's divergence),
         so no wait outlasts a cell that has stopped. `actions`: the arm's FollowJointTrajectory
@@ -470,12 +487,15 @@ class ActionArm:
         there, no slip is seen. `slip_travel`: how far one may move on the way it closes (in its
         own units), with no gripper goal sent since the jaws stalled on cloth, before the hold
         counts as lost:
-        a gripper under position control closes on once what it held has slipped out."""
+        a gripper under position control closes on once what it held has slipped out.
+        `gripper_effort`: the max_effort (N) its gripper goals carry (0: no limit)."""
         self.arm_joints = arm_joints
         self.failure = failure
         self.actions = actions
         self.finger_joints = list(finger_joints or [])
         self.slip_travel = slip_travel
+        self.gripper_effort = gripper_effort
+        """The max_effort (N) every gripper goal carries (0: no limit)."""
         self.joints: np.ndarray | None = None
         self.joints_stamp = -1.0
         self.fingers: np.ndarray | None = None
@@ -721,7 +741,7 @@ class ActionArm:
             self._open_ref = self.fingers.copy() if close and self.fingers is not None else None
         self.holding = False
         self._closing = close
-        self.gripper.send_goal(_gripper_goal(close))
+        self.gripper.send_goal(_gripper_goal(close, self.gripper_effort))
 
     def grip_result(self, what: str, timeout_s: float) -> tuple[bool, str]:
         """The gripper goal's outcome (send_grip's), waited for: (whether the jaws stalled on

@@ -54,6 +54,13 @@ SLIP_FINGER_TRAVEL = 0.002
 """The most a prismatic finger may move by default (m): 2 mm (the simulated UR5's fingers stop
 about 4.5 mm each from closed on the simulated cloth); the only default for another gripper's
 joints, whose units the task node does not know."""
+GRIPPER_EFFORT_PARAM = "/foldbot/gripper_effort"
+"""With the actions interface: the max_effort (N) every GripperCommand goal of the task node
+carries; 0: control_msgs' "no limit", which some drivers read otherwise (Robotiq's 2F action
+server clamps it to its smallest force, its weakest grip)."""
+MAX_GRIPPER_EFFORT_N = 1000.0
+"""Largest gripper effort accepted (N): industrial parallel grippers grip with at most a few
+hundred newtons."""
 REAL_TIME_FACTOR_PARAM = "/foldbot/real_time_factor"
 """With the actions interface: simulated seconds per wall second the sim node runs at."""
 CALIBRATION_BOARD_PARAM = "/foldbot/calibration_board"

@@ -116,12 +116,14 @@ class RosCell(FoldCell):
         finger_travel: float = SLIP_FINGER_TRAVEL,
         gripper_lead: float | None = None,
         together_lead: float = TOGETHER_LEAD_S,
+        gripper_effort: float = 0.0,
     ) -> None:
         """`arm_interface` "actions" drives the arm through its drivers' actions
         (foldbot.ros.drivers.ActionArm, one per arm: `joint_names` are an arm's, prefixed
         per arm as over topics) and reads where it left the cell from /joint_states and the
         camera stream, where the gripper's `finger_names` (prefixed likewise) show a slip by
-        moving over `finger_travel` (their units) after the jaws stalled on cloth;
+        moving over `finger_travel` (their units) after the jaws stalled on cloth, and whose
+        gripper goals carry `gripper_effort` (N; 0: no limit);
         "topics" through the sim node's commands and reports. `cell` "real" (actions only)
         neither publishes nor subscribes to anything of the sim node's own (its reports,
         commands, clock, ground truth): the cell is whatever serves the drivers' actions and the
@@ -226,7 +228,14 @@ class RosCell(FoldCell):
             from foldbot.ros.drivers import ActionArm
 
             self.drivers = [
-                ActionArm(names, self.raise_reported_error, actions, fingers, finger_travel)
+                ActionArm(
+                    names,
+                    self.raise_reported_error,
+                    actions,
+                    fingers,
+                    finger_travel,
+                    gripper_effort,
+                )
                 for names, actions, fingers in zip(
                     arm_joint_names(joint_names, arms),
                     driver_actions(arms),

@@ -44,6 +44,7 @@ from foldbot.ros.node_args import (
     FINGER_JOINTS_PARAM,
     FINGER_TRAVEL_PARAM,
     FOLD_ARGS_PARAM,
+    GRIPPER_EFFORT_PARAM,
     GRIPPER_LEAD_PARAM,
     GRIPPER_LEAD_S,
     MAX_CLOTH_THICKNESS,
@@ -133,11 +134,13 @@ def run_real_task(
     cloth_thickness: float | None = None,
     finger_joints: str = "",
     finger_travel: float | None = None,
+    gripper_effort: float = 0.0,
 ) -> dict:
     """Fold on a real cell (whatever serves the drivers' actions and the camera) and write the
     episode folder, unscored: result.json, video.mp4 and the overlays; no cloth.npz.
     `cloth_thickness` (m): the towel's layer thickness (None: real_cell_thickness's default).
-    `finger_travel`: the slip watch's (None: finger_travel_for's, from that thickness)."""
+    `finger_travel`: the slip watch's (None: finger_travel_for's, from that thickness);
+    `gripper_effort`: the max_effort (N) of the gripper goals (0: no limit)."""
     args, cfg = parse_fold_args(fold_args)
     thickness = real_cell_thickness(cfg, cloth_thickness)
     finger_travel, travel_from = finger_travel_for(finger_travel, finger_joints, thickness)
@@ -161,6 +164,7 @@ def run_real_task(
             finger_travel=finger_travel,
             gripper_lead=gripper_lead,
             together_lead=together_lead,
+            gripper_effort=gripper_effort,
         )
         stack.callback(cell.stop_video)
         cell.wait_for_real_cell()
@@ -207,10 +211,12 @@ def run_task(
     together_lead: float = TOGETHER_LEAD_S,
     finger_joints: str = "",
     finger_travel: float | None = None,
+    gripper_effort: float = 0.0,
 ) -> dict:
     """Fold over topics and write the episode folder; returns result.json's content.
     `finger_travel`: the slip watch's, through the actions (None: finger_travel_for's, from the
-    simulated cloth's thickness)."""
+    simulated cloth's thickness); `gripper_effort`: the max_effort (N) of the gripper goals
+    through the actions (0: no limit)."""
     args, cfg = parse_fold_args(fold_args)
     layout = cfg.sim.layout
     writer = EpisodeWriter(args.out, overwrite=args.overwrite, fps=max(cfg.video_fps, 1.0))
@@ -227,6 +233,7 @@ def run_task(
             ),
             gripper_lead=gripper_lead,
             together_lead=together_lead,
+            gripper_effort=gripper_effort,
         )
         stack.callback(cell.stop_video)  # before the writer closes the video, error or not
         cell.wait_ready()
@@ -338,6 +345,7 @@ def main(argv: list[str] | None = None) -> int:
     fingers = {
         "finger_joints": str(rospy.get_param(FINGER_JOINTS_PARAM, "")),
         "finger_travel": None if travel <= 0 else travel,  # finger_travel_for's
+        "gripper_effort": float(rospy.get_param(GRIPPER_EFFORT_PARAM, 0.0)),
     }
     try:
         if rospy.get_param(CELL_PARAM, "sim") == "real":

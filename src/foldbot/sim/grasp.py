@@ -195,11 +195,12 @@ class ClothGrasp:
         )
         return inside
 
-    def close(self, settle_time: float = 0.4) -> GraspResult:
-        """Close the fingers under position control, then anchor the vertices caught between them."""
+    def close(self, settle_time: float = 0.4, force: float | None = None) -> GraspResult:
+        """Close the fingers under position control (each with at most `force` N; None: the
+        robot model's), then anchor the vertices caught between them."""
         if self._anchors:
             return GraspResult(True, self.held, "already holding")
-        self.robot.set_gripper_opening(0.0)
+        self.robot.set_gripper_opening(0.0, force)
         steps = max(1, round(settle_time / self.world.time_step))
         self.world.step(steps)
         caught = self.vertices_between_jaws()
@@ -228,12 +229,15 @@ class ClothGrasp:
         self._grasped_at = self._held_distances()
         return GraspResult(True, self.held, f"{len(caught)} vertices {between}")
 
-    def open(self, width: float | None = None, settle_time: float = 0.3) -> None:
-        """Release every anchor and open the fingers."""
+    def open(
+        self, width: float | None = None, settle_time: float = 0.3, force: float | None = None
+    ) -> None:
+        """Release every anchor and open the fingers (each with at most `force` N; None: the
+        robot model's)."""
         if self.holds_what_it_grasped():
             self._opening_from = self.jaw_gap()
         self.slip()  # let go of the cloth, then open
-        self.robot.set_gripper_opening(self.robot.max_opening if width is None else width)
+        self.robot.set_gripper_opening(self.robot.max_opening if width is None else width, force)
         self.world.step(max(1, round(settle_time / self.world.time_step)))
 
 

@@ -559,12 +559,16 @@ class Robot(abc.ABC):
             )
         return float(np.clip((width_m - self.CLOSED_GAP) / 2.0, 0.0, self.finger_stroke))
 
-    def set_gripper_opening(self, width_m: float) -> None:
-        """Servo the fingers to a gap of `width_m` (m), force-limited; 0 closes fully.
+    def set_gripper_opening(self, width_m: float, force: float | None = None) -> None:
+        """Servo the fingers to a gap of `width_m` (m), each pushing with at most `force` (N;
+        None: FINGER_FORCE, the model's); 0 closes fully.
 
         Widths below CLOSED_GAP close the joints completely (the gap then stays CLOSED_GAP).
         Takes effect as the simulation steps.
         """
+        force = self.FINGER_FORCE if force is None else float(force)
+        if not (math.isfinite(force) and force > 0.0):
+            raise ConfigError(f"finger force must be > 0 N, got {force!r}")
         target = self.finger_target(float(width_m))
         for j in self.finger_joint_indices:
             p.setJointMotorControl2(
@@ -572,7 +576,7 @@ class Robot(abc.ABC):
                 j,
                 p.POSITION_CONTROL,
                 targetPosition=target,
-                force=self.FINGER_FORCE,
+                force=force,
                 maxVelocity=self.FINGER_MAX_VELOCITY,
                 physicsClientId=self.client,
             )
