@@ -29,12 +29,14 @@ def test_a_slip_is_seen_on_the_fingers_and_recovered_through_the_drivers(tmp_pat
         [sys.executable, "-m", "foldbot.cli", "ros-fold", "--arm-interface", "actions",
          "--recipe", "diagonal", "--width", "0.24", "--height", "0.24", "--resolution", "10",
          "--fault-slip", "0.3", "--video-fps", "0", "--camera-rate", "2", "--out", str(out),
-         "--port", str(free_port()), "--record", str(bag), "--finger-travel", "0.003"],
+         "--port", str(free_port()), "--record", str(bag), "--finger-travel", "0.003",
+         "--gripper-effort", "40"],
         capture_output=True, text=True, timeout=600, check=False,
     )  # fmt: skip
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     result = json.loads((out / "result.json").read_text())
     assert result["faults"] == {"grasp_offset_m": 0.0, "slip_fraction": 0.3, "slipped": True}
+    assert result["gripper_effort_n"] == 40.0  # the goals' max_effort (the model's own force)
     fingers = list(robot_class("ur5").FINGER_JOINT_NAMES)  # the robot model's, by default
     assert result["slip_watch"] == {
         "finger_joints": [fingers],

@@ -191,6 +191,7 @@ def run_real_task(
             result["transport"] = "ros"
             result["arm_interface"] = "actions"
             result["gripper_lead_s"] = gripper_lead
+            result["gripper_effort_n"] = cell.drivers[0].gripper_effort  # the goals' max_effort
             result["slip_watch"] = slip_watch(cell, travel_from)
             if cfg.arms > 1:
                 result["together_lead_s"] = together_lead
@@ -299,6 +300,7 @@ def run_task(
             result["arm_interface"] = arm_interface
             if arm_interface == "actions":
                 result["gripper_lead_s"] = gripper_lead
+                result["gripper_effort_n"] = cell.drivers[0].gripper_effort
                 result["slip_watch"] = slip_watch(cell, travel_from)
                 if cfg.arms > 1:
                     result["together_lead_s"] = together_lead
