@@ -387,6 +387,11 @@ def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
     )
 
 
+def given_flag(name: str, value: object) -> str:
+    """The flag an option `name` was given as: --name, or --no-name for a switch turned off."""
+    return ("--no-" if value is False else "--") + name.replace("_", "-")
+
+
 TOWEL_OPTIONS = ("width", "height", "resolution", "odd_grid", "max_vertices")
 """The options that shape a towel's mesh (None where not given); a T-shirt's or pants' size is
 the seed's draw and its mesh --garment-edge-length's."""
@@ -399,10 +404,7 @@ def towel_from_args(args: argparse.Namespace) -> TowelSpec:
     pants, or --garment-edge-length for a towel (each would be silently unused)."""
     given = [name for name in TOWEL_OPTIONS if getattr(args, name) is not None]
     if args.garment != "towel" and given:
-        flags = [
-            ("--" if getattr(args, name) is not False else "--no-") + name.replace("_", "-")
-            for name in given
-        ]
+        flags = [given_flag(name, getattr(args, name)) for name in given]
         whose = {"tshirt": "a T-shirt's", "pants": "the pants'"}[args.garment]
         raise ConfigError(
             f"{', '.join(flags)} {'shapes' if len(flags) == 1 else 'shape'} a towel; {whose} "
@@ -503,7 +505,7 @@ def pick_suite_episode(args: argparse.Namespace) -> EpisodeSpec:
     defaults = argparse.ArgumentParser(add_help=False)
     add_arguments(defaults)
     given = [
-        ("--no-" if getattr(args, name, default) is False else "--") + name.replace("_", "-")
+        given_flag(name, getattr(args, name, default))
         for name, default in vars(defaults.parse_args(["--out", "-"])).items()
         if name not in SUITE_PICKS + SUITE_FREE + SUITE_OVER + SUITE_CAMERA + SUITE_FAULTS
         and getattr(args, name, default) != default

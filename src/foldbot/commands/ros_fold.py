@@ -475,11 +475,10 @@ def towel_words(args: argparse.Namespace) -> list[str]:
     words: list[str] = []
     for name in fold.TOWEL_OPTIONS:
         value = getattr(args, name)
-        flag = "--" + name.replace("_", "-")
         if isinstance(value, bool):
-            words.append(flag if value else "--no-" + flag[2:])
+            words.append(fold.given_flag(name, value))
         elif value is not None:
-            words += [flag, repr(value)]
+            words += [fold.given_flag(name, value), repr(value)]
     return words
 
 
