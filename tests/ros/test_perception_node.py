@@ -8,6 +8,7 @@ from __future__ import annotations
 import re
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -95,3 +96,22 @@ def test_a_depth_sensor_beside_the_colour_camera_gives_the_registered_corners(tm
     # depth image read at the colour pixels puts the corners centimetres off
     # (tests/perception/test_register.py).
     assert float(m.group(3)) < 0.002
+
+
+@requires_ros
+def test_a_frame_estimated_as_the_node_shuts_down_is_dropped_quietly():
+    # After a fold, roslaunch stops the nodes while the perception node may be estimating a
+    # streamed frame; its publish then hits closed topics ("publish() to a closed topic"),
+    # which printed a traceback under every such successful ros-fold.
+    import json
+
+    from ros_helpers import private_master
+
+    probe = Path(__file__).with_name("shutdown_probe.py")
+    with private_master() as env:
+        run = subprocess.run(
+            [sys.executable, str(probe)], env=env, capture_output=True, text=True, timeout=300
+        )
+    lines = [ln for ln in run.stdout.splitlines() if ln.startswith("PROBE ")]
+    assert lines, run.stdout[-2000:] + run.stderr[-3000:]
+    assert json.loads(lines[0][len("PROBE ") :]) == {"closed": True, "shutdown": False}
