@@ -580,6 +580,7 @@ def episode_result(
         **score.as_dict(),
         **fold_fields(cfg, record),
         "time_step": cfg.sim.time_step,
+        "speed_scale": cfg.motion.speed_scale,
         "jaw_catch": cfg.jaw_catch,
         "loop_options": dict(cfg.loop_options),
         "cloth_options": changed_cloth_options(cfg.cloth),
@@ -699,6 +700,7 @@ def build_sim_cell(cfg: EpisodeConfig, world: SimWorld) -> SimCellParts:
             ClothGrasp(world, arm, cloth, catch=cfg.jaw_catch),
             model=make_robot(cfg.robot, model_world.client, lay),
             model_table_id=model_world.table_id,
+            speed_scale=cfg.motion.speed_scale,
         )
         for arm, lay in zip([robot, *others], arm_layouts, strict=True)
     ]

@@ -140,6 +140,17 @@ def test_time_step_sets_the_physics_step_and_is_left_out_of_specs_by_default(tin
     assert EpisodeSpec.from_dict(spec.as_dict()) == spec
 
 
+def test_speed_scale_slows_the_arms_and_is_left_out_of_specs_by_default(tiny_suite_data):
+    data = tiny_suite_data()
+    default = load_one(data)
+    assert default.to_config().motion.speed_scale == 1.0
+    assert "speed_scale" not in default.as_dict()  # earlier runs resume unchanged
+    data["episode"]["speed_scale"] = 0.5
+    spec = load_one(data)
+    assert spec.to_config().motion.speed_scale == 0.5
+    assert EpisodeSpec.from_dict(spec.as_dict()) == spec
+
+
 def test_odd_grid_reaches_the_towel_and_is_left_out_of_specs_by_default(tiny_suite_data):
     data = tiny_suite_data()
     default = load_one(data)
@@ -491,6 +502,10 @@ def test_unknown_suite_name_lists_the_available_ones():
             ["episode.jaw_catch", "glue", "vertices, surface"],
         ),
         (lambda d: d["episode"].update(time_step=0), ["episode.time_step", "0"]),
+        (
+            lambda d: d["episode"].update(speed_scale=0.01),
+            ["episode.speed_scale = 0.01", "[0.05, 1]"],
+        ),
         (
             lambda d: d.update(loop_options={"top_layer_frist": False}),
             ["'loop_options.top_layer_frist'", "top_layer_first"],

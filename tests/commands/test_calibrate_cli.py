@@ -60,6 +60,7 @@ def test_a_moved_camera_is_found_from_the_held_board(tmp_path, capsys):
         (["--square", "0"], "square_m must be in"),
         (["--camera-noise", "-1"], "--camera-noise must be in [0, 64] intensity levels"),
         (["--arm", "right"], "--arm right is for a two-arm cell (--arms 2)"),
+        (["--speed-scale", "0"], "speed_scale must be in [0.05, 1] (a fraction of full speed)"),
         (
             ["--board-turn", "0", "0", "200"],
             "--board-turn must be a rotation vector of at most 180°",
@@ -109,12 +110,13 @@ def test_the_board_to_print_is_written_at_its_resolution(tmp_path, capsys):
 
 
 def test_either_arm_of_two_holds_the_board(tmp_path):
+    # At 60 % speed, as a first run on a real arm would move it: the same views, slower.
     out = tmp_path / "cal"
-    assert (
-        main(["calibrate", "--out", str(out), "--arms", "2", "--arm", "right", "--views", "5"]) == 0
-    )
+    args = ["calibrate", "--out", str(out), "--arms", "2", "--arm", "right", "--views", "5"]
+    assert main([*args, "--speed-scale", "0.6"]) == 0
     record = json.loads((out / "calibration.json").read_text())
     assert (record["arms"], record["arm"]) == (2, 1) and record["views_used"] >= 4
+    assert record["speed_scale"] == 0.6
     assert record["truth"]["translation_error_mm"] < 1.0
 
 

@@ -15,6 +15,7 @@ from foldbot.cli import main
 from foldbot.commands.fold import add_arguments, config_from_args
 from foldbot.errors import ConfigError
 from foldbot.pipeline import seeded_pose
+from foldbot.planning.motion import MotionConfig
 
 
 def test_help_lists_subcommands(capsys):
@@ -60,6 +61,12 @@ def test_subcommand_help(cmd, capsys):
         (["--out", ""], "argument --out: must name a folder or file, got ''"),
         (["--time-step", "1e-9"], "time_step must be in [0.0001, 0.02] s, got 1e-09"),
         (["--time-step", "nan"], "time_step must be in [0.0001, 0.02] s, got nan"),
+        (["--speed-scale", "0.01"], "speed_scale must be in [0.05, 1] (a fraction of full"),
+        (["--speed-scale", "2"], "speed_scale must be in [0.05, 1] (a fraction of full"),
+        (
+            ["--speed-scale", "nan"],
+            "speed_scale must be in [0.05, 1] (a fraction of full speed), got nan",
+        ),
         (["--video-fps", "1e9"], "video_fps must be frames per simulated second in [0, 60]"),
         (["--video-fps", "inf"], "(0: no video), got inf"),
         (["--jaw-catch", "glue"], "glue"),
@@ -86,6 +93,7 @@ def test_subcommand_help(cmd, capsys):
         ),
         (["--suite", "smoke", "--arms", "2"], "--suite smoke sets the episode; drop --arms"),
         (["--suite", "smoke", "--mass", "0.2"], "drop --mass"),
+        (["--suite", "smoke", "--speed-scale", "0.5"], "drop --speed-scale"),
         (["--suite", "smoke", "--no-odd-grid"], "drop --no-odd-grid (beside --suite"),
         (["--suite", "nosuch"], "unknown suite 'nosuch'"),
         (["--suite", "smoke", "--seed", "-1"], "--seed must be an integer ≥ 0, got -1"),
@@ -201,6 +209,15 @@ def test_time_step_reaches_the_world():
     assert cfg.sim.time_step == pytest.approx(1 / 360)
     cfg = config_from_args(parser.parse_args(["--out", "x", "--time-step", "0.0020833"]))
     assert cfg.sim.time_step == pytest.approx(1 / 480, rel=1e-4)
+
+
+def test_speed_scale_reaches_the_motion():
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    assert config_from_args(parser.parse_args(["--out", "x"])).motion.speed_scale == 1.0
+    cfg = config_from_args(parser.parse_args(["--out", "x", "--speed-scale", "0.3"]))
+    assert cfg.motion.speed_scale == 0.3
+    assert cfg.motion.cartesian_speed == MotionConfig().cartesian_speed  # the rest kept
 
 
 def test_unwritable_output_folder(tmp_path, capsys):

@@ -123,6 +123,11 @@ from foldbot.ros.node_args import parse_fold_args
         (["ros-cell", "--camera-rate", "0"], "--camera-rate must be > 0 frames per s, got 0.0"),
         (["ros-cell", "--real-time-factor", "-1"], "--real-time-factor must be > 0, got -1.0"),
         (["ros-cell", "--port", "0"], "--port must be in 1–65535, got 0"),
+        (["ros-cell", "--speed-scale", "0.5"], "--speed-scale 0.5 is the folding side's"),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--speed-scale", "0"],
+            "speed_scale must be in [0.05, 1]",
+        ),
         (
             ["ros-fold", "--out", "{tmp}/e", "--cell", "real", "--fault-slip", "0.3"],
             "--fault-slip: faults are the simulated cell's, injected on the cell ros-fold starts",
@@ -495,7 +500,7 @@ def test_ros_fold_hands_the_nodes_every_option_that_shapes_the_episode(tmp_path)
             *("--robot", "panda", "--start", "flat", "--park", "out_of_view", "--arms", "2"),
             *("--seed", "7", "--replicate", "3", "--width", "0.33", "--height", "0.27"),
             *("--resolution", "11", "--no-odd-grid", "--mass", "0.2", "--time-step", "0.002"),
-            *("--max-vertices", "100"),
+            *("--max-vertices", "100", "--speed-scale", "0.4"),
             *("--jaw-catch", "surface", "--video-fps", "0"),
             *("--loop-option", "stack_edge_carry=false", "--loop-option", "pair_descent=0.02"),
             *("--cloth", "friction=0.8", "--cloth", "margin_divisor=6.5"),
@@ -506,7 +511,7 @@ def test_ros_fold_hands_the_nodes_every_option_that_shapes_the_episode(tmp_path)
     assert node_cfg == fold.config_from_args(args)
     assert (node_cfg.fault_slip, node_cfg.fault_grasp_offset) == (0.3, 0.05)
     assert node_cfg.replicate == 3 and node_cfg.jaw_catch == "surface"
-    assert node_cfg.towel.max_vertices == 100
+    assert node_cfg.towel.max_vertices == 100 and node_cfg.motion.speed_scale == 0.4
     assert node_cfg.loop_options == {"stack_edge_carry": False, "pair_descent": 0.02}
     assert (node_cfg.cloth.mass, node_cfg.cloth.friction) == (0.2, 0.8)
     assert node_cfg.cloth.margin_divisor == 6.5

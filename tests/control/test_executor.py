@@ -5,7 +5,12 @@ import numpy as np
 import pytest
 
 from foldbot.control.executor import ArmExecutor, move_joints_together, run_together
-from foldbot.errors import SimulationDivergedError, UnreachableTargetError, failed_segment
+from foldbot.errors import (
+    ConfigError,
+    SimulationDivergedError,
+    UnreachableTargetError,
+    failed_segment,
+)
 from foldbot.planning.motion import Segment, line_path
 from foldbot.sim.robots import make_robot
 from foldbot.sim.world import SimWorld
@@ -233,3 +238,42 @@ def test_a_joint_move_into_the_table_is_refused_before_it_moves():
         with pytest.raises(UnreachableTargetError, match="would touch the table"):
             ex.check_joint_move(q0, q0 + [0.0, 1.0, 0.0, 0.0, 0.0, 0.0])  # the shoulder down
         assert np.allclose(robot.joint_positions(), q0)  # nothing moved
+
+
+def test_a_slowed_arm_makes_the_same_moves_in_1_over_s_the_time():
+    # speed_scale s scales time: velocity ×s, acceleration ×s², jerk ×s³, TCP speed ×s, so a
+    # segment and a joint move keep their shape and take 1/s as long (a real arm's slider).
+    with SimWorld() as world:
+        robot = make_robot("ur5", world.client, world.layout)
+        full = ArmExecutor(world, robot, grasp=None)
+        slow = ArmExecutor(world, robot, grasp=None, speed_scale=0.25)
+        a0 = robot.tcp_pose()[0]
+        seg = Segment("carry", line_path(a0, a0 + [0.1, 0.05, -0.05]), 0.25)
+        (planned,) = full.plan([seg])
+        fast_traj = full.trajectory_for(planned.joint_path, planned.points, 0.25)
+        slow_traj = slow.trajectory_for(planned.joint_path, planned.points, 0.25)
+        assert slow_traj.duration == pytest.approx(4 * fast_traj.duration, rel=0.02)
+        # The same path at each instant 4× later.
+        t = np.linspace(0.0, fast_traj.duration, 9)
+        for j in range(robot.dof):
+            fast_q = np.interp(t, fast_traj.times, fast_traj.positions[:, j])
+            slow_q = np.interp(4 * t, slow_traj.times, slow_traj.positions[:, j])
+            assert np.abs(fast_q - slow_q).max() < 2e-3
+        assert np.abs(slow_traj.velocities).max() <= 0.25 * np.max(robot.velocity_limits)
+        q1 = planned.joint_path[-1]
+        q0 = robot.joint_positions()
+        assert slow.joint_move_trajectory(q0, q1).duration == pytest.approx(
+            4 * full.joint_move_trajectory(q0, q1).duration, rel=0.02
+        )
+        # And the slowed arm really moves so, on the simulated UR5.
+        log = slow.run(planned)
+        assert log.duration == pytest.approx(slow_traj.duration, abs=2 * world.time_step)
+        assert np.linalg.norm(robot.tcp_pose()[0] - planned.points[-1]) < 0.005
+
+
+@pytest.mark.parametrize("scale", [0.0, 0.01, 1.5, float("nan"), True])
+def test_a_speed_scale_outside_what_a_slider_allows_is_refused(scale):
+    with SimWorld() as world:
+        robot = make_robot("ur5", world.client, world.layout)
+        with pytest.raises(ConfigError, match=r"speed_scale must be in \[0\.05, 1\]"):
+            ArmExecutor(world, robot, grasp=None, speed_scale=scale)

@@ -74,6 +74,22 @@ def test_park_goes_where_the_episode_parks(planner):
     }
 
 
+def test_a_slowed_episode_is_planned_slower(planner):
+    # ros-fold --speed-scale reaches the planner node through the fold options it parses:
+    # every trajectory it times takes 1/s as long (here the park; a step's "time" alike).
+    from foldbot.ros.planner_node import MotionPlanner
+
+    slow = MotionPlanner("--garment pants --out /tmp/unused --park out_of_view --speed-scale 0.5")
+    try:
+        home = planner.robot.home_q.tolist()
+        full = planner.handle({"kind": "park", "q": home})["trajectory"]
+        half = slow.handle({"kind": "park", "q": home})["trajectory"]
+        assert half["times"][-1] == pytest.approx(2 * full["times"][-1], rel=0.02)
+        assert np.allclose(half["positions"][-1], full["positions"][-1], atol=1e-9)
+    finally:
+        slow.world.close()
+
+
 def test_unknown_request_kind_lists_the_allowed_ones(planner):
     with pytest.raises(FoldbotError, match="allowed: stage, garment, action"):
         planner.handle({"kind": "dance", "q": planner.robot.home_q.tolist()})

@@ -34,7 +34,8 @@ CHARUCO = ("--board-pattern", "charuco")
         # against 0.14): 6 views put the camera 2.9 mm off in process, 8 views 0.8 mm.
         (
             ("--arms", "2", "--calibration-board", "right", *CHARUCO_CELL),
-            ("--arms", "2", "--arm", "right", *CHARUCO),
+            # At 80 % speed (--speed-scale), as a first run on a real arm may move it.
+            ("--arms", "2", "--arm", "right", *CHARUCO, "--speed-scale", "0.8"),
             8,
         ),
     ],
@@ -63,6 +64,7 @@ def test_the_camera_of_a_running_cell_is_found_through_its_topics(
     charuco = "charuco" in calibrate_arms
     assert record["board"]["pattern"] == ("charuco" if charuco else "chessboard")
     assert ("--board-pattern charuco`" in log) == charuco  # the cell says which board it holds
+    assert record["speed_scale"] == (0.8 if charuco else 1.0)  # reached the calibrate node
     # The simulated camera's pose (the default cell's), which the run was never told.
     dt, dr = pose_error(np.array(record["T_world_camera"]), CameraConfig().T_world_camera)
     assert dt < 2e-3 and np.rad2deg(dr) < 0.1, (dt, np.rad2deg(dr))

@@ -43,6 +43,7 @@ park = "home"                           # "out_of_view": the arm waits outside t
 time_step = 0.0027778                   # s, physics step (optional; default SimConfig's 1/360)
 arms = 1                                # 2: two arms side by side carry a stage's corners together
 jaw_catch = "vertices"                  # "surface": closed jaws also hold cloth between mesh points
+speed_scale = 1.0                       # fraction of full arm speed (0.05–1; the same paths, slower)
 
 [loop_options]                          # the closed loop's switches (foldbot.loop_options), e.g.
 top_layer_first = false                 # true/false, integers, metres; "none" where allowed
@@ -95,6 +96,7 @@ from foldbot.pipeline import (
     garment_recipes,
 )
 from foldbot.planning.garment_recipes import GARMENT_RECIPES
+from foldbot.planning.motion import MIN_SPEED_SCALE, MotionConfig
 from foldbot.planning.recipes import RECIPES
 from foldbot.sim.camera import CameraConfig
 from foldbot.sim.cloth import ClothConfig
@@ -126,7 +128,16 @@ _SCHEMA: dict[str, set[str]] = {
     "axes": {"garment", "recipe", "perception", "loop", "seeds", "replicates"},
     "towel": {"resolution", "odd_grid", "max_vertices", "width", "height"},
     "randomise": {"towel_side", "position_jitter", "yaw_deg", "garment_yaw_deg"},
-    "episode": {"retries", "video_fps", "start", "park", "time_step", "arms", "jaw_catch"},
+    "episode": {
+        "retries",
+        "video_fps",
+        "start",
+        "park",
+        "time_step",
+        "arms",
+        "jaw_catch",
+        "speed_scale",
+    },
     "loop_options": set(LOOP_OPTIONS),
     "cloth": set(CLOTH_OPTIONS),
     "flatten_options": set(FLATTEN_OPTIONS),
@@ -218,6 +229,8 @@ class EpisodeSpec:
     """Arms in the cell (EpisodeConfig.arms): 1, or 2 side by side."""
     jaw_catch: str = "vertices"
     """What the closed jaws hold (EpisodeConfig.jaw_catch): vertices, or surface."""
+    speed_scale: float = 1.0
+    """Fraction of full speed the arms move at (MotionConfig.speed_scale)."""
     loop_options: tuple[tuple[str, LoopOptionValue], ...] = ()
     """The closed loop's switches set by name (EpisodeConfig.loop_options), as (name, value)."""
     cloth_options: tuple[tuple[str, float], ...] = ()
@@ -277,6 +290,7 @@ class EpisodeSpec:
             park=self.park,
             arms=self.arms,
             jaw_catch=self.jaw_catch,
+            motion=MotionConfig(speed_scale=self.speed_scale),
             loop_options=dict(self.loop_options),
             cloth=apply_cloth_options(ClothConfig(), dict(self.cloth_options)),
             flatten_options=dict(self.flatten_options),
@@ -301,6 +315,8 @@ class EpisodeSpec:
             del d["arms"]  # likewise
         if d["jaw_catch"] == "vertices":
             del d["jaw_catch"]  # likewise
+        if d["speed_scale"] == 1.0:
+            del d["speed_scale"]  # likewise
         if d["garment_yaw_deg"] == 90.0:
             del d["garment_yaw_deg"]  # likewise
         if d["loop_options"]:
@@ -660,6 +676,9 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
             f"{where}: episode.jaw_catch = {jaw_catch!r} is unknown; allowed: "
             f"{', '.join(JAW_CATCHES)}"
         )
+    speed_scale = _range(
+        ep.get("speed_scale", 1.0), "episode.speed_scale", MIN_SPEED_SCALE, 1.0, where
+    )
     time_step = ep.get("time_step")
     if time_step is not None:
         time_step = _range(time_step, "episode.time_step", MIN_TIME_STEP, MAX_TIME_STEP, where)
@@ -703,6 +722,7 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
             time_step=time_step,
             arms=arms,
             jaw_catch=jaw_catch,
+            speed_scale=speed_scale,
             loop_options=loop_options,
             cloth_options=cloth_options,
             flatten_options=flatten_options,

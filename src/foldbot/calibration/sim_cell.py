@@ -33,12 +33,13 @@ class SimCalibrationCell(CalibrationCell):
         sim: SimConfig,
         arms: int = 1,
         arm: int = 0,
+        speed_scale: float = 1.0,
     ) -> None:
         layouts = sim.layout.arm_layouts(arms)
         self.world = SimWorld(sim)
         self.model_world = SimWorld(SimConfig(time_step=sim.time_step, layout=sim.layout))
         try:
-            self._build(robot, camera, board, mount, layouts, arm)
+            self._build(robot, camera, board, mount, layouts, arm, speed_scale)
         except BaseException:  # e.g. a board too large to print: no PyBullet client left open
             self.close()
             raise
@@ -51,6 +52,7 @@ class SimCalibrationCell(CalibrationCell):
         mount: BoardMount,
         layouts: tuple[CellLayout, ...],
         arm: int,
+        speed_scale: float,
     ) -> None:
         robots = [make_robot(robot, self.world.client, lay) for lay in layouts]
         self.robot = robots[arm]
@@ -61,6 +63,7 @@ class SimCalibrationCell(CalibrationCell):
             None,  # type: ignore[arg-type]  # no cloth to grasp: joint moves only
             model=self.model,
             model_table_id=self.model_world.table_id,
+            speed_scale=speed_scale,
         )
         self.board_id = attach_board(self.robot, board, mount)
         self.camera = RGBDCamera(self.world.client, camera)

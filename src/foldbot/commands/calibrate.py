@@ -43,6 +43,7 @@ from foldbot.calibration.hand_eye import pose_error
 from foldbot.calibration.views import MAX_VIEWS, BoardMount, CalibrationView, calibration_views
 from foldbot.errors import ConfigError
 from foldbot.io.staging import commit_output, output_path, prepare_output
+from foldbot.planning.motion import MIN_SPEED_SCALE, MotionConfig
 from foldbot.sim.camera import CameraConfig, camera_for_layout
 from foldbot.sim.layout import DEFAULT_LAYOUT, CellLayout, load_layout
 from foldbot.sim.robots import ROBOT_NAMES
@@ -183,6 +184,14 @@ def add_board_arguments(parser: argparse.ArgumentParser) -> None:
         help=f"poses to hold the board at, 4–{MAX_VIEWS} (default {MAX_VIEWS})",
     )
     parser.add_argument(
+        "--speed-scale",
+        type=float,
+        default=1.0,
+        metavar="S",
+        help=f"fraction of full speed the arm moves at ({MIN_SPEED_SCALE:g}–1, default 1): the "
+        "same moves, 1/S times as long",
+    )
+    parser.add_argument(
         "--look-from",
         type=float,
         nargs=3,
@@ -266,6 +275,8 @@ class CalibrationPlan:
     arm: int
     look_from: tuple[float, float, float]
     views: list[CalibrationView]
+    speed_scale: float = 1.0
+    """Fraction of full speed the arm moves the board at (MotionConfig.speed_scale)."""
 
     def record(self) -> dict[str, Any]:
         """What calibration.json says of the run's set-up."""
@@ -274,6 +285,7 @@ class CalibrationPlan:
             "arms": self.arms,
             "arm": self.arm,
             "look_from_m": list(self.look_from),
+            "speed_scale": self.speed_scale,
             "board_mount_given": {
                 "offset_m": list(self.mount.offset_m),
                 "rotvec_rad": list(self.mount.rotvec_rad),
@@ -304,7 +316,10 @@ def plan_from_args(
         if rough_camera is not None and getattr(args, "camera_eye", None) is not None:
             raise ConfigError(f"--camera-eye (the board turns to it): {exc}") from None
         raise
-    return CalibrationPlan(board, mount, layout, args.robot, args.arms, arm, look_from, views)
+    speed_scale = MotionConfig(speed_scale=args.speed_scale).speed_scale  # checked
+    return CalibrationPlan(
+        board, mount, layout, args.robot, args.arms, arm, look_from, views, speed_scale
+    )
 
 
 def sim_camera(args: argparse.Namespace, layout: CellLayout) -> CameraConfig:
@@ -359,7 +374,14 @@ def run(args: argparse.Namespace) -> int:
     try:
         t0 = time.monotonic()
         cell = SimCalibrationCell(
-            args.robot, camera, board, mount, SimConfig(layout=layout), args.arms, plan.arm
+            args.robot,
+            camera,
+            board,
+            mount,
+            SimConfig(layout=layout),
+            args.arms,
+            plan.arm,
+            plan.speed_scale,
         )
         try:
             captures = capture_views(

@@ -26,6 +26,7 @@ from foldbot.pipeline import (
     run_episode,
 )
 from foldbot.planning.garment_recipes import GARMENT_RECIPE_HELP, GARMENT_RECIPES
+from foldbot.planning.motion import MIN_SPEED_SCALE
 from foldbot.planning.recipes import RECIPE_HELP, RECIPES
 from foldbot.sim.camera import CameraConfig
 from foldbot.sim.grasp import JAW_CATCHES
@@ -309,6 +310,15 @@ def add_episode_arguments(parser: argparse.ArgumentParser, output: bool = True) 
         "[episode] time_step; smaller steps cost time and blow crumpled heaps up less often)",
     )
     parser.add_argument(
+        "--speed-scale",
+        type=float,
+        default=1.0,
+        metavar="S",
+        help=f"fraction of full speed the arm moves at ({MIN_SPEED_SCALE:g}–1, default 1; a "
+        "suite's [episode] speed_scale): the same paths, 1/S times as long, as a real arm's "
+        "speed slider for a first run",
+    )
+    parser.add_argument(
         "--layout",
         type=Path,
         default=None,
@@ -380,6 +390,7 @@ def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
             layout=layout,
         ),
         camera=calibrated_camera(args, base.camera, layout),
+        motion=dataclasses.replace(base.motion, speed_scale=args.speed_scale),
         video_fps=args.video_fps,
         loop_options=loop_options_from_args(args.loop_option),
         flatten_options=flatten_options_from_args(args.flatten_option),

@@ -55,6 +55,7 @@ def run(args: argparse.Namespace) -> int:
         cmd += ["--board-offset", *(repr(v) for v in plan.mount.offset_m)]
         cmd += ["--board-turn", *(repr(v) for v in args.board_turn)]
         cmd += ["--views", str(args.views), "--look-from", *(repr(v) for v in plan.look_from)]
+        cmd += ["--speed-scale", repr(plan.speed_scale)]
         if args.layout is not None:
             cmd += ["--layout", str(Path(args.layout).resolve())]
         run_node("foldbot.ros.calibrate_node", cmd, env, "the calibration")

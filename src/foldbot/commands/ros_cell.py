@@ -85,6 +85,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Validate, then roslaunch the cell and keep it up until interrupted."""
     cfg = fold.config_from_args(args)
+    if cfg.motion.speed_scale != 1.0:
+        raise ConfigError(
+            f"--speed-scale {args.speed_scale:g} is the folding side's: a cell moves its arm as "
+            "its drivers are told; give it to `foldbot ros-fold --cell real` or `foldbot "
+            "ros-calibrate`"
+        )
     check_real_time_factor(args.real_time_factor)
     check_port(args.port)
     board_arm = -1 if args.calibration_board is None else ARM_NAMES.index(args.calibration_board)

@@ -455,7 +455,7 @@ def fold_args_text(args: argparse.Namespace) -> str:
     ]
     if args.mass is not None:
         words += ["--mass", repr(args.mass)]
-    words += ["--time-step", repr(args.time_step)]
+    words += ["--time-step", repr(args.time_step), "--speed-scale", repr(args.speed_scale)]
     words += option_words(args) + fault_words(args)
     if args.garment_edge_length is not None:
         words += ["--garment-edge-length", repr(args.garment_edge_length)]

@@ -11,7 +11,7 @@ import numpy as np
 
 from foldbot.control.trajectory import JointTrajectory, time_parametrize
 from foldbot.errors import ConfigError, SimulationDivergedError, UnreachableTargetError
-from foldbot.planning.motion import Segment, line_path
+from foldbot.planning.motion import MotionConfig, Segment, line_path
 from foldbot.sim.grasp import ClothGrasp
 from foldbot.sim.robots.base import Robot
 from foldbot.sim.robots.base import gripper_down_quaternion as _down
@@ -67,7 +67,9 @@ class ArmExecutor:
         yaw: float = 0.0,
         model: Robot | None = None,
         model_table_id: int | None = None,
+        speed_scale: float = 1.0,
     ) -> None:
+        MotionConfig(speed_scale=speed_scale)  # ConfigError naming a bad scale
         self.world = world
         self.robot = robot
         self.grasp = grasp
@@ -75,6 +77,10 @@ class ArmExecutor:
         self.model = robot if model is None else model
         """Where IK and FK are computed: a kinematic twin of `robot` in a world of its own keeps
         planning from touching the simulated arm (the ROS planner node plans the same way)."""
+        self.speed_scale = float(speed_scale)
+        """Fraction of full speed every motion runs at (MotionConfig.speed_scale): the joint
+        limits scaled as time is (velocity ×s, acceleration ×s², jerk ×s³) and every TCP speed
+        ×s, so a path keeps its shape in time, 1/s times as long."""
         self.model_table_id = world.table_id if model is None else model_table_id
         """The table in the model's world, which every planned waypoint must keep the arm clear
         of (None: not checked, for a twin in a world without one)."""
@@ -139,20 +145,28 @@ class ArmExecutor:
     def trajectory_for(self, path: np.ndarray, points: np.ndarray, speed: float) -> JointTrajectory:
         """Time-optimal trajectory along the joint path within the robot's joint velocity,
         acceleration and jerk limits, the TCP (its waypoints' arc length) at `speed` (m/s) or
-        slower, sampled at the physics step."""
+        slower, both at the executor's speed scale, sampled at the physics step."""
         r = self.robot
         path = np.asarray(path, dtype=float)
         if not (np.isfinite(speed) and speed > 0.0):
             raise ConfigError(f"segment speed must be > 0 m/s, got {speed!r}")
         return time_parametrize(
             path,
-            r.velocity_limits,
-            r.acceleration_limits,
-            r.jerk_limits,
+            *self.joint_limits(),
             self.world.time_step,
             arc=_cartesian_arc(points),
-            max_arc_speed=speed,
+            max_arc_speed=speed * self.speed_scale,
             position_limits=(r.lower_limits, r.upper_limits),
+        )
+
+    def joint_limits(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The robot's joint velocity, acceleration and jerk limits (rad/s, rad/s², rad/s³) at
+        the executor's speed scale s: ×s, ×s², ×s³."""
+        r, s = self.robot, self.speed_scale
+        return (
+            np.asarray(r.velocity_limits, dtype=float) * s,
+            np.asarray(r.acceleration_limits, dtype=float) * s**2,
+            np.asarray(r.jerk_limits, dtype=float) * s**3,
         )
 
     def duration_for(self, path: np.ndarray, points: np.ndarray, speed: float) -> float:
@@ -186,13 +200,8 @@ class ArmExecutor:
 
     def joint_move_trajectory(self, q0: np.ndarray, q_target: np.ndarray) -> JointTrajectory:
         """Rest-to-rest joint-space move from `q0` to `q_target` under the joint limits."""
-        r = self.robot
         return time_parametrize(
-            np.vstack([q0, q_target]),
-            r.velocity_limits,
-            r.acceleration_limits,
-            r.jerk_limits,
-            self.world.time_step,
+            np.vstack([q0, q_target]), *self.joint_limits(), self.world.time_step
         )
 
     def move_joints(self, q_target: np.ndarray, name: str = "joint_move") -> SegmentLog:

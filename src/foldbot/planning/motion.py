@@ -45,6 +45,24 @@ class MotionConfig:
     """Nominal TCP speed for moves without cloth (m/s)."""
     arc_points: int = 40
     """Waypoints along the carry arc."""
+    speed_scale: float = 1.0
+    """Fraction of full speed every arm motion runs at, in (MIN_SPEED_SCALE, 1]: the same paths,
+    1/speed_scale times as long (joint velocity, acceleration and jerk limits and TCP speeds
+    scaled as time is: ×s, ×s², ×s³, ×s), as a real arm's speed slider for its first runs."""
+
+    def __post_init__(self) -> None:
+        require(
+            isinstance(self.speed_scale, (int, float))
+            and not isinstance(self.speed_scale, bool)
+            and MIN_SPEED_SCALE <= self.speed_scale <= 1.0,
+            f"speed_scale must be in [{MIN_SPEED_SCALE:g}, 1] (a fraction of full speed), got "
+            f"{self.speed_scale!r}",
+        )
+
+
+MIN_SPEED_SCALE = 0.05
+"""Slowest speed_scale accepted: a twentieth of full speed keeps a motion's wait for its driver
+(the task node's 300 s) beyond the longest motion of a fold."""
 
 
 @dataclass(frozen=True)

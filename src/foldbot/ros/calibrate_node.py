@@ -46,12 +46,14 @@ class RosCalibrationCell(CalibrationCell):
     """A running cell over ROS: the arm through its driver's action (arm `arm` of `arms`: its
     prefixed joints and namespaced action), the camera's topics."""
 
-    def __init__(self, robot: str, layout, arms: int = 1, arm: int = 0) -> None:
+    def __init__(
+        self, robot: str, layout, arms: int = 1, arm: int = 0, speed_scale: float = 1.0
+    ) -> None:
         self.model_world = SimWorld(SimConfig(layout=layout))
         self.model = make_robot(robot, self.model_world.client, layout.arm_layouts(arms)[arm])
         self.planner = ArmExecutor(
             self.model_world, self.model, None,  # type: ignore[arg-type]  # no grasps: moves only
-            model_table_id=self.model_world.table_id,
+            model_table_id=self.model_world.table_id, speed_scale=speed_scale,
         )  # fmt: skip
         self.joint_names = arm_joint_names(self.model.ARM_JOINT_NAMES, arms)[arm]
         self.arm = ActionArm(
@@ -96,8 +98,13 @@ class RosCalibrationCell(CalibrationCell):
         q0 = self.arm.joint_positions()
         self.planner.check_joint_move(q0, q)
         traj = self.planner.joint_move_trajectory(q0, q)
-        self.arm.follow(
-            self.joint_names, traj.times, traj.positions, traj.velocities, name, MOVE_TIMEOUT_S
+        self.arm.follow(  # a slowed arm's move (--speed-scale) gets its own time too
+            self.joint_names,
+            traj.times,
+            traj.positions,
+            traj.velocities,
+            name,
+            MOVE_TIMEOUT_S + traj.duration,
         )
         until = rospy.get_time() + SETTLE_S
         deadline = time.monotonic() + SETTLE_S + CAMERA_WAIT_S
@@ -144,7 +151,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         plan = plan_from_args(args)
         board = plan.board
-        cell = RosCalibrationCell(args.robot, plan.layout, args.arms, plan.arm)
+        cell = RosCalibrationCell(args.robot, plan.layout, args.arms, plan.arm, plan.speed_scale)
         try:
             captures = capture_views(
                 cell, plan.views, board, lambda line: print(f"ros-calibrate: {line}", flush=True)

@@ -92,7 +92,10 @@ class MotionPlanner:
         ]
         for robot in self.robots:
             check_workspace_reach(robot, self.cfg.robot)
-        self.executors = [ArmExecutor(self.world, r, grasp=None) for r in self.robots]
+        self.executors = [
+            ArmExecutor(self.world, r, grasp=None, speed_scale=self.cfg.motion.speed_scale)
+            for r in self.robots
+        ]
         self.robot, self.executor = self.robots[0], self.executors[0]
         self.joint_names = arm_joint_names(self.robot.ARM_JOINT_NAMES, self.cfg.arms)
         """Each arm's joint names over topics (prefixed in a two-arm cell)."""
