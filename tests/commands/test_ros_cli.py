@@ -622,6 +622,19 @@ def test_ros_cell_lays_the_cloth_ros_fold_would(tmp_path):
     )
 
 
+def test_ros_cell_names_the_options_only_the_fold_reads():
+    # The same options go to the cell and to `ros-fold --cell real`; those only the folding
+    # side reads are named (and ignored) by the cell, not silently dropped.
+    from foldbot.commands import ros_cell
+
+    parser = argparse.ArgumentParser()
+    ros_cell.add_arguments(parser)
+    assert ros_cell.folding_options_given(parser.parse_args(["--resolution", "5"])) == []
+    args = ["--recipe", "quarter", "--flatten-option", "finish_coverage=none", "--video-fps", "0"]
+    given = ros_cell.folding_options_given(parser.parse_args([*args, "--seed", "3"]))
+    assert given == ["--recipe", "--flatten-option", "--video-fps"]
+
+
 def test_the_gripper_lead_is_seconds_or_off(capsys):
     from foldbot.commands.ros_fold import gripper_lead
 

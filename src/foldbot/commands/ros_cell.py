@@ -82,6 +82,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+FOLDING_OPTIONS = ("recipe", "perception", "park", "loop_option", "flatten_option", "video_fps")
+"""`foldbot fold`'s options that ros-cell takes (the same options for the cell and the fold) but
+that only the folding side reads: the planner and task nodes of `ros-fold --cell real`."""
+
+
+def folding_options_given(args: argparse.Namespace) -> list[str]:
+    """The FOLDING_OPTIONS given away from their defaults, as flags (--recipe, …)."""
+    defaults = argparse.ArgumentParser(add_help=False)
+    add_arguments(defaults)
+    return [
+        fold.given_flag(name, getattr(args, name))
+        for name in FOLDING_OPTIONS
+        if getattr(args, name) != defaults.get_default(name)
+    ]
+
+
 def run(args: argparse.Namespace) -> int:
     """Validate, then roslaunch the cell and keep it up until interrupted."""
     cfg = fold.config_from_args(args)
@@ -101,6 +117,15 @@ def run(args: argparse.Namespace) -> int:
         )
     if not args.camera_rate > 0:
         raise ConfigError(f"--camera-rate must be > 0 frames per s, got {args.camera_rate!r}")
+    ignored = folding_options_given(args)
+    if ignored:
+        one = len(ignored) == 1
+        print(
+            f"ros-cell: {', '.join(ignored)} {'sets' if one else 'set'} how `foldbot ros-fold "
+            f"--cell real` folds, not the cell, which ignores {'it' if one else 'them'} (give "
+            f"{'it' if one else 'them'} to ros-fold)",
+            flush=True,
+        )
     missing = ros_missing()
     if missing:
         raise FoldbotError(missing)
