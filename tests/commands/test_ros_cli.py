@@ -240,6 +240,10 @@ def test_bad_input_is_named(args, needle, tmp_path, capsys, no_launch):
             ["ros-fold", "--out", "{tmp}/episode"],
             "--out {tmp}/episode already holds an episode; pass --overwrite to replace it",
         ),
+        (  # a real cell's earlier fold: result.json unscored, no cloth.npz
+            ["ros-fold", "--cell", "real", "--out", "{tmp}/real"],
+            "--out {tmp}/real already holds an episode; pass --overwrite to replace it",
+        ),
         (
             ["ros-fold", "--out", "{tmp}/e", "--record", "{tmp}/afile/run.bag"],
             "--record {tmp}/afile/run.bag: '{tmp}/afile' is a file, not a folder",
@@ -272,12 +276,27 @@ def test_an_output_that_cannot_be_written_is_named_before_anything_starts(
     (tmp_path / "episode").mkdir()
     (tmp_path / "episode" / "result.json").write_text("{}")
     (tmp_path / "episode" / "cloth.npz").write_bytes(b"")
+    (tmp_path / "real").mkdir()
+    (tmp_path / "real" / "result.json").write_text('{"scored": false}')
     (tmp_path / "folder.bag").mkdir()
     before = sorted(tmp_path.rglob("*"))
     code = main([a.replace("{tmp}", str(tmp_path)) for a in args])
     assert code == 2
     assert needle.replace("{tmp}", str(tmp_path)) in capsys.readouterr().err
     assert sorted(tmp_path.rglob("*")) == before
+
+
+def test_a_real_cells_earlier_fold_is_replaced_with_overwrite(tmp_path):
+    # Its folder has no cloth.npz (no ground truth): with --overwrite it is an episode to
+    # replace, as a scored one is, not "a folder that is not a foldbot episode".
+    from foldbot.commands.ros_fold import check_episode_output
+
+    out = tmp_path / "real"
+    out.mkdir()
+    (out / "result.json").write_text('{"scored": false}')
+    (out / "overlay_final.png").write_bytes(b"png")
+    check_episode_output(out, overwrite=True)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["real"]  # the probe left nothing
 
 
 @pytest.mark.parametrize("option", ["--out", "--record"])

@@ -17,6 +17,7 @@ from foldbot.io.episode import (
     EpisodeWriter,
     is_episode_dir,
     is_failed_dir,
+    is_unscored_episode_dir,
     load_episode,
     rescore,
 )
@@ -212,6 +213,31 @@ def test_an_unscored_episode_commits_without_the_cloth_only_when_asked(tmp_path:
         w.commit(require_cloth=False)
     assert sorted(p.name for p in (tmp_path / "ep").iterdir()) == ["result.json"]
     assert not is_episode_dir(tmp_path / "ep")  # nothing there to rescore
+    with pytest.raises(ConfigError, match=r"a fold on a real cell, unscored: it has no cloth"):
+        rescore(tmp_path / "ep")
+
+
+def test_an_unscored_episode_is_replaced_with_overwrite_as_a_scored_one(tmp_path: Path) -> None:
+    # `ros-fold --cell real --out DIR --overwrite` a second time: DIR holds the first fold's
+    # result.json (scored false) and its pictures, no cloth.npz.
+    faces, initial, final = cloth()
+    unscored = {**result_for(faces, initial, final), "scored": False, "success": None}
+    out = tmp_path / "ep"
+    for run in range(2):
+        with EpisodeWriter(out, overwrite=run > 0) as w:
+            w.write_result({**unscored, "wall_seconds": float(run)})
+            w.write_image("overlay_final", np.zeros((8, 8, 3), np.uint8))
+            w.commit(require_cloth=False)
+    assert is_unscored_episode_dir(out)
+    assert json.loads((out / "result.json").read_text())["wall_seconds"] == 1.0
+    with pytest.raises(OutputError, match=r"already holds an episode; use --overwrite"):
+        EpisodeWriter(out)
+    # A result.json that does not say it is unscored, with no cloth, is no episode to replace.
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "result.json").write_text(json.dumps({"scored": True}))
+    assert not is_unscored_episode_dir(tmp_path / "other")
+    with pytest.raises(OutputError, match="not a foldbot episode"):
+        EpisodeWriter(tmp_path / "other", overwrite=True)
 
 
 def test_missing_result_keys_named(tmp_path: Path) -> None:

@@ -25,7 +25,13 @@ from foldbot import errors
 from foldbot.calibration.capture import calibration_pose_words
 from foldbot.commands import fold
 from foldbot.errors import ConfigError, FoldbotError, OutputError
-from foldbot.io.episode import ERROR_FILE, EpisodeWriter, failed_dir, is_episode_dir
+from foldbot.io.episode import (
+    ERROR_FILE,
+    EpisodeWriter,
+    failed_dir,
+    is_episode_dir,
+    is_unscored_episode_dir,
+)
 from foldbot.io.staging import output_path
 from foldbot.ros.node_args import (
     ARM_INTERFACES,
@@ -305,7 +311,7 @@ def check_episode_output(out: Path, overwrite: bool) -> None:
     refuse once the fold is done (OutputError): a file, a folder holding something other than
     an episode, an episode without --overwrite, a place that cannot be written. The writer's
     own checks, as `foldbot fold` makes them: its staging folder is made and dropped again."""
-    if out.is_dir() and is_episode_dir(out) and not overwrite:
+    if out.is_dir() and (is_episode_dir(out) or is_unscored_episode_dir(out)) and not overwrite:
         raise OutputError(f"--out {out} already holds an episode; pass --overwrite to replace it")
     EpisodeWriter(out, overwrite=overwrite).abort()
 

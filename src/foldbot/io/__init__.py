@@ -5,6 +5,7 @@ from foldbot.io.episode import (
     Episode,
     EpisodeWriter,
     is_episode_dir,
+    is_unscored_episode_dir,
     load_episode,
     rescore,
 )
@@ -16,6 +17,7 @@ __all__ = [
     "EpisodeWriter",
     "VideoWriter",
     "is_episode_dir",
+    "is_unscored_episode_dir",
     "load_episode",
     "rescore",
 ]

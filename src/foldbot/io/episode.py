@@ -58,6 +58,20 @@ def is_episode_dir(path: str | Path) -> bool:
     return p.is_dir() and (p / RESULT_FILE).is_file() and (p / CLOTH_FILE).is_file()
 
 
+def is_unscored_episode_dir(path: str | Path) -> bool:
+    """True when `path` is a folder holding a committed unscored episode: a fold on a real cell,
+    its result.json saying "scored": false and no cloth.npz (no ground truth to score from)."""
+    p = Path(path)
+    result_file = p / RESULT_FILE
+    if not p.is_dir() or not result_file.is_file() or (p / CLOTH_FILE).exists():
+        return False
+    try:
+        result = json.loads(result_file.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(result, dict) and result.get("scored") is False
+
+
 def failed_dir(out_dir: str | Path) -> Path:
     """Where an episode that ended in an error leaves what it had recorded: `DIR.failed`."""
     p = Path(out_dir).expanduser().absolute()
@@ -247,7 +261,7 @@ class EpisodeWriter:
                 raise OutputError(f"cannot read episode output folder {str(d)!r}: {exc}") from exc
             if empty:
                 return
-            if not is_episode_dir(d):
+            if not (is_episode_dir(d) or is_unscored_episode_dir(d)):  # a real cell's too
                 raise OutputError(
                     f"episode output {str(d)!r} is a non-empty folder that is not a foldbot "
                     f"episode; {allowed}"
@@ -504,6 +518,11 @@ def _read_cloth(path: Path) -> dict[str, np.ndarray]:
 def load_episode(path: str | Path) -> Episode:
     """Read result.json and cloth.npz of an episode folder (ConfigError if malformed)."""
     d = Path(path)
+    if is_unscored_episode_dir(d):
+        raise ConfigError(
+            f"{str(d)!r} holds a fold on a real cell, unscored: it has no {CLOTH_FILE} (no "
+            "ground truth) to score from; its result.json says what the camera saw"
+        )
     if not is_episode_dir(d):
         raise ConfigError(
             f"{str(d)!r} is not an episode folder; it must contain {RESULT_FILE} and {CLOTH_FILE}"
