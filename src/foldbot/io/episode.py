@@ -521,7 +521,8 @@ def load_episode(path: str | Path) -> Episode:
     if is_unscored_episode_dir(d):
         raise ConfigError(
             f"{str(d)!r} holds a fold on a real cell, unscored: it has no {CLOTH_FILE} (no "
-            "ground truth) to score from; its result.json says what the camera saw"
+            "ground-truth cloth); its result.json says what the camera saw (a real cell's run is "
+            "kept as a bag with ros-fold --record)"
         )
     if not is_episode_dir(d):
         raise ConfigError(
