@@ -62,7 +62,10 @@ def test_a_running_cell_is_checked_for_all_a_fold_needs(tmp_path):
     assert calibrated.returncode == 0, calibrated.stdout + calibrated.stderr
     assert "ros-check: the cell is ready to fold" in calibrated.stdout
     record = json.loads((tmp_path / "calibrated" / "ros_check.json").read_text())
-    assert record["ok"] and len(record["checks"]) == 9
+    assert record["ok"] and len(record["checks"]) == 10
+    # The cell's towel, as the fold's first look will see it, drawn on the picture too.
+    assert "ok   the towel: found, 4 keypoints," in calibrated.stdout
+    assert sorted(record["keypoints"]) == ["far_left", "far_right", "near_left", "near_right"]
     table = next(c for c in record["checks"] if c["name"] == "the table in depth")
     assert "(-0.0 mm from the layout's 0.75)" in table["detail"]
     assert "169 of 169 workspace points inside the image" in calibrated.stdout
@@ -76,7 +79,7 @@ def test_a_running_cell_is_checked_for_all_a_fold_needs(tmp_path):
     assert (
         "FAIL the table in depth: at 0.7500 m over the workspace centre (-20.0 mm" in wrong.stdout
     )
-    assert "2 of 9 checks failed: world → base_link, the table in depth" in wrong.stdout
+    assert "2 of 10 checks failed: world → base_link, the table in depth" in wrong.stdout
 
 
 def test_no_master_no_check_and_no_folder(tmp_path):

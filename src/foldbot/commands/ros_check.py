@@ -11,11 +11,14 @@ all at once rather than the first thing missing:
   - the table top as the camera's depth sees it through that pose: at the layout's height and
     level (a pose or a layout that is off shows here);
   - every workspace point reached by an arm gripper down, and inside the camera's image
-    (as `foldbot check-layout`).
+    (as `foldbot check-layout`);
+  - the cloth (--garment, a towel by default; none: not looked for) as the fold's first look
+    will see it: found, whole in the image, every keypoint over the workspace.
 
 Moves nothing. Writes, into --out: ros_check.json (every check and what it found) and
 ros_check.png (the camera's image with the workspace drawn where the camera's pose puts it:
-the outline should lie on the table's workspace). Exit code 0 when every check passes, 1 when
+the outline should lie on the table's workspace; the cloth's outline and keypoints as
+perception found them). Exit code 0 when every check passes, 1 when
 one fails, 2 when the cell cannot be asked (no master, bad options). Needs ROS 1
 (scripts/install_ros.sh); the master at ROS_MASTER_URI, or --port.
 """
@@ -34,6 +37,7 @@ from foldbot.commands.ros_fold import (
     run_node,
     running_cell_env,
 )
+from foldbot.garments import GARMENTS
 from foldbot.io.staging import commit_output, output_path, prepare_output
 from foldbot.sim.layout import load_layout
 from foldbot.sim.robots import ROBOT_NAMES
@@ -60,6 +64,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="the camera's pose from a calibration, where the cell publishes none (as "
         "`ros-fold --cell real --camera-pose` publishes it)",
     )
+    parser.add_argument(
+        "--garment",
+        choices=(*GARMENTS, "none"),
+        default="towel",
+        help="the cloth the fold will find on the table, looked for as perception will (default "
+        "towel); none: a cell checked before the cloth is laid",
+    )
     add_running_cell_master(parser)
 
 
@@ -76,6 +87,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         env = running_cell_env(args, "a real one, or `foldbot ros-cell`")
         cmd = ["--stage", str(stage), "--robot", args.robot, "--arms", str(args.arms)]
+        cmd += ["--garment", args.garment]
         if args.layout is not None:
             cmd += ["--layout", str(Path(args.layout).resolve())]
         if args.camera_pose is not None:

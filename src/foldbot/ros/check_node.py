@@ -29,7 +29,11 @@ from sensor_msgs.msg import CameraInfo, Image, JointState
 from tf2_msgs.msg import TFMessage
 
 from foldbot.errors import FoldbotError
+from foldbot.garments import GARMENTS
 from foldbot.layout_check import CameraPlacement, check_layout
+from foldbot.perception.fallback import vision_estimator
+from foldbot.perception.overlay import draw_overlay
+from foldbot.perception.state import ClothState
 from foldbot.ros import (
     BASE_FRAME,
     TOPICS,
@@ -42,6 +46,7 @@ from foldbot.ros.control_msgs import msg as control_msgs
 from foldbot.ros.frames import StaticFrames
 from foldbot.sim.layout import DEFAULT_LAYOUT, CellLayout, load_layout
 from foldbot.sim.robots import robot_class
+from foldbot.types import Observation
 
 WAIT_S = 30.0
 """How long (wall s) the check waits for what the cell should serve (its action servers, together;
@@ -219,6 +224,39 @@ def check_table(
     return Check(name, good, detail)
 
 
+CLOTH_NAMES = {"towel": "the towel", "tshirt": "the T-shirt", "pants": "the pants"}
+"""How a check line names the cloth --garment says the fold will find."""
+
+
+def check_cloth(obs: Observation, layout: CellLayout, garment: str) -> tuple[Check, ClothState]:
+    """What perception makes of the camera's frame, as the fold's first look will: the cloth
+    found, whole in the image (a cloth cut by the image's edge hides its corners), and every
+    keypoint over the layout's workspace (where the arm is checked to reach)."""
+    name = CLOTH_NAMES[garment]
+    state = vision_estimator(garment).estimate(obs)
+    if not state.detected:
+        return Check(name, False, f"not found ({state.reason}): lay it flat on the table"), state
+    m = state.mask
+    if m[0].any() or m[-1].any() or m[:, 0].any() or m[:, -1].any():
+        detail = "found, but cut by the image's edge: its corners cannot all be seen"
+        return Check(name, False, detail), state
+    x0, x1, y0, y1 = layout.workspace_bounds
+    out = [
+        label
+        for label, (xyz, _conf) in state.keypoints.items()
+        if not (x0 <= xyz[0] <= x1 and y0 <= xyz[1] <= y1)
+    ]
+    seen = f"found, {len(state.keypoints)} keypoints, {state.coverage_m2:.3f} m² seen from above"
+    if out:
+        detail = (
+            f"{seen}; outside the workspace x {x0:.2f}–{x1:.2f}, y {y0:.2f}–{y1:.2f} m: "
+            + ", ".join(out)
+            + " (move it, or the layout's workspace)"
+        )
+        return Check(name, False, detail), state
+    return Check(name, True, seen + ", every one over the workspace"), state
+
+
 def check_picture(
     rgb: np.ndarray, camera: CameraPlacement, layout: CellLayout, seen: np.ndarray, xs, ys
 ) -> np.ndarray:
@@ -241,10 +279,15 @@ def check_picture(
 
 
 def run_checks(
-    robot: str, arms: int, layout: CellLayout, camera_pose: np.ndarray | None
+    robot: str,
+    arms: int,
+    layout: CellLayout,
+    camera_pose: np.ndarray | None,
+    garment: str | None = "towel",
 ) -> tuple[list[Check], np.ndarray | None, dict[str, Any]]:
-    """Every check on the cell the master serves: the lines, the picture (None without a camera
-    frame and pose) and what the record keeps besides."""
+    """Every check on the cell the master serves (the cloth `garment` as perception sees it;
+    None: not looked for): the lines, the picture (None without a camera frame and pose) and
+    what the record keeps besides."""
     inbox = _Inbox()
     checks = check_drivers(arms)
     checks.append(check_joints(inbox, robot, arms))
@@ -337,7 +380,18 @@ def run_checks(
         extra["T_world_camera"] = T_cam.tolist()
         extra["K"] = intr.K.tolist()
         if rgb is not None:
-            picture = check_picture(rgb, placement, layout, found.in_view, found.xs, found.ys)
+            base = rgb
+            if depth is not None and garment is not None:
+                obs = Observation(rgb[..., :3], depth, intr, T_cam)
+                cloth, state = check_cloth(obs, layout, garment)
+                checks.append(cloth)
+                if state.detected:  # its outline and keypoints, as the fold's overlays draw them
+                    base = draw_overlay(obs, state)
+                extra["keypoints"] = {
+                    label: np.asarray(xyz, dtype=float).tolist()
+                    for label, (xyz, _conf) in state.keypoints.items()
+                }
+            picture = check_picture(base, placement, layout, found.in_view, found.xs, found.ys)
     return checks, picture, extra
 
 
@@ -350,18 +404,21 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--arms", type=int, default=1)
     parser.add_argument("--layout", type=Path, default=None)
     parser.add_argument("--camera-pose", type=Path, default=None)
+    parser.add_argument("--garment", choices=(*GARMENTS, "none"), default="towel")
     args = parser.parse_args(rospy.myargv(argv if argv is not None else sys.argv)[1:])
     rospy.init_node("foldbot_check", anonymous=True, disable_signals=True)
     try:
         layout = DEFAULT_LAYOUT if args.layout is None else load_layout(args.layout)
         pose = None if args.camera_pose is None else calibration_camera(args.camera_pose)[0]
-        checks, picture, extra = run_checks(args.robot, args.arms, layout, pose)
+        garment = None if args.garment == "none" else args.garment
+        checks, picture, extra = run_checks(args.robot, args.arms, layout, pose, garment)
         record = {
             "ok": all(c.ok for c in checks),
             "master": os.environ.get("ROS_MASTER_URI", ""),
             "robot": args.robot,
             "arms": args.arms,
             "layout": layout.changes(),
+            "garment": garment,
             "checks": [asdict(c) for c in checks],
             **extra,
         }
