@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import re
 
+import numpy as np
 import pytest
 from ros_helpers import requires_ros
 
@@ -62,3 +63,25 @@ def test_a_bare_table_says_to_lay_the_cloth():
     assert not check.ok and not state.detected
     assert check.name == "the T-shirt" and check.detail.startswith("not found (")
     assert check.detail.endswith("lay it flat on the table")
+
+
+def test_a_towel_cut_by_the_image_edge_is_named(towel_view):
+    from foldbot.ros.check_node import check_cloth
+    from foldbot.sim.layout import DEFAULT_LAYOUT
+
+    obs, _corners = towel_view
+    # The frame's left 300 px cropped off, as a camera with a narrower view sees it (its
+    # principal point moved with the crop): the towel (about u 165–440) runs off its edge.
+    K = obs.intrinsics.K.copy()
+    K[0, 2] -= 300
+    narrow = dataclasses.replace(obs.intrinsics, width=obs.intrinsics.width - 300, K=K)
+    cut = dataclasses.replace(
+        obs,
+        rgb=np.ascontiguousarray(obs.rgb[:, 300:]),
+        depth=np.ascontiguousarray(obs.depth[:, 300:]),
+        intrinsics=narrow,
+    )
+    check, state = check_cloth(cut, DEFAULT_LAYOUT, "towel")
+    assert not check.ok
+    assert check.detail == "found, but cut by the image's edge: its corners cannot all be seen"
+    assert state.mask[:, 0].any()
