@@ -74,6 +74,11 @@ class FoldCell(abc.ABC):
         raises UnreachableTargetError naming the infeasible waypoint."""
 
     @abc.abstractmethod
+    def step_seconds(self, step: Any) -> float:
+        """How long the active arm takes along a planned step (s), its dwell included, at the
+        cell's speed scale: what a dry run reports before anything moves."""
+
+    @abc.abstractmethod
     def run_step(self, step: Any) -> StepLog:
         """Move along one planned step, then apply its gripper event (close → grasp result)."""
 

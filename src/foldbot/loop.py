@@ -541,17 +541,12 @@ def finish_fold(cell: FoldCell, rec: FoldRecord) -> FoldRecord:
     return rec
 
 
-def run_open_loop(
-    cfg: LoopConfig,
-    cell: FoldCell,
-    state: ClothState,
-    obs: Observation,
-    rec: FoldRecord,
-    log: Callable[[str], None] = print,
-) -> None:
-    """Open loop (the comparison baseline): plan every stage from the first observation — a later
-    stage on the corners of the outline the plan predicts, one layer higher — then execute all
-    actions back to back: no re-observation, regrasp, retry or stage verification."""
+def plan_from_first_view(
+    cfg: LoopConfig, cell: FoldCell, state: ClothState, rec: FoldRecord | None = None
+) -> list[FoldPlan]:
+    """Every stage's plan from one observation's state, as the open loop plans them: a later
+    stage on the corners of the outline the plan before predicts, one layer higher. Each stage
+    planned is entered in `rec` where given (its fold line), also when a later one fails."""
     if not state.detected:
         raise FoldbotError(f"no cloth found before fold stage 1: {state.reason}")
     if cfg.require_full_view:
@@ -572,8 +567,25 @@ def run_open_loop(
             corners = {n: outline[i] + [0.0, 0.0, cfg.layer_thickness] for n, i in labels.items()}
         plan, _predicted = cell.plan_stage(cfg.recipe, stage, corners, cfg.place_lift, room)
         plans.append(plan)
-        rec.stages.append({"stage": stage, "fold_line": list(plan.fold_lines[0]), "verified": None})
-        rec.fold_lines.append(plan.fold_lines[0])
+        if rec is not None:
+            entry = {"stage": stage, "fold_line": list(plan.fold_lines[0]), "verified": None}
+            rec.stages.append(entry)
+            rec.fold_lines.append(plan.fold_lines[0])
+    return plans
+
+
+def run_open_loop(
+    cfg: LoopConfig,
+    cell: FoldCell,
+    state: ClothState,
+    obs: Observation,
+    rec: FoldRecord,
+    log: Callable[[str], None] = print,
+) -> None:
+    """Open loop (the comparison baseline): plan every stage from the first observation — a later
+    stage on the corners of the outline the plan predicts, one layer higher — then execute all
+    actions back to back: no re-observation, regrasp, retry or stage verification."""
+    plans = plan_from_first_view(cfg, cell, state, rec)
     first = plans[0]
     rec.initial_overlay = plan_overlay(obs, state, first, cell.table_height)
     rec.initial_state = state

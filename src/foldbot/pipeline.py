@@ -29,6 +29,13 @@ from foldbot.control.executor import (
     move_joints_together,
     run_together,
 )
+from foldbot.dry_run import (
+    DryRun,
+    check_dry_run_config,
+    check_dry_run_output,
+    dry_run,
+    write_dry_run,
+)
 from foldbot.errors import UnreachableTargetError, add_facts, require
 from foldbot.flatten import flatten_and_score
 from foldbot.flatten_options import (
@@ -495,6 +502,10 @@ class SimCell(FoldCell):
             check_clear_of_still_arms(arm, (ex, plan), still)
         return plan
 
+    def step_seconds(self, step: PlannedSegment) -> float:
+        seg = step.segment
+        return self.executor.duration_for(step.joint_path, step.points, seg.speed) + seg.dwell
+
     def run_step(self, step: PlannedSegment) -> StepLog:
         return self._run_checked([(self.executor, step)])[0]
 
@@ -761,6 +772,53 @@ def crumple_and_flatten(
         spread=spreads,
     )
     return entry
+
+
+def dry_run_episode(
+    cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=print
+) -> DryRun:
+    """The episode's fold planned and not run (foldbot.dry_run): the towel laid and settled,
+    seen once with the arm where it starts, every stage and motion planned, nothing moved;
+    plan.json and overlay_planK.png written into `out_dir`. The arm's joints are checked not
+    to have moved (`arm_moved_rad` in plan.json)."""
+    check_dry_run_config(cfg.garment, cfg.start, dry_run_faults(cfg))
+    check_dry_run_output(out_dir, overwrite)
+    with SimWorld(cfg.sim) as world, contextlib.ExitStack() as stack:
+        parts = build_sim_cell(cfg, world)
+        stack.callback(parts.model_world.close)
+        log(f"settling the cloth ({parts.mesh.vertices.shape[0]} vertices)…")
+        settle(world, parts.cloth)
+        executors = [parts.executor, *parts.more_executors]
+        cell = SimCell(
+            world,
+            parts.robot,
+            parts.executor,
+            parts.camera,
+            make_estimator(cfg, parts.oracle),
+            cfg.motion,
+            None,
+            park=cfg.park,
+            more_executors=parts.more_executors,
+        )
+        q0 = [ex.robot.joint_positions() for ex in executors]
+        run = dry_run(loop_config(cfg, parts.cloth.thickness), cell, cfg.motion.speed_scale, log)
+        moved = max(
+            float(np.abs(ex.robot.joint_positions() - q).max())
+            for ex, q in zip(executors, q0, strict=True)
+        )
+        run.record["arm_moved_rad"] = moved
+        run.record["recipe"] = cfg.recipe
+    write_dry_run(run, out_dir, overwrite)
+    return run
+
+
+def dry_run_faults(cfg: EpisodeConfig) -> list[str]:
+    """The injected faults `cfg` asks for, as flags (a dry run refuses them)."""
+    return [
+        f"--{name.replace('_', '-')}"
+        for name in ("fault_grasp_offset", "fault_slip")
+        if getattr(cfg, name) > 0
+    ]
 
 
 def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=print) -> dict:

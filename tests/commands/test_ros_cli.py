@@ -129,6 +129,14 @@ from foldbot.ros.node_args import parse_fold_args
             "speed_scale must be in [0.05, 1]",
         ),
         (
+            ["ros-fold", "--out", "{tmp}/e", "--dry-run", "--start", "crumpled"],
+            "--dry-run plans the fold of a towel lying flat; a crumpled start is flattened first",
+        ),
+        (
+            ["ros-fold", "--out", "{tmp}/e", "--dry-run", "--fault-slip", "0.3"],
+            "--fault-slip act on a motion, and a dry run moves nothing",
+        ),
+        (
             ["ros-fold", "--out", "{tmp}/e", "--cell", "real", "--fault-slip", "0.3"],
             "--fault-slip: faults are the simulated cell's, injected on the cell ros-fold starts",
         ),
@@ -239,6 +247,10 @@ def test_bad_input_is_named(args, needle, tmp_path, capsys, no_launch):
         (
             ["ros-fold", "--out", "{tmp}/episode"],
             "--out {tmp}/episode already holds an episode; pass --overwrite to replace it",
+        ),
+        (  # a plan beside an episode's result.json would read as that episode's
+            ["ros-fold", "--dry-run", "--out", "{tmp}/episode", "--overwrite"],
+            "--out {tmp}/episode is a non-empty folder that holds no dry run (plan.json)",
         ),
         (  # a real cell's earlier fold: result.json unscored, no cloth.npz
             ["ros-fold", "--cell", "real", "--out", "{tmp}/real"],

@@ -160,7 +160,7 @@ def add_camera_pose_option(parser: argparse.ArgumentParser, help_text: str) -> N
 
 SUITE_PICKS = ("suite", "episode", "seed", "replicate", "recipe", "perception")
 """With --suite, the options that pick one of its episodes."""
-SUITE_FREE = ("video_fps", "out", "overwrite", "gui")
+SUITE_FREE = ("video_fps", "out", "overwrite", "gui", "dry_run")
 """With --suite, the options that do not change the episode's physics or plan."""
 SUITE_CAMERA = ("camera_calibration",)
 """With --suite, the camera a calibration found (--camera-pose) in place of the exact one."""
@@ -353,6 +353,14 @@ def add_episode_arguments(parser: argparse.ArgumentParser, output: bool = True) 
         "--overwrite", action="store_true", help="replace DIR if it holds an earlier episode"
     )
     parser.add_argument("--gui", action="store_true", help="open the PyBullet GUI")
+    parser.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="move nothing: look once, plan every stage (as the open loop does, a later stage "
+        "on the outline the one before predicts) and every pick-and-place's motion from where "
+        "the arm stands, and write DIR/plan.json (each action feasible or why not, its steps' "
+        "seconds at --speed-scale) and overlay_planK.png; a flat towel only",
+    )
 
 
 def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
@@ -468,6 +476,13 @@ def run(args: argparse.Namespace) -> int:
     cfg = config_from_args(args)
     if words := perceived_pose_line(cfg.camera):
         print(words)
+    if args.dry_run:
+        from foldbot.pipeline import dry_run_episode
+
+        run = dry_run_episode(cfg, args.out, overwrite=args.overwrite)
+        print(run.summary())
+        print(f"plan written to {args.out}")
+        return 0 if run.record["feasible"] else 1
     result = run_episode(cfg, args.out, overwrite=args.overwrite)
     flat = result.get("flatten")
     if flat is not None:

@@ -24,6 +24,7 @@ from pathlib import Path
 from foldbot import errors
 from foldbot.calibration.capture import calibration_pose_words
 from foldbot.commands import fold
+from foldbot.dry_run import PLAN_FILE, DryRun, check_dry_run_config, check_dry_run_output
 from foldbot.errors import ConfigError, FoldbotError, OutputError
 from foldbot.io.episode import (
     ERROR_FILE,
@@ -570,6 +571,8 @@ def run(args: argparse.Namespace) -> int:
     if real:
         check_real_cell(args, cfg, interface)
     faulty = [f"--{n.replace('_', '-')}" for n in fold.SUITE_FAULTS if getattr(cfg, n) > 0]
+    if args.dry_run:
+        check_dry_run_config(cfg.garment, cfg.start, faulty)
     if faulty and real:
         raise ConfigError(
             f"{' and '.join(faulty)}: faults are the simulated cell's, injected on the cell "
@@ -628,7 +631,10 @@ def run(args: argparse.Namespace) -> int:
             "pass --video-fps 0, or a camera rate > 0"
         )
     out = Path(args.out)
-    check_episode_output(out, args.overwrite)
+    if args.dry_run:
+        check_dry_run_output(out, args.overwrite)
+    else:
+        check_episode_output(out, args.overwrite)
     if args.record is not None:
         check_bag_target(args.record, args.overwrite)
     bag_before = None if args.record is None else file_stamp(args.record)
@@ -660,9 +666,10 @@ def run(args: argparse.Namespace) -> int:
         f"together_lead:={TOGETHER_LEAD_S if together is None else together!r}",
         f"cloth_thickness:={-1.0 if thickness is None else thickness!r}",
         f"camera_pose:={camera_pose}",
+        f"dry_run:={'true' if args.dry_run else 'false'}",
         *finger_words,
     ]
-    result_file = out / "result.json"
+    result_file = out / (PLAN_FILE if args.dry_run else "result.json")
     before = file_stamp(result_file)
     failed_before = file_stamp(failed_dir(out) / ERROR_FILE)
     with tempfile.TemporaryDirectory(prefix="foldbot-ros-") as tmp:
@@ -679,10 +686,14 @@ def run(args: argparse.Namespace) -> int:
         if failure is not None:  # the task node's own error, as `foldbot fold` would name it
             raise errors.reported_error(failure, "over ROS")
         raise FoldbotError(
-            f"the ROS fold wrote no episode (roslaunch exit code {proc.returncode}); "
-            "see the nodes' output above"
+            f"the ROS fold wrote no {'plan' if args.dry_run else 'episode'} (roslaunch exit "
+            f"code {proc.returncode}); see the nodes' output above"
         )
     result = json.loads(result_file.read_text())
+    if args.dry_run:
+        print(DryRun(result).summary().replace("dry run:", "dry run over ROS:", 1))
+        print(f"plan written to {out}")
+        return 0 if result["feasible"] else 1
     if result.get("scored", True):
         print(
             f"fold {'succeeded' if result['success'] else 'FAILED'} over ROS: "

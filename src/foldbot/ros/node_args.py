@@ -61,6 +61,9 @@ server clamps it to its smallest force, its weakest grip)."""
 MAX_GRIPPER_EFFORT_N = 1000.0
 """Largest gripper effort accepted (N): industrial parallel grippers grip with at most a few
 hundred newtons."""
+DRY_RUN_PARAM = "/foldbot/dry_run"
+"""Whether the task node only plans (foldbot.dry_run): one look, every stage and motion planned,
+nothing moved, plan.json written instead of an episode."""
 REAL_TIME_FACTOR_PARAM = "/foldbot/real_time_factor"
 """With the actions interface: simulated seconds per wall second the sim node runs at."""
 CALIBRATION_BOARD_PARAM = "/foldbot/calibration_board"

@@ -473,10 +473,11 @@ class RosCell(FoldCell):
             pubs += [self.pub_traj, self.pub_gripper, self.pub_wait, self.pub_truth]
         wait_for_listed_subscribers(pubs, "starting the fold")
 
-    def wait_for_real_cell(self) -> None:
+    def wait_for_real_cell(self, open_grippers: bool = True) -> None:
         """A real cell (no ready report): wait for every arm's drivers' action servers and the
-        first /joint_states, open the grippers and take the arms' joints from there; the first
-        frame to observe is the first the camera streams after."""
+        first /joint_states, open the grippers (unless `open_grippers` is False: a dry run
+        moves nothing) and take the arms' joints from there; the first frame to observe is the
+        first the camera streams after."""
         for driver in self.drivers:
             driver.wait_for_servers()
         self._wait_for_listeners()
@@ -485,7 +486,9 @@ class RosCell(FoldCell):
                 raise errors.FoldbotError("shut down before the cell's clock started")
             time.sleep(0.02)
         self._start = rospy.get_time()
-        for arm in range(len(self.drivers)):
+        if not open_grippers:
+            self._settle()  # the arms' joints and the first frame from now, nothing moved
+        for arm in range(len(self.drivers) if open_grippers else 0):
             self._gripper("open", arm)
 
     def _have_frame(self, key: float) -> bool:
@@ -618,6 +621,10 @@ class RosCell(FoldCell):
         )
         self._planned, self._ran, self._gripped, self._lost = steps, {}, {}, {}  # in chains
         return steps
+
+    def step_seconds(self, step: dict) -> float:
+        # The planner node's timing of the step from its own first waypoint, dwell included.
+        return float(self._time_step(step, np.array(step["path"][0], dtype=float))["times"][-1])
 
     def plan_together(
         self, actions: list[tuple[int, FoldAction | SpreadAction]]

@@ -20,6 +20,13 @@ import rospy
 from std_msgs.msg import String
 
 from foldbot import errors
+from foldbot.dry_run import (
+    DryRun,
+    check_dry_run_config,
+    check_dry_run_output,
+    dry_run,
+    write_dry_run,
+)
 from foldbot.flatten import flatten_and_score, flatten_pictured
 from foldbot.flatten_options import flatten_configs
 from foldbot.garment_loop import run_garment_fold
@@ -28,6 +35,7 @@ from foldbot.loop import FoldRecord, fold_and_picture, run_fold
 from foldbot.metrics import score_episode
 from foldbot.pipeline import (
     EpisodeConfig,
+    dry_run_faults,
     episode_result,
     first_frame_keypoint_errors,
     fold_fields,
@@ -40,6 +48,7 @@ from foldbot.ros.node_args import (
     ARM_INTERFACE_PARAM,
     CELL_PARAM,
     CLOTH_THICKNESS_PARAM,
+    DRY_RUN_PARAM,
     ERROR_FILE_PARAM,
     FINGER_JOINTS_PARAM,
     FINGER_TRAVEL_PARAM,
@@ -204,6 +213,42 @@ def run_real_task(
     return result
 
 
+def run_dry_task(
+    fold_args: str,
+    real: bool,
+    arm_interface: str = "topics",
+    cloth_thickness: float | None = None,
+    log=rospy.loginfo,
+) -> DryRun:
+    """A dry run over ROS (foldbot.dry_run): the cell's first frame perceived, every stage and
+    motion planned by the planner node, nothing moved (on a real cell the grippers are not even
+    opened); plan.json and overlay_planK.png written to the fold's --out."""
+    args, cfg = parse_fold_args(fold_args)
+    check_dry_run_config(cfg.garment, cfg.start, dry_run_faults(cfg))
+    check_dry_run_output(Path(args.out), args.overwrite)
+    cell = RosCell(
+        cfg.sim.layout,
+        None,
+        cfg.arms,
+        "actions" if real else arm_interface,
+        robot_class(cfg.robot).ARM_JOINT_NAMES,
+        cell="real" if real else "sim",
+    )
+    if real:
+        cell.wait_for_real_cell(open_grippers=False)
+        thickness = real_cell_thickness(cfg, cloth_thickness)
+    else:
+        cell.wait_ready()
+        thickness = float(
+            cell.mesh.take(lambda m: True, "cloth mesh from the sim node")["thickness"]
+        )
+    run = dry_run(loop_config(cfg, thickness), cell, cfg.motion.speed_scale, log)
+    run.record["cell"] = "real" if real else "sim"
+    run.record["recipe"] = cfg.recipe
+    write_dry_run(run, Path(args.out), args.overwrite)
+    return run
+
+
 def run_task(
     fold_args: str,
     log=rospy.loginfo,
@@ -350,6 +395,17 @@ def main(argv: list[str] | None = None) -> int:
         "gripper_effort": float(rospy.get_param(GRIPPER_EFFORT_PARAM, 0.0)),
     }
     try:
+        if rospy.get_param(DRY_RUN_PARAM, False):
+            thickness = float(rospy.get_param(CLOTH_THICKNESS_PARAM, -1.0))
+            run = run_dry_task(
+                fold_args,
+                rospy.get_param(CELL_PARAM, "sim") == "real",
+                rospy.get_param(ARM_INTERFACE_PARAM, "topics"),
+                None if thickness < 0 else thickness,
+            )
+            print(run.summary(), flush=True)
+            rospy.signal_shutdown("dry run done")
+            return 0
         if rospy.get_param(CELL_PARAM, "sim") == "real":
             thickness = float(rospy.get_param(CLOTH_THICKNESS_PARAM, -1.0))
             result = run_real_task(
