@@ -742,6 +742,22 @@ def make_estimator(cfg: EpisodeConfig, oracle: GroundTruthOracle):
     return OracleEstimator(oracle) if cfg.garment == "towel" else GarmentOracleEstimator(oracle)
 
 
+def episode_cell(cfg: EpisodeConfig, parts: SimCellParts, recorder=None) -> SimCell:
+    """The in-process cell on an episode's built parts (build_sim_cell): its estimator
+    (make_estimator), motion and park pose; `recorder` films it where given."""
+    return SimCell(
+        parts.world,
+        parts.robot,
+        parts.executor,
+        parts.camera,
+        make_estimator(cfg, parts.oracle),
+        cfg.motion,
+        recorder,
+        park=cfg.park,
+        more_executors=parts.more_executors,
+    )
+
+
 def crumple_start(cfg: EpisodeConfig, world: SimWorld, cloth: SoftCloth) -> None:
     """Crumple the settled towel with the episode seed's own draw (the same in every process
     that runs the episode: `foldbot fold`, the ROS sim node)."""
@@ -789,17 +805,7 @@ def dry_run_episode(
         log(f"settling the cloth ({parts.mesh.vertices.shape[0]} vertices)…")
         settle(world, parts.cloth)
         executors = [parts.executor, *parts.more_executors]
-        cell = SimCell(
-            world,
-            parts.robot,
-            parts.executor,
-            parts.camera,
-            make_estimator(cfg, parts.oracle),
-            cfg.motion,
-            None,
-            park=cfg.park,
-            more_executors=parts.more_executors,
-        )
+        cell = episode_cell(cfg, parts)
         q0 = [ex.robot.joint_positions() for ex in executors]
         run = dry_run(loop_config(cfg, parts.cloth.thickness), cell, cfg.motion.speed_scale, log)
         moved = max(
@@ -828,11 +834,8 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
     with writer, SimWorld(cfg.sim) as world, contextlib.ExitStack() as stack:
         parts = build_sim_cell(cfg, world)
         stack.callback(parts.model_world.close)
-        robot, cloth, mesh, camera, oracle = (
-            parts.robot, parts.cloth, parts.mesh, parts.camera, parts.oracle
-        )  # fmt: skip
-        center, yaw, spec, executor = parts.center, parts.yaw, parts.spec, parts.executor
-        estimator = make_estimator(cfg, oracle)
+        cloth, mesh, camera, oracle = parts.cloth, parts.mesh, parts.camera, parts.oracle
+        center, yaw, spec = parts.center, parts.yaw, parts.spec
         recorder = None
         if cfg.video_fps > 0:
             recorder = _VideoRecorder(camera, writer, cfg.video_fps)
@@ -841,17 +844,7 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
         settle(world, cloth)
         if planned_recipe(cfg) != cfg.recipe:
             log(f"recipe {cfg.recipe}: folded in {planned_recipe(cfg)}'s stage order")
-        cell = SimCell(
-            world,
-            robot,
-            executor,
-            camera,
-            estimator,
-            cfg.motion,
-            recorder,
-            park=cfg.park,
-            more_executors=parts.more_executors,
-        )
+        cell = episode_cell(cfg, parts, recorder)
         cell.slip_fault = SlipFault(cfg.fault_slip)
         flattened = None
         if cfg.start == "crumpled":

@@ -41,7 +41,7 @@ from foldbot.pipeline import (
     SimCell,
     build_sim_cell,
     crumple_start,
-    make_estimator,
+    episode_cell,
     true_start_keypoints,
 )
 from foldbot.planning.actions import FoldAction
@@ -316,16 +316,7 @@ def _serve(conn: Connection) -> None:
             parts = build_sim_cell(episode, world)
             try:
                 settle(world, parts.cloth)
-                cell = SimCell(
-                    world,
-                    parts.robot,
-                    parts.executor,
-                    parts.camera,
-                    make_estimator(episode, parts.oracle),
-                    episode.motion,
-                    park=episode.park,
-                    more_executors=parts.more_executors,
-                )
+                cell = episode_cell(episode, parts)
                 size = (parts.spec.width, parts.spec.height)  # the item, as the suites tell it
                 if episode.start == "crumpled":
                     crumple_start(episode, world, parts.cloth)
