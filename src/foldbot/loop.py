@@ -260,10 +260,15 @@ def stage_crease_room(cfg: LoopConfig, layer_rise: float | None) -> float:
     return min(seen, MAX_CLOTH_CREASE_ROOM)
 
 
-def require_in_view(state: ClothState) -> None:
-    """Refuse to plan from a cloth the camera sees only in part (its mask touches the border)."""
+def cut_by_image_edge(state: ClothState) -> bool:
+    """Whether the camera sees the cloth only in part: its mask touches the image's border."""
     m = state.mask
-    if m.size and (m[0].any() or m[-1].any() or m[:, 0].any() or m[:, -1].any()):
+    return bool(m.size and (m[0].any() or m[-1].any() or m[:, 0].any() or m[:, -1].any()))
+
+
+def require_in_view(state: ClothState) -> None:
+    """Refuse to plan from a cloth the camera sees only in part (cut_by_image_edge)."""
+    if cut_by_image_edge(state):
         raise FoldbotError(
             "the cloth extends beyond the camera's view (its mask touches the image border), "
             "so its corners cannot be seen; use a smaller towel or move the camera"

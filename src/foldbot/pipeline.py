@@ -797,7 +797,7 @@ def dry_run_episode(
     seen once with the arm where it starts, every stage and motion planned, nothing moved;
     plan.json and overlay_planK.png written into `out_dir`. The arm's joints are checked not
     to have moved (`arm_moved_rad` in plan.json)."""
-    check_dry_run_config(cfg.garment, cfg.start, dry_run_faults(cfg))
+    check_dry_run_config(cfg.garment, cfg.start, injected_faults(cfg))
     check_dry_run_output(out_dir, overwrite)
     with SimWorld(cfg.sim) as world, contextlib.ExitStack() as stack:
         parts = build_sim_cell(cfg, world)
@@ -818,13 +818,13 @@ def dry_run_episode(
     return run
 
 
-def dry_run_faults(cfg: EpisodeConfig) -> list[str]:
-    """The injected faults `cfg` asks for, as flags (a dry run refuses them)."""
-    return [
-        f"--{name.replace('_', '-')}"
-        for name in ("fault_grasp_offset", "fault_slip")
-        if getattr(cfg, name) > 0
-    ]
+FAULT_FIELDS = ("fault_grasp_offset", "fault_slip")
+"""EpisodeConfig's injected faults (0: none)."""
+
+
+def injected_faults(cfg: EpisodeConfig) -> list[str]:
+    """The faults `cfg` injects, as their flags (--fault-slip, …)."""
+    return [f"--{name.replace('_', '-')}" for name in FAULT_FIELDS if getattr(cfg, name) > 0]
 
 
 def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=print) -> dict:

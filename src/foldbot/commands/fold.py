@@ -17,6 +17,7 @@ from foldbot.io.staging import output_path
 from foldbot.loop_options import loop_options_from_args, loop_options_help
 from foldbot.pipeline import (
     ARM_COUNTS,
+    FAULT_FIELDS,
     GARMENT_YAW,
     GARMENTS,
     PARK_POSES,
@@ -164,7 +165,7 @@ SUITE_FREE = ("video_fps", "out", "overwrite", "gui", "dry_run")
 """With --suite, the options that do not change the episode's physics or plan."""
 SUITE_CAMERA = ("camera_calibration",)
 """With --suite, the camera a calibration found (--camera-pose) in place of the exact one."""
-SUITE_FAULTS = ("fault_grasp_offset", "fault_slip")
+SUITE_FAULTS = FAULT_FIELDS
 """With --suite, the faults injected into its episode (a trial of the loop's recovery)."""
 SUITE_OVER = ("loop_option", "cloth", "flatten_option")
 """With --suite, the options set over the suite's own tables, as `foldbot bench --suite` sets

@@ -34,6 +34,7 @@ from foldbot.io.episode import (
     is_unscored_episode_dir,
 )
 from foldbot.io.staging import output_path
+from foldbot.pipeline import injected_faults
 from foldbot.ros.node_args import (
     ARM_INTERFACES,
     CELLS,
@@ -570,7 +571,7 @@ def run(args: argparse.Namespace) -> int:
     interface = args.arm_interface or ("actions" if real else "topics")
     if real:
         check_real_cell(args, cfg, interface)
-    faulty = [f"--{n.replace('_', '-')}" for n in fold.SUITE_FAULTS if getattr(cfg, n) > 0]
+    faulty = injected_faults(cfg)
     if args.dry_run:
         check_dry_run_config(cfg.garment, cfg.start, faulty)
     if faulty and real:

@@ -31,6 +31,7 @@ from tf2_msgs.msg import TFMessage
 from foldbot.errors import FoldbotError
 from foldbot.garments import GARMENTS
 from foldbot.layout_check import CameraPlacement, check_layout
+from foldbot.loop import cut_by_image_edge
 from foldbot.perception.fallback import vision_estimator
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState
@@ -236,8 +237,7 @@ def check_cloth(obs: Observation, layout: CellLayout, garment: str) -> tuple[Che
     state = vision_estimator(garment).estimate(obs)
     if not state.detected:
         return Check(name, False, f"not found ({state.reason}): lay it flat on the table"), state
-    m = state.mask
-    if m[0].any() or m[-1].any() or m[:, 0].any() or m[:, -1].any():
+    if cut_by_image_edge(state):
         detail = "found, but cut by the image's edge: its corners cannot all be seen"
         return Check(name, False, detail), state
     x0, x1, y0, y1 = layout.workspace_bounds

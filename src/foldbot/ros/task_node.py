@@ -35,10 +35,10 @@ from foldbot.loop import FoldRecord, fold_and_picture, run_fold
 from foldbot.metrics import score_episode
 from foldbot.pipeline import (
     EpisodeConfig,
-    dry_run_faults,
     episode_result,
     first_frame_keypoint_errors,
     fold_fields,
+    injected_faults,
     loop_config,
     seeded_garment,
     seeded_pose,
@@ -224,7 +224,7 @@ def run_dry_task(
     motion planned by the planner node, nothing moved (on a real cell the grippers are not even
     opened); plan.json and overlay_planK.png written to the fold's --out."""
     args, cfg = parse_fold_args(fold_args)
-    check_dry_run_config(cfg.garment, cfg.start, dry_run_faults(cfg))
+    check_dry_run_config(cfg.garment, cfg.start, injected_faults(cfg))
     check_dry_run_output(Path(args.out), args.overwrite)
     cell = RosCell(
         cfg.sim.layout,
