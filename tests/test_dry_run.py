@@ -4,11 +4,19 @@ cannot; its folder written whole, an earlier dry run replaced only when asked.""
 
 from __future__ import annotations
 
+import contextlib
 import json
 
+import numpy as np
 import pytest
 
 from foldbot.cli import main
+from foldbot.dry_run import plan_pair
+from foldbot.garments.towel import TowelSpec
+from foldbot.pipeline import EpisodeConfig, build_sim_cell, episode_cell
+from foldbot.planning.actions import FoldAction
+from foldbot.sim.cloth import settle
+from foldbot.sim.world import SimWorld
 
 SMALL = ["--resolution", "9", "--video-fps", "0"]
 
@@ -26,7 +34,13 @@ def test_a_dry_run_plans_every_stage_and_moves_nothing(tmp_path, capsys):
     assert plan["dry_run"] and plan["feasible"] and plan["recipe"] == "quarter"
     assert plan["planned_recipe"] == "quarter_y"  # the stage order the fold would take
     assert [s["stage"] for s in plan["stages"]] == [1, 2]
-    assert [a["stage"] for a in plan["actions"]] == [1, 1, 2, 2]
+    # Carried as the fold carries it: the folded stack by its edge's middle, one action, the
+    # jaws closing at the table (4 mm up) under both layers, 1 cm inside the edge.
+    assert [a["stage"] for a in plan["actions"]] == [1, 1, 2]
+    assert [s["by_edge_middle"] for s in plan["stages"]] == [False, True]
+    stack = plan["actions"][2]
+    assert stack["label"].startswith("middle_") and stack["layers"] == 2
+    assert stack["grasp"][2] == pytest.approx(0.754, abs=1e-6)
     assert plan["arm_moved_rad"] == 0.0  # ground truth: the simulated arm stood still
     for action in plan["actions"]:
         names = [s["name"] for s in action["steps"]]
@@ -36,6 +50,44 @@ def test_a_dry_run_plans_every_stage_and_moves_nothing(tmp_path, capsys):
         sum(a["motion_seconds"] for a in plan["actions"])
     )
     assert "every motion feasible" in said and f"plan written to {out}" in said
+
+
+def test_two_arms_are_planned_carrying_a_stages_corners_together(tmp_path, capsys):
+    # As the two-arm fold carries quarter: stage 1's corners together, one arm each, coming
+    # down pair_descent onto them; the stack by its edge's middle, one arm.
+    out = tmp_path / "plan"
+    args = ["fold", "--dry-run", "--arms", "2", "--recipe", "quarter", *SMALL]
+    assert main([*args, "--out", str(out)]) == 0
+    plan = json.loads((out / "plan.json").read_text())
+    assert plan["arms"] == 2 and plan["feasible"] and plan["arm_moved_rad"] == 0.0
+    assert [s["together"] for s in plan["stages"]] == [True, False]
+    first, second, stack = plan["actions"]
+    assert first["together"] and second["together"] and "together" not in stack
+    assert {first["arm"], second["arm"]} == {0, 1}
+    assert first["descent_m"] == second["descent_m"] == 0.04 and stack["descent_m"] is None
+    # The pair's steps run on one clock: each as long as the longer arm's.
+    steps = list(zip(first["steps"], second["steps"], strict=True))
+    assert [a["name"] for a, _ in steps] == [b["name"] for _, b in steps]
+    assert first["pair_seconds"] == pytest.approx(
+        sum(max(a["seconds"], b["seconds"]) for a, b in steps)
+    )
+    assert "pair_seconds" not in second
+    assert plan["motion_seconds"] == pytest.approx(first["pair_seconds"] + stack["motion_seconds"])
+    assert "3 pick-and-place(s) (1 pair(s) by two arms together)" in capsys.readouterr().out
+
+
+def test_a_loop_option_changes_what_the_dry_run_carries(tmp_path):
+    # stack_edge_carry=false: the stack's two corners carried together by the two arms, each
+    # by its top layer (recipes._GRASP_LAYERS), not at the table.
+    out = tmp_path / "plan"
+    args = ["fold", "--dry-run", "--arms", "2", "--recipe", "quarter", *SMALL]
+    args += ["--loop-option", "stack_edge_carry=false"]
+    assert main([*args, "--out", str(out)]) == 0
+    plan = json.loads((out / "plan.json").read_text())
+    assert [a["stage"] for a in plan["actions"]] == [1, 1, 2, 2]
+    assert [s["by_edge_middle"] for s in plan["stages"]] == [False, False]
+    for corner in plan["actions"][2:]:
+        assert corner["together"] and corner["layers"] == 1 and corner["grasp"][2] > 0.756
 
 
 def test_a_slowed_arm_is_planned_slower(tmp_path):
@@ -96,3 +148,36 @@ def test_a_dry_run_does_not_write_beside_an_episode(tmp_path, capsys):
         assert main(["fold", "--dry-run", *SMALL, "--out", str(out), *overwrite]) == 2
         assert "holds no dry run (plan.json)" in capsys.readouterr().err
     assert sorted(p.name for p in out.iterdir()) == ["result.json"]
+
+
+def test_a_pair_is_planned_one_arm_at_a_time_where_the_arms_would_meet(tmp_path):
+    """plan_pair as carry_pair carries: arms that would meet either way round fall back to one
+    arm at a time (each entry says why); a pair one arm cannot reach is infeasible whole."""
+    cfg = EpisodeConfig(seed=0, towel=TowelSpec(0.24, 0.24, 8), video_fps=0.0, arms=2)
+    with SimWorld(cfg.sim) as world, contextlib.ExitStack() as stack:
+        parts = build_sim_cell(cfg, world)
+        stack.callback(parts.model_world.close)
+        settle(world, parts.cloth)
+        cell = episode_cell(cfg, parts)
+        cell.park()
+        z, line = 0.76, (0.36, -0.04, 1.0, 0.0)
+
+        def pair(xs: tuple[float, float], y: float) -> tuple[FoldAction, ...]:
+            return tuple(
+                FoldAction(np.array([x, y, z]), np.array([x, 0.0, z]), line, label=f"x{x:.2f}")
+                for x in xs
+            )
+
+        said: list[str] = []
+        close = pair((0.36, 0.50), -0.08)  # tests/test_carry.py: the arms meet either way
+        entries = plan_pair(cell, 1, close, close, said.append)
+        assert [e["label"] for e in entries] == ["x0.36", "x0.50"]
+        for entry in entries:
+            assert entry["feasible"] and "together" not in entry and "pair_seconds" not in entry
+            assert "would" in entry["arms_would_meet"]
+        assert "the arms would meet" in said[0] and "one arm at a time" in said[0]
+        far = pair((0.45, 1.3), 0.0)  # 1.3 m out: beyond a UR5's reach
+        entries = plan_pair(cell, 2, far, far, said.append)
+        assert [(e["feasible"], e["together"]) for e in entries] == [(False, True)] * 2
+        assert entries[0]["reason"] == entries[1]["reason"] and entries[0]["segment"]
+        assert "NOT feasible together" in said[-1]

@@ -1,12 +1,14 @@
 """A dry run: what a towel fold would do, seen and planned from one camera frame, with nothing
 moved. Every stage is planned as the open loop plans it (a later stage on the outline the one
-before predicts, one layer up) and every pick-and-place's motion from where the arm stands,
-each waypoint's IK and table clearance checked, each step timed at the cell's speed scale: the
-plan, its pictures and its motion time, to look at before a first run on a real arm
-(`foldbot fold --dry-run`, `foldbot ros-fold --dry-run`)."""
+before predicts, one layer up) and carried as the fold carries it (two arms together, a folded
+stack by its edge's middle), every pick-and-place's motion planned from where the arm stands,
+each waypoint's IK and table clearance checked (a pair's arms also kept clear of each other),
+each step timed at the cell's speed scale: the plan, its pictures and its motion time, to look
+at before a first run on a real arm (`foldbot fold --dry-run`, `foldbot ros-fold --dry-run`)."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import shutil
@@ -18,10 +20,26 @@ from typing import Any
 import imageio.v3 as iio
 import numpy as np
 
+from foldbot.carry import assign_arms
 from foldbot.cell import FoldCell
-from foldbot.errors import ConfigError, OutputError, UnreachableTargetError, failed_segment
+from foldbot.errors import (
+    ArmsWouldCollideError,
+    ConfigError,
+    FoldbotError,
+    OutputError,
+    UnreachableTargetError,
+    failed_segment,
+)
 from foldbot.io.staging import prepare_output
-from foldbot.loop import LoopConfig, plan_from_first_view, plan_overlay
+from foldbot.loop import (
+    LoopConfig,
+    StageCarries,
+    first_aim,
+    plan_from_first_view,
+    plan_overlay,
+    stage_carries,
+)
+from foldbot.planning.actions import FoldAction
 
 PLAN_FILE = "plan.json"
 """What a dry run writes instead of result.json (DryRun.record)."""
@@ -39,9 +57,11 @@ class DryRun:
         r = self.record
         actions = r["actions"]
         bad = [f"stage {a['stage']} {a['label']}" for a in actions if not a["feasible"]]
+        pairs = sum(1 for a in actions if a.get("together")) // 2
+        together = f" ({pairs} pair(s) by two arms together)" if pairs else ""
         head = (
-            f"dry run: {len(r['stages'])} stage(s), {len(actions)} pick-and-place(s) planned "
-            "from one frame, nothing moved; "
+            f"dry run: {len(r['stages'])} stage(s), {len(actions)} pick-and-place(s){together} "
+            "planned from one frame, nothing moved; "
         )
         if bad:
             return head + f"NOT feasible: {', '.join(bad)} ({PLAN_FILE} says why)"
@@ -56,54 +76,149 @@ def step_name(step: Any) -> str:
     return str(step["name"]) if isinstance(step, dict) else str(step.segment.name)
 
 
+def action_entry(stage: int, action: FoldAction) -> dict[str, Any]:
+    """plan.json's start of an action's entry: its stage, label, grasp, place, layers and
+    descent (m: how far the jaws come down onto the grasp; None: the motion's default)."""
+    return {
+        "stage": stage,
+        "label": action.label,
+        "grasp": np.asarray(action.grasp, dtype=float).tolist(),
+        "place": np.asarray(action.place, dtype=float).tolist(),
+        "layers": action.layers,
+        "descent_m": action.descent,
+    }
+
+
+def timed_steps(cell: FoldCell, arm: int, steps: list[Any]) -> list[dict[str, Any]]:
+    """Each planned step of `arm`'s motion, named and timed (s) at the cell's speed scale."""
+    previous = cell.active_arm
+    cell.use_arm(arm)
+    try:
+        return [{"name": step_name(s), "seconds": cell.step_seconds(s)} for s in steps]
+    finally:
+        cell.use_arm(previous)
+
+
+def infeasible(entry: dict[str, Any], exc: FoldbotError) -> dict[str, Any]:
+    """`entry` marked infeasible, with the reason and the segment the motion failed in."""
+    return entry | {"feasible": False, "reason": str(exc), "segment": failed_segment(exc)}
+
+
+def plan_single(
+    cell: FoldCell, stage: int, action: FoldAction, log: Callable[[str], None]
+) -> dict[str, Any]:
+    """One arm's pick-and-place (the arm on its grasp's side) planned from where it stands."""
+    cell.use_arm(cell.arm_for(action.grasp))
+    entry = action_entry(stage, action)
+    try:
+        steps = cell.plan_action(action)
+    except UnreachableTargetError as exc:
+        log(f"dry run: stage {stage}, {action.label}: NOT feasible: {exc}")
+        return infeasible(entry, exc)
+    timed = timed_steps(cell, cell.active_arm, steps)
+    seconds = float(sum(t["seconds"] for t in timed))
+    log(f"dry run: stage {stage}, {action.label}: {seconds:.1f} s of motion")
+    entry |= {"feasible": True, "arm": cell.active_arm, "steps": timed, "motion_seconds": seconds}
+    return entry
+
+
+def plan_pair(
+    cell: FoldCell,
+    stage: int,
+    actions: tuple[FoldAction, ...],
+    singles: tuple[FoldAction, ...],
+    log: Callable[[str], None],
+) -> list[dict[str, Any]]:
+    """Two pick-and-places planned as a two-arm cell carries them together (carry_pair): one
+    arm each on its grasp's side, the other way round where their motions would meet, and one
+    arm at a time (`singles`, as the loop falls back to them) where they would meet either way.
+    Each entry holds its own arm's steps; `pair_seconds`, the pair's time on one clock (each
+    step as long as the longer arm's), is written on the first entry only."""
+    entries = [action_entry(stage, a) | {"together": True} for a in actions]
+    arms = assign_arms(cell.arm_for, actions)
+    met: ArmsWouldCollideError | None = None
+    for order in (arms, arms[::-1]):
+        try:
+            steps = cell.plan_together(list(zip(order, actions, strict=True)))
+        except ArmsWouldCollideError as exc:
+            met = exc
+            continue
+        except UnreachableTargetError as exc:
+            log(f"dry run: stage {stage}, {' and '.join(a.label for a in actions)}: NOT "
+                f"feasible together: {exc}")  # fmt: skip
+            return [infeasible(e, exc) for e in entries]
+        timed = [timed_steps(cell, arm, s) for arm, s in zip(order, steps, strict=True)]
+        pair_seconds = float(sum(max(t[k]["seconds"] for t in timed) for k in range(len(timed[0]))))
+        for entry, arm, t in zip(entries, order, timed, strict=True):
+            entry |= {
+                "feasible": True,
+                "arm": arm,
+                "steps": t,
+                "motion_seconds": float(sum(x["seconds"] for x in t)),
+            }
+        entries[0]["pair_seconds"] = pair_seconds
+        labels = " and ".join(a.label for a in actions)
+        log(f"dry run: stage {stage}, {labels} together: {pair_seconds:.1f} s of motion")
+        return entries
+    log(f"dry run: stage {stage}: the arms would meet ({met}); one arm at a time")
+    return [plan_single(cell, stage, a, log) | {"arms_would_meet": str(met)} for a in singles]
+
+
+def carried_seconds(actions: list[dict[str, Any]]) -> float:
+    """The arms' motion time over a dry run's entries: a pair's once (its pair_seconds)."""
+    total = 0.0
+    for a in actions:
+        if a.get("together"):
+            total += a.get("pair_seconds", 0.0)
+        else:
+            total += a.get("motion_seconds", 0.0)
+    return float(total)
+
+
 def dry_run(
     cfg: LoopConfig, cell: FoldCell, speed_scale: float, log: Callable[[str], None] = print
 ) -> DryRun:
     """Observe once (the arm where it stands: it is not parked), plan every stage and every
-    action's motion, move nothing. An action no arm can do is recorded as infeasible, with the
-    reason and the segment it failed in, and the others are planned still."""
+    carry's motion, move nothing. Each stage is carried as the fold would carry it
+    (loop.stage_carries: a two-arm cell's corners together, a folded stack by its edge's
+    middle; the open loop corner after corner), each carry aimed as the loop's first try aims
+    it where no newer frame is seen (loop.first_aim). An action no arm can do is recorded as
+    infeasible, with the reason and the segment it failed in, and the others are planned still."""
     state, obs = cell.observe()
-    plans = plan_from_first_view(cfg, cell, state)
     stages, actions, overlays = [], [], []
-    for k, plan in enumerate(plans, start=1):
-        stages.append({"stage": k, "fold_line": list(map(float, plan.fold_lines[0]))})
-        overlays.append(plan_overlay(obs, state, plan, cell.table_height))
-        for action in plan.actions:
-            cell.use_arm(cell.arm_for(action.grasp))
-            entry: dict[str, Any] = {
+    for k, (plan, corners) in enumerate(plan_from_first_view(cfg, cell, state), start=1):
+        if cfg.closed_loop:
+            carries = stage_carries(cfg, cell, k - 1, plan)
+        else:
+            carries = StageCarries(tuple(plan.actions), False, None)
+        centre = np.mean([np.asarray(c, dtype=float) for c in corners.values()], axis=0)
+        aimed = tuple(first_aim(cfg, state, a, centre) for a in carries.actions)
+        stages.append(
+            {
                 "stage": k,
-                "label": action.label,
-                "grasp": np.asarray(action.grasp, dtype=float).tolist(),
-                "place": np.asarray(action.place, dtype=float).tolist(),
-                "layers": action.layers,
+                "fold_line": list(map(float, plan.fold_lines[0])),
+                "together": carries.together,
+                "by_edge_middle": carries.edge_of is not None,
             }
-            try:
-                steps = cell.plan_action(action)
-            except UnreachableTargetError as exc:
-                entry |= {"feasible": False, "reason": str(exc), "segment": failed_segment(exc)}
-                log(f"dry run: stage {k}, {action.label}: NOT feasible: {exc}")
-            else:
-                seconds = [cell.step_seconds(s) for s in steps]
-                entry |= {
-                    "feasible": True,
-                    "arm": cell.active_arm,
-                    "steps": [
-                        {"name": step_name(s), "seconds": t}
-                        for s, t in zip(steps, seconds, strict=True)
-                    ],
-                    "motion_seconds": float(sum(seconds)),
-                }
-                log(f"dry run: stage {k}, {action.label}: {sum(seconds):.1f} s of motion")
-            actions.append(entry)
+        )
+        overlays.append(plan_overlay(obs, state, plan, cell.table_height, aimed))
+        if carries.together:
+            paired = aimed
+            if cfg.pair_descent is not None:
+                paired = tuple(dataclasses.replace(a, descent=cfg.pair_descent) for a in aimed)
+            actions.extend(plan_pair(cell, k, paired, aimed, log))
+        else:
+            actions.extend(plan_single(cell, k, a, log) for a in aimed)
     record = {
         "dry_run": True,
         "planned_recipe": cfg.recipe,
         "arms": cell.arms,
+        "closed_loop": cfg.closed_loop,
         "speed_scale": speed_scale,
         "stages": stages,
         "actions": actions,
         "feasible": all(a["feasible"] for a in actions),
-        "motion_seconds": float(sum(a.get("motion_seconds", 0.0) for a in actions)),
+        "motion_seconds": carried_seconds(actions),
         "perceived_keypoints": {
             label: np.asarray(xyz, dtype=float).tolist()
             for label, (xyz, _conf) in state.keypoints.items()

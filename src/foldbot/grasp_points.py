@@ -306,7 +306,17 @@ def inset_grasp(
     centre = (
         outline[:, :2].mean(axis=0) if len(outline) >= 3 else state.keypoint_array()[:, :2].mean(0)
     )
-    inward = centre - corner[:2]
+    return inset_toward(action, corner, centre, inset)
+
+
+def inset_toward(
+    action: FoldAction, corner: np.ndarray, centre: np.ndarray, inset: float
+) -> FoldAction:
+    """`action` with its grasp moved `inset` (m) from `corner` toward `centre` (x, y; see
+    shifted_grasp); unchanged where `corner` lies within 2 × `inset` of it."""
+    if inset <= 0:
+        return action
+    inward = np.asarray(centre, dtype=float)[:2] - np.asarray(corner, dtype=float)[:2]
     norm = float(np.linalg.norm(inward))
     if norm < 2 * inset:
         return action

@@ -35,6 +35,7 @@ from foldbot.errors import FoldbotError
 from foldbot.grasp_points import (
     finish_action,
     inset_grasp,
+    inset_toward,
     nearest_keypoint,
     outline_corners,
     place_is_corner,
@@ -315,17 +316,8 @@ def run_fold(
                 rec.initial_overlay = plan_overlay(obs, state, plan, cell.table_height)
                 rec.initial_state = state
             corner_places = outline_corners(np.asarray(predicted, dtype=float).reshape(-1, 3))
-            # A folded stack goes over by its edge's middle, one arm, in either cell (stack_edge).
-            edge_of = stack_edge(cfg, stage, plan.actions)
-            together = (
-                cell.arms > 1
-                and edge_of is None
-                and len(plan.actions) == 2
-                and arms_apart(plan.actions)
-            )
-            carried = (
-                plan.actions if edge_of is None else (edge_middle(edge_of, STACK_EDGE_LAYERS),)
-            )
+            carries = stage_carries(cfg, cell, stage, plan)
+            carried, together, edge_of = carries.actions, carries.together, carries.edge_of
             if stage > 0 and not planned_again:
                 rec.plan_overlays.append(plan_overlay(obs, state, plan, cell.table_height, carried))
             slipped_first = False
@@ -433,6 +425,45 @@ def run_fold(
             seen_gap = f"; in depth, the laid layer left a gap {depth_mm:.0f} mm deep"
         log(f"stage {stage + 1} done: mask IoU with the predicted shape {iou:.2f}{seen_gap}")
     return finish_fold(cell, rec)
+
+
+@dataclass(frozen=True)
+class StageCarries:
+    """What the closed loop carries in a stage, decided from its plan before anything moves: the
+    actions (the plan's corners, or one by a folded stack's edge middle), whether two arms carry
+    them together, and the two corners an edge middle is aimed between (None: corners)."""
+
+    actions: tuple[FoldAction, ...]
+    together: bool
+    edge_of: tuple[FoldAction, FoldAction] | None
+
+
+def stage_carries(cfg: LoopConfig, cell: FoldCell, stage: int, plan: FoldPlan) -> StageCarries:
+    """How the closed loop carries stage `stage`'s `plan` (the fold and the dry run alike): a
+    folded stack by its edge's middle, one arm, in either cell (stack_edge); else a two-arm cell
+    carries a stage's two corners together where two grippers fit at both ends (arms_apart);
+    everything else one arm at a time."""
+    edge_of = stack_edge(cfg, stage, plan.actions)
+    if edge_of is not None:
+        return StageCarries((edge_middle(edge_of, STACK_EDGE_LAYERS),), False, edge_of)
+    together = cell.arms > 1 and len(plan.actions) == 2 and arms_apart(plan.actions)
+    return StageCarries(tuple(plan.actions), together, None)
+
+
+def first_aim(
+    cfg: LoopConfig, state: ClothState, action: FoldAction, centre: np.ndarray
+) -> FoldAction:
+    """`action` as the closed loop's first try aims it where no newer frame shows its corner (a
+    dry run's later stages): a stack's grasp (more than one layer) at the table under every
+    layer, `cfg.stack_inset` toward `centre` (x, y: the stack's predicted middle), as aim_grasp
+    has it; a single layer's as planned."""
+    if action.layers <= 1:
+        return action
+    corner = np.asarray(action.grasp, dtype=float)
+    lowered = dataclasses.replace(
+        action, grasp=stack_grasp_point(state, corner, cfg.stack_grasp_height)
+    )
+    return inset_toward(lowered, corner, np.asarray(centre, dtype=float), cfg.stack_inset)
 
 
 def stack_edge(
@@ -548,10 +579,11 @@ def finish_fold(cell: FoldCell, rec: FoldRecord) -> FoldRecord:
 
 def plan_from_first_view(
     cfg: LoopConfig, cell: FoldCell, state: ClothState, rec: FoldRecord | None = None
-) -> list[FoldPlan]:
-    """Every stage's plan from one observation's state, as the open loop plans them: a later
-    stage on the corners of the outline the plan before predicts, one layer higher. Each stage
-    planned is entered in `rec` where given (its fold line), also when a later one fails."""
+) -> list[tuple[FoldPlan, dict[str, np.ndarray]]]:
+    """Every stage's plan from one observation's state, as the open loop plans them, each with
+    the corners it was planned on (label → x, y, z): a later stage on the corners of the outline
+    the plan before predicts, one layer higher. Each stage planned is entered in `rec` where
+    given (its fold line), also when a later one fails."""
     if not state.detected:
         raise FoldbotError(f"no cloth found before fold stage 1: {state.reason}")
     if cfg.require_full_view:
@@ -571,7 +603,7 @@ def plan_from_first_view(
             labels = label_corners(outline)
             corners = {n: outline[i] + [0.0, 0.0, cfg.layer_thickness] for n, i in labels.items()}
         plan, _predicted = cell.plan_stage(cfg.recipe, stage, corners, cfg.place_lift, room)
-        plans.append(plan)
+        plans.append((plan, corners))
         if rec is not None:
             entry = {"stage": stage, "fold_line": list(plan.fold_lines[0]), "verified": None}
             rec.stages.append(entry)
@@ -590,9 +622,8 @@ def run_open_loop(
     """Open loop (the comparison baseline): plan every stage from the first observation — a later
     stage on the corners of the outline the plan predicts, one layer higher — then execute all
     actions back to back: no re-observation, regrasp, retry or stage verification."""
-    plans = plan_from_first_view(cfg, cell, state, rec)
-    first = plans[0]
-    rec.initial_overlay = plan_overlay(obs, state, first, cell.table_height)
+    plans = [plan for plan, _corners in plan_from_first_view(cfg, cell, state, rec)]
+    rec.initial_overlay = plan_overlay(obs, state, plans[0], cell.table_height)
     rec.initial_state = state
     for plan in plans:
         for action in plan.actions:

@@ -11,6 +11,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 from ros_helpers import free_port, requires_ros, start_cell, stop_cell, wait_for_master
 
 pytestmark = requires_ros
@@ -31,28 +32,30 @@ def same_plan(a: dict, b: dict) -> None:
     for s, t in zip(a["stages"], b["stages"], strict=True):
         np.testing.assert_allclose(s["fold_line"], t["fold_line"], atol=1e-9)
     for x, y in zip(a["actions"], b["actions"], strict=True):
-        assert (x["label"], x["feasible"]) == (y["label"], y["feasible"])
+        keys = ("label", "feasible", "arm", "together", "layers", "descent_m")
+        assert [x.get(k) for k in keys] == [y.get(k) for k in keys]
         np.testing.assert_allclose(x["grasp"], y["grasp"], atol=1e-9)
         np.testing.assert_allclose(x["place"], y["place"], atol=1e-9)
         assert [s["name"] for s in x["steps"]] == [s["name"] for s in y["steps"]]
         np.testing.assert_allclose(
             [s["seconds"] for s in x["steps"]], [s["seconds"] for s in y["steps"]], atol=1e-6
         )
+        assert ("pair_seconds" in x) == ("pair_seconds" in y)
+        if "pair_seconds" in x:
+            assert x["pair_seconds"] == pytest.approx(y["pair_seconds"], abs=1e-6)
 
 
 def test_a_dry_run_over_ros_plans_what_the_in_process_one_plans(tmp_path):
+    # Two arms' quarter: stage 1's corners a pair the planner node plans together, the stack
+    # one arm's carry by its edge's middle.
+    quarter = ["--dry-run", "--arms", "2", "--recipe", "quarter", *SMALL]
     here = tmp_path / "in_process"
-    assert (
-        foldbot("fold", "--dry-run", "--recipe", "thirds", *SMALL, "--out", str(here)).returncode
-        == 0
-    )
+    assert foldbot("fold", *quarter, "--out", str(here)).returncode == 0
     over = tmp_path / "over_ros"
-    proc = foldbot(
-        "ros-fold", "--dry-run", "--recipe", "thirds", *SMALL, "--out", str(over),
-        "--port", str(free_port()),
-    )  # fmt: skip
+    proc = foldbot("ros-fold", *quarter, "--out", str(over), "--port", str(free_port()))
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
-    assert "dry run over ROS: 2 stage(s), 4 pick-and-place(s)" in proc.stdout
+    said = "dry run over ROS: 2 stage(s), 3 pick-and-place(s) (1 pair(s) by two arms together)"
+    assert said in proc.stdout
     plan = json.loads((over / "plan.json").read_text())
     assert plan["cell"] == "sim" and plan["feasible"]
     assert sorted(p.name for p in over.iterdir()) == [

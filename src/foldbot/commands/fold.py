@@ -357,10 +357,11 @@ def add_episode_arguments(parser: argparse.ArgumentParser, output: bool = True) 
     parser.add_argument(
         "--dry-run",
         action="store_true",
-        help="move nothing: look once, plan every stage (as the open loop does, a later stage "
-        "on the outline the one before predicts) and every pick-and-place's motion from where "
-        "the arm stands, and write DIR/plan.json (each action feasible or why not, its steps' "
-        "seconds at --speed-scale) and overlay_planK.png; a flat towel only",
+        help="move nothing: look once, plan every stage (a later stage on the outline the one "
+        "before predicts) carried as the fold carries it (two arms' corners together, a stack "
+        "by its edge's middle) and every pick-and-place's motion from where the arms stand, "
+        "and write DIR/plan.json (each action feasible or why not, its steps' seconds at "
+        "--speed-scale) and overlay_planK.png; a flat towel only",
     )
 
 
