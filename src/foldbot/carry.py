@@ -51,6 +51,7 @@ def execute_action(cell: FoldCell, action: FoldAction) -> dict:
         raise UnreachableTargetError(
             f"action '{action.label}' is infeasible (nothing moved): {exc}"
         ) from exc
+    cell.confirm_motion([(cell.active_arm, action, steps)])
     grasp_result, max_err, slipped = None, 0.0, False
     for step in steps:
         step_log = cell.run_step(step)
@@ -142,6 +143,7 @@ def execute_together(cell: FoldCell, pairs: list[tuple[int, FoldAction]]) -> lis
         ) from exc
     if len({len(s) for s in steps}) != 1:
         raise FoldbotError("arms moved together need the same number of motion steps")
+    cell.confirm_motion([(arm, a, s) for (arm, a), s in zip(pairs, steps, strict=True)])
     grasps: list[GraspResult | None] = [None] * len(pairs)
     max_err = [0.0] * len(pairs)
     for k in range(len(steps[0])):

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from foldbot.errors import UnreachableTargetError
+from foldbot.operator import OperatorGate, PlannedMotion
 from foldbot.perception.state import ClothState
 from foldbot.planning.actions import FoldAction, FoldPlan
 from foldbot.planning.garment_recipes import GarmentPlan, plan_garment
@@ -37,6 +38,10 @@ class FoldCell(abc.ABC):
 
     table_height: float
     """Height of the table top in the world (m), for drawing fold lines."""
+
+    gate: OperatorGate | None = None
+    """Where set (`--confirm`), the operator is asked before each pick-and-place moves
+    (confirm_motion); None: the arms move as planned."""
 
     @property
     @abc.abstractmethod
@@ -77,6 +82,31 @@ class FoldCell(abc.ABC):
     def step_seconds(self, step: Any) -> float:
         """How long the active arm takes along a planned step (s), its dwell included, at the
         cell's speed scale: what a dry run reports before anything moves."""
+
+    def confirm_motion(self, planned: list[tuple[int, Any, list[Any]]]) -> None:
+        """Before planned pick-and-places move ((arm, action, its planned steps), one per arm
+        moving): with a gate, what they will do is said and the operator's answer awaited
+        (OperatorStopped on stop); without one, nothing."""
+        if self.gate is None:
+            return
+        previous, motions = self.active_arm, []
+        try:
+            for arm, action, steps in planned:
+                self.use_arm(arm)
+                place = getattr(action, "place", None)
+                motions.append(
+                    PlannedMotion(
+                        label=action.label,
+                        arm=arm,
+                        grasp=np.asarray(action.grasp, dtype=float),
+                        place=np.asarray(action.release if place is None else place, dtype=float),
+                        steps=len(steps),
+                        seconds=float(sum(self.step_seconds(s) for s in steps)),
+                    )
+                )
+        finally:
+            self.use_arm(previous)
+        self.gate.ask(motions)
 
     @abc.abstractmethod
     def run_step(self, step: Any) -> StepLog:

@@ -32,6 +32,10 @@ class ArmsWouldCollideError(FoldbotError):
     """The motion segment in which they would meet, where the planner knows it."""
 
 
+class OperatorStopped(FoldbotError):
+    """The operator answered stop (or nothing: input closed) before a motion (foldbot.operator)."""
+
+
 class SimulationDivergedError(FoldbotError):
     """The physics blew up (NaN or cloth vertices far outside the workspace); never scored."""
 

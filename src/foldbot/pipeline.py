@@ -52,6 +52,7 @@ from foldbot.io.episode import EpisodeWriter
 from foldbot.loop import FoldRecord, LoopConfig, fold_and_picture, run_fold
 from foldbot.loop_options import LoopOptionValue, apply_loop_options, check_loop_options
 from foldbot.metrics import keypoint_errors_mm, score_episode
+from foldbot.operator import OperatorGate
 from foldbot.perception.fallback import vision_estimator
 from foldbot.perception.keypoints import label_corners
 from foldbot.perception.overlay import draw_overlay
@@ -827,8 +828,15 @@ def injected_faults(cfg: EpisodeConfig) -> list[str]:
     return [f"--{name.replace('_', '-')}" for name in FAULT_FIELDS if getattr(cfg, name) > 0]
 
 
-def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=print) -> dict:
-    """Run one fold episode and write the episode folder (result.json, cloth.npz, video.mp4)."""
+def run_episode(
+    cfg: EpisodeConfig,
+    out_dir: Path,
+    overwrite: bool = False,
+    log=print,
+    gate: OperatorGate | None = None,
+) -> dict:
+    """Run one fold episode and write the episode folder (result.json, cloth.npz, video.mp4).
+    With a `gate` (`--confirm`) the operator lets each pick-and-place move or stops the fold."""
     writer = EpisodeWriter(out_dir, overwrite=overwrite, fps=max(cfg.video_fps, 1.0))
     wall0 = time.perf_counter()
     with writer, SimWorld(cfg.sim) as world, contextlib.ExitStack() as stack:
@@ -846,6 +854,7 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
             log(f"recipe {cfg.recipe}: folded in {planned_recipe(cfg)}'s stage order")
         cell = episode_cell(cfg, parts, recorder)
         cell.slip_fault = SlipFault(cfg.fault_slip)
+        cell.gate = gate
         flattened = None
         if cfg.start == "crumpled":
             flattened = crumple_and_flatten(cfg, parts, cell, writer, log)
@@ -884,6 +893,8 @@ def run_episode(cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=
             }
         if parts.guard is not None:
             result["crossing_guard_restored"] = parts.guard.restored
+        if gate is not None:
+            result["operator"] = gate.record()
         result["first_frame_keypoint_error_mm"] = first_frame_keypoint_errors(
             cfg, mesh, initial, record.initial_state
         )

@@ -15,6 +15,7 @@ from foldbot.flatten_options import flatten_options_from_args, flatten_options_h
 from foldbot.garments.towel import TowelSpec
 from foldbot.io.staging import output_path
 from foldbot.loop_options import loop_options_from_args, loop_options_help
+from foldbot.operator import OperatorGate
 from foldbot.pipeline import (
     ARM_COUNTS,
     FAULT_FIELDS,
@@ -161,7 +162,7 @@ def add_camera_pose_option(parser: argparse.ArgumentParser, help_text: str) -> N
 
 SUITE_PICKS = ("suite", "episode", "seed", "replicate", "recipe", "perception")
 """With --suite, the options that pick one of its episodes."""
-SUITE_FREE = ("video_fps", "out", "overwrite", "gui", "dry_run")
+SUITE_FREE = ("video_fps", "out", "overwrite", "gui", "dry_run", "confirm")
 """With --suite, the options that do not change the episode's physics or plan."""
 SUITE_CAMERA = ("camera_calibration",)
 """With --suite, the camera a calibration found (--camera-pose) in place of the exact one."""
@@ -363,6 +364,13 @@ def add_episode_arguments(parser: argparse.ArgumentParser, output: bool = True) 
         "and write DIR/plan.json (each action feasible or why not, its steps' seconds at "
         "--speed-scale) and overlay_planK.png; a flat towel only",
     )
+    parser.add_argument(
+        "--confirm",
+        action="store_true",
+        help="before each pick-and-place moves, say what it will do (arm, grasp, place, "
+        "seconds) and wait for the operator: Enter moves, s stops the fold there (the "
+        "episode is then left as DIR.failed); for a first run on a real arm",
+    )
 
 
 def config_from_args(args: argparse.Namespace) -> EpisodeConfig:
@@ -473,11 +481,18 @@ def perceived_pose_line(camera: CameraConfig) -> str:
     )
 
 
+def check_confirm(args: argparse.Namespace) -> None:
+    """ConfigError for --confirm where nothing moves: a dry run."""
+    if getattr(args, "confirm", False) and getattr(args, "dry_run", False):
+        raise ConfigError("--confirm asks before each motion, and --dry-run makes none: drop one")
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the episode and print where its outputs are."""
     cfg = config_from_args(args)
     if words := perceived_pose_line(cfg.camera):
         print(words)
+    check_confirm(args)
     if args.dry_run:
         from foldbot.pipeline import dry_run_episode
 
@@ -485,7 +500,8 @@ def run(args: argparse.Namespace) -> int:
         print(run.summary())
         print(f"plan written to {args.out}")
         return 0 if run.record["feasible"] else 1
-    result = run_episode(cfg, args.out, overwrite=args.overwrite)
+    gate = OperatorGate() if args.confirm else None
+    result = run_episode(cfg, args.out, overwrite=args.overwrite, gate=gate)
     flat = result.get("flatten")
     if flat is not None:
         print(
@@ -542,7 +558,7 @@ def pick_suite_episode(args: argparse.Namespace) -> EpisodeSpec:
         raise ConfigError(
             f"--suite {args.suite} sets the episode; drop {', '.join(given)} (beside --suite only "
             "--seed, --replicate, --recipe, --perception, --video-fps, --out, --overwrite, "
-            "--gui, --camera-pose, --fault-slip, --fault-grasp-offset, and --loop-option, "
+            "--gui, --dry-run, --confirm, --camera-pose, --fault-slip, --fault-grasp-offset, and --loop-option, "
             "--cloth and --flatten-option over the suite's own, are allowed)"
         )
     return _picked(args, defaults).with_options(

@@ -474,6 +474,8 @@ def fold_args_text(args: argparse.Namespace) -> str:
     words += camera_words(args)
     if args.overwrite:
         words.append("--overwrite")
+    if args.confirm:
+        words.append("--confirm")
     return shlex.join(words)
 
 
@@ -533,6 +535,8 @@ def suite_args_words(args: argparse.Namespace) -> list[str]:
     words += ["--video-fps", repr(args.video_fps), "--out", str(Path(args.out).resolve())]
     if args.overwrite:
         words.append("--overwrite")
+    if args.confirm:
+        words.append("--confirm")
     return words
 
 
@@ -572,6 +576,7 @@ def run(args: argparse.Namespace) -> int:
     if real:
         check_real_cell(args, cfg, interface)
     faulty = injected_faults(cfg)
+    fold.check_confirm(args)
     if args.dry_run:
         check_dry_run_config(cfg.garment, cfg.start, faulty)
     if faulty and real:

@@ -8,6 +8,7 @@ result.json, cloth.npz, video.mp4 (the camera stream with the debug overlays) an
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import json
 import math
@@ -33,6 +34,7 @@ from foldbot.garment_loop import run_garment_fold
 from foldbot.io.episode import EpisodeWriter, to_jsonable
 from foldbot.loop import FoldRecord, fold_and_picture, run_fold
 from foldbot.metrics import score_episode
+from foldbot.operator import OperatorGate
 from foldbot.pipeline import (
     EpisodeConfig,
     episode_result,
@@ -135,6 +137,12 @@ def real_cell_result(
     }
 
 
+def operator_gate(args: argparse.Namespace) -> OperatorGate | None:
+    """`--confirm`'s gate on the task node's stdin and stdout (roslaunch hands them down from
+    `foldbot ros-fold`, output="screen"), or None."""
+    return OperatorGate() if getattr(args, "confirm", False) else None
+
+
 def run_real_task(
     fold_args: str,
     log=rospy.loginfo,
@@ -176,6 +184,7 @@ def run_real_task(
             gripper_effort=gripper_effort,
         )
         stack.callback(cell.stop_video)
+        cell.gate = operator_gate(args)
         cell.wait_for_real_cell()
 
         def write_image(name: str, image: np.ndarray) -> None:
@@ -207,6 +216,8 @@ def run_real_task(
             result["cell"] = "real"
             result["cloth_thickness_m"] = thickness
             result["cloth_thickness_given"] = cloth_thickness is not None
+            if cell.gate is not None:
+                result["operator"] = cell.gate.record()
             writer.write_result(result)
             path = writer.commit(require_cloth=False)
     result["out_dir"] = str(Path(path))
@@ -282,6 +293,7 @@ def run_task(
             gripper_effort=gripper_effort,
         )
         stack.callback(cell.stop_video)  # before the writer closes the video, error or not
+        cell.gate = operator_gate(args)
         cell.wait_ready()
         initial = convert.cloud_array(cell.truth.take(lambda m: True, "initial ground truth"))
         mesh = cell.mesh.take(lambda m: True, "cloth mesh from the sim node")
@@ -350,6 +362,8 @@ def run_task(
                 if cfg.arms > 1:
                     result["together_lead_s"] = together_lead
             result["cell"] = "sim"
+            if cell.gate is not None:
+                result["operator"] = cell.gate.record()
             writer.write_result(result)
             path = writer.commit()
     result["out_dir"] = str(Path(path))
