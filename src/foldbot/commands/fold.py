@@ -558,8 +558,8 @@ def pick_suite_episode(args: argparse.Namespace) -> EpisodeSpec:
         raise ConfigError(
             f"--suite {args.suite} sets the episode; drop {', '.join(given)} (beside --suite only "
             "--seed, --replicate, --recipe, --perception, --video-fps, --out, --overwrite, "
-            "--gui, --dry-run, --confirm, --camera-pose, --fault-slip, --fault-grasp-offset, and --loop-option, "
-            "--cloth and --flatten-option over the suite's own, are allowed)"
+            "--gui, --dry-run, --confirm, --camera-pose, --fault-slip, --fault-grasp-offset, "
+            "and --loop-option, --cloth and --flatten-option over the suite's own, are allowed)"
         )
     return _picked(args, defaults).with_options(
         loop_options_from_args(args.loop_option),
