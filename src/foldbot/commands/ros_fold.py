@@ -474,7 +474,7 @@ def fold_args_text(args: argparse.Namespace) -> str:
     words += camera_words(args)
     if args.overwrite:
         words.append("--overwrite")
-    if args.confirm:
+    if getattr(args, "confirm", False):  # ros-cell has none
         words.append("--confirm")
     return shlex.join(words)
 
@@ -535,7 +535,7 @@ def suite_args_words(args: argparse.Namespace) -> list[str]:
     words += ["--video-fps", repr(args.video_fps), "--out", str(Path(args.out).resolve())]
     if args.overwrite:
         words.append("--overwrite")
-    if args.confirm:
+    if getattr(args, "confirm", False):  # ros-cell has none
         words.append("--confirm")
     return words
 
