@@ -124,18 +124,51 @@ def test_an_earlier_dry_run_is_replaced_only_when_asked(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["plan"]
 
 
+GARMENT = ["--garment-edge-length", "0.03", "--video-fps", "0"]
+
+
+def test_a_tshirts_fold_is_planned_as_its_loop_carries_it(tmp_path, capsys):
+    # The retail fold's three stages planned at once from the flat T-shirt's keypoints; on two
+    # arms each side's sleeve and hem corner together, the hem from its tip by one arm.
+    out = tmp_path / "plan"
+    args = ["fold", "--dry-run", "--garment", "tshirt", "--arms", "2", *GARMENT]
+    assert main([*args, "--out", str(out)]) == 0
+    plan = json.loads((out / "plan.json").read_text())
+    assert plan["feasible"] and plan["planned_recipe"] == "retail" and plan["arm_moved_rad"] == 0
+    assert [s["together"] for s in plan["stages"]] == [True, True, False]
+    labels = [a["label"] for a in plan["actions"]]
+    assert labels == ["left_sleeve", "left_hem", "right_sleeve", "right_hem", "hem", "hem_rest"]
+    assert {"left_shoulder", "right_sleeve", "neck"} <= set(plan["perceived_keypoints"])
+    assert sorted(p.name for p in out.iterdir()) == [
+        "overlay_plan1.png",
+        "overlay_plan2.png",
+        "overlay_plan3.png",
+        "plan.json",
+    ]
+    assert "3 stage(s), 6 pick-and-place(s) (2 pair(s) by two arms together)" in (
+        capsys.readouterr().out
+    )
+
+
+def test_pants_are_planned_one_arm_at_a_time_on_one_arm(tmp_path):
+    out = tmp_path / "plan"
+    assert main(["fold", "--dry-run", "--garment", "pants", *GARMENT, "--out", str(out)]) == 0
+    plan = json.loads((out / "plan.json").read_text())
+    assert plan["planned_recipe"] == "leg_over_leg" and plan["feasible"]
+    assert [a["stage"] for a in plan["actions"]] == [1, 1, 2, 2]
+    assert not any(a.get("together") for a in plan["actions"])
+
+
 @pytest.mark.parametrize(
     ("extra", "needle"),
     [
-        (["--garment", "tshirt"], "--dry-run plans a towel's fold; got --garment tshirt"),
         (["--start", "crumpled"], "a crumpled start is flattened first"),
         (["--fault-slip", "0.3"], "--fault-slip act on a motion, and a dry run moves nothing"),
     ],
 )
 def test_what_a_dry_run_cannot_show_is_refused(tmp_path, capsys, extra, needle):
     out = tmp_path / "plan"
-    towel = [] if "--garment" in extra else SMALL[:2]
-    assert main(["fold", "--dry-run", *extra, *towel, "--out", str(out)]) == 2
+    assert main(["fold", "--dry-run", *extra, *SMALL[:2], "--out", str(out)]) == 2
     assert needle in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
 

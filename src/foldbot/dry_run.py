@@ -1,7 +1,8 @@
-"""A dry run: what a towel fold would do, seen and planned from one camera frame, with nothing
-moved. Every stage is planned as the open loop plans it (a later stage on the outline the one
-before predicts, one layer up) and carried as the fold carries it (two arms together, a folded
-stack by its edge's middle), every pick-and-place's motion planned from where the arm stands,
+"""A dry run: what a fold would do, seen and planned from one camera frame, with nothing
+moved. Every stage is planned from that frame (a towel's later stages on the outline the one
+before predicts, one layer up; a garment's all at once from its keypoints, as its fold plans
+them) and carried as the fold carries it (two arms together, a towel's folded stack by its
+edge's middle), every pick-and-place's motion planned from where the arm stands,
 each waypoint's IK and table clearance checked (a pair's arms also kept clear of each other),
 each step timed at the cell's speed scale: the plan, its pictures and its motion time, to look
 at before a first run on a real arm (`foldbot fold --dry-run`, `foldbot ros-fold --dry-run`)."""
@@ -30,16 +31,23 @@ from foldbot.errors import (
     UnreachableTargetError,
     failed_segment,
 )
+from foldbot.garment_loop import aimed_actions, garment_keypoints, together
+from foldbot.grasp_points import stack_grasp_point
 from foldbot.io.staging import prepare_output
 from foldbot.loop import (
     LoopConfig,
     StageCarries,
+    actions_overlay,
     first_aim,
     plan_from_first_view,
     plan_overlay,
+    require_in_view,
     stage_carries,
 )
+from foldbot.perception.state import ClothState
 from foldbot.planning.actions import FoldAction
+from foldbot.planning.garment_recipes import PLANNED_FROM
+from foldbot.types import Observation
 
 PLAN_FILE = "plan.json"
 """What a dry run writes instead of result.json (DryRun.record)."""
@@ -175,40 +183,121 @@ def carried_seconds(actions: list[dict[str, Any]]) -> float:
     return float(total)
 
 
-def dry_run(
-    cfg: LoopConfig, cell: FoldCell, speed_scale: float, log: Callable[[str], None] = print
-) -> DryRun:
-    """Observe once (the arm where it stands: it is not parked), plan every stage and every
-    carry's motion, move nothing. Each stage is carried as the fold would carry it
-    (loop.stage_carries: a two-arm cell's corners together, a folded stack by its edge's
-    middle; the open loop corner after corner), each carry aimed as the loop's first try aims
-    it where no newer frame is seen (loop.first_aim). An action no arm can do is recorded as
-    infeasible, with the reason and the segment it failed in, and the others are planned still."""
-    state, obs = cell.observe()
-    stages, actions, overlays = [], [], []
-    for k, (plan, corners) in enumerate(plan_from_first_view(cfg, cell, state), start=1):
+@dataclass(frozen=True)
+class DryStage:
+    """One stage as a dry run plans it: its fold line, the actions carried as the fold's first
+    try aims them, whether two arms carry them together (with `pair_descent`, m, where a pair
+    comes down so: the towel's), whether by a stack's edge middle, and its picture."""
+
+    fold_line: tuple[float, float, float, float]
+    actions: tuple[FoldAction, ...]
+    together: bool
+    by_edge_middle: bool
+    overlay: np.ndarray
+    pair_descent: float | None = None
+
+
+def towel_stages(
+    cfg: LoopConfig, cell: FoldCell, state: ClothState, obs: Observation
+) -> list[DryStage]:
+    """A towel's stages from one frame, as the open loop plans them (a later stage on the
+    outline the one before predicts), each carried as the fold carries it (loop.stage_carries;
+    the open loop corner after corner) and aimed as the loop's first try aims it where no newer
+    frame is seen (loop.first_aim)."""
+    stages = []
+    for k, (plan, corners) in enumerate(plan_from_first_view(cfg, cell, state)):
         if cfg.closed_loop:
-            carries = stage_carries(cfg, cell, k - 1, plan)
+            carries = stage_carries(cfg, cell, k, plan)
         else:
             carries = StageCarries(tuple(plan.actions), False, None)
         centre = np.mean([np.asarray(c, dtype=float) for c in corners.values()], axis=0)
         aimed = tuple(first_aim(cfg, state, a, centre) for a in carries.actions)
         stages.append(
+            DryStage(
+                fold_line=plan.fold_lines[0],
+                actions=aimed,
+                together=carries.together,
+                by_edge_middle=carries.edge_of is not None,
+                overlay=plan_overlay(obs, state, plan, cell.table_height, aimed),
+                pair_descent=cfg.pair_descent,
+            )
+        )
+    return stages
+
+
+def garment_stages(
+    cfg: LoopConfig, cell: FoldCell, state: ClothState, obs: Observation
+) -> list[DryStage]:
+    """A garment's stages, planned from the flat garment's keypoints as its fold plans them
+    (all at once: garment_loop.run_garment_fold), each carried as that loop carries it (a
+    two-arm cell's two grasps together where they fit, garment_loop.together). The first
+    stage's grasps are aimed onto the cloth this frame shows (garment_loop.aimed_actions); a
+    later stage's, which the fold aims from the frame it starts from, as planned (a stack's at
+    the table, under every layer)."""
+    if not state.detected:
+        raise FoldbotError(f"no garment found before folding: {state.reason}")
+    if cfg.require_full_view:
+        require_in_view(state)
+    keypoints = garment_keypoints(state, cfg.recipe)
+    plan = cell.plan_garment(cfg.recipe, keypoints, cfg.place_lift, cfg.layer_thickness)
+    stages = []
+    for i, stage in enumerate(plan.stages):
+        pair = cfg.closed_loop and together(cell, stage)
+        if cfg.closed_loop and i == 0:
+            aimed = tuple(aimed_actions(cfg, state, obs, stage, None, pair))
+        elif cfg.closed_loop:
+            aimed = tuple(
+                a
+                if a.layers <= 1
+                else dataclasses.replace(
+                    a, grasp=stack_grasp_point(state, a.grasp, cfg.stack_grasp_height)
+                )
+                for a in stage.actions
+            )
+        else:
+            aimed = tuple(stage.actions)
+        stages.append(
+            DryStage(
+                fold_line=stage.fold_line,
+                actions=aimed,
+                together=pair,
+                by_edge_middle=False,
+                overlay=actions_overlay(obs, state, aimed, stage.fold_line, cell.table_height),
+            )
+        )
+    return stages
+
+
+def dry_run(
+    cfg: LoopConfig, cell: FoldCell, speed_scale: float, log: Callable[[str], None] = print
+) -> DryRun:
+    """Observe once (the arm where it stands: it is not parked), plan every stage (a towel's:
+    towel_stages; a garment's: garment_stages) and every carry's motion, move nothing. An
+    action no arm can do is recorded as infeasible, with the reason and the segment it failed
+    in, and the others are planned still."""
+    state, obs = cell.observe()
+    garment = cfg.recipe in PLANNED_FROM  # a garment's recipe (the towel's: planning.recipes)
+    planned = (garment_stages if garment else towel_stages)(cfg, cell, state, obs)
+    stages, actions, overlays = [], [], []
+    for k, stage in enumerate(planned, start=1):
+        stages.append(
             {
                 "stage": k,
-                "fold_line": list(map(float, plan.fold_lines[0])),
-                "together": carries.together,
-                "by_edge_middle": carries.edge_of is not None,
+                "fold_line": list(map(float, stage.fold_line)),
+                "together": stage.together,
+                "by_edge_middle": stage.by_edge_middle,
             }
         )
-        overlays.append(plan_overlay(obs, state, plan, cell.table_height, aimed))
-        if carries.together:
-            paired = aimed
-            if cfg.pair_descent is not None:
-                paired = tuple(dataclasses.replace(a, descent=cfg.pair_descent) for a in aimed)
-            actions.extend(plan_pair(cell, k, paired, aimed, log))
+        overlays.append(stage.overlay)
+        if stage.together:
+            paired = stage.actions
+            if stage.pair_descent is not None:
+                paired = tuple(
+                    dataclasses.replace(a, descent=stage.pair_descent) for a in stage.actions
+                )
+            actions.extend(plan_pair(cell, k, paired, stage.actions, log))
         else:
-            actions.extend(plan_single(cell, k, a, log) for a in aimed)
+            actions.extend(plan_single(cell, k, a, log) for a in stage.actions)
     record = {
         "dry_run": True,
         "planned_recipe": cfg.recipe,
@@ -267,14 +356,12 @@ def write_dry_run(run: DryRun, out: Path, overwrite: bool) -> Path:
 
 
 def check_dry_run_config(garment: str, start: str, faults: list[str]) -> None:
-    """ConfigError where a dry run cannot show the fold: a garment (planned from keypoints on
-    the flat garment, not by the towel loop), a crumpled start (each pull is planned from what
-    the last one left), or an injected fault (it acts on a motion, and nothing moves)."""
-    if garment != "towel":
-        raise ConfigError(f"--dry-run plans a towel's fold; got --garment {garment}")
+    """ConfigError where a dry run cannot show the fold: a crumpled start (each pull is planned
+    from what the last one left), or an injected fault (it acts on a motion, and nothing
+    moves). `garment`: the cloth's, named in the refusal."""
     if start != "flat":
         raise ConfigError(
-            "--dry-run plans the fold of a towel lying flat; a crumpled start is flattened "
+            f"--dry-run plans the fold of a {garment} lying flat; a crumpled start is flattened "
             "first, each pull planned from what the one before left: got --start crumpled"
         )
     if faults:

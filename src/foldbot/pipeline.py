@@ -794,7 +794,7 @@ def crumple_and_flatten(
 def dry_run_episode(
     cfg: EpisodeConfig, out_dir: Path, overwrite: bool = False, log=print
 ) -> DryRun:
-    """The episode's fold planned and not run (foldbot.dry_run): the towel laid and settled,
+    """The episode's fold planned and not run (foldbot.dry_run): the cloth laid and settled,
     seen once with the arm where it starts, every stage and motion planned, nothing moved;
     plan.json and overlay_planK.png written into `out_dir`. The arm's joints are checked not
     to have moved (`arm_moved_rad` in plan.json)."""

@@ -362,7 +362,7 @@ def add_episode_arguments(parser: argparse.ArgumentParser, output: bool = True) 
         "before predicts) carried as the fold carries it (two arms' corners together, a stack "
         "by its edge's middle) and every pick-and-place's motion from where the arms stand, "
         "and write DIR/plan.json (each action feasible or why not, its steps' seconds at "
-        "--speed-scale) and overlay_planK.png; a flat towel only",
+        "--speed-scale) and overlay_planK.png; a towel or garment lying flat",
     )
     parser.add_argument(
         "--confirm",
