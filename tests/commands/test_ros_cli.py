@@ -137,6 +137,10 @@ from foldbot.ros.node_args import parse_fold_args
             "--fault-slip act on a motion, and a dry run moves nothing",
         ),
         (
+            ["ros-fold", "--out", "{tmp}/e", "--dry-run", "--confirm"],
+            "--confirm asks before each motion, and --dry-run makes none",
+        ),
+        (
             ["ros-fold", "--out", "{tmp}/e", "--cell", "real", "--fault-slip", "0.3"],
             "--fault-slip: faults are the simulated cell's, injected on the cell ros-fold starts",
         ),
