@@ -7,12 +7,14 @@ from __future__ import annotations
 import contextlib
 import json
 
+import imageio.v3 as iio
 import numpy as np
 import pytest
 
 from foldbot.cli import main
 from foldbot.dry_run import plan_pair
 from foldbot.garments.towel import TowelSpec
+from foldbot.perception.overlay import EXPECTED_RGB
 from foldbot.pipeline import EpisodeConfig, build_sim_cell, episode_cell
 from foldbot.planning.actions import FoldAction
 from foldbot.sim.cloth import settle
@@ -41,6 +43,13 @@ def test_a_dry_run_plans_every_stage_and_moves_nothing(tmp_path, capsys):
     stack = plan["actions"][2]
     assert stack["label"].startswith("middle_") and stack["layers"] == 2
     assert stack["grasp"][2] == pytest.approx(0.754, abs=1e-6)
+    # Stage 2's picture draws the outline it was planned on (the half-folded towel), stage 1's
+    # none: the frame shows stage 1's.
+    first, second = (iio.imread(out / f"overlay_plan{k}.png")[..., :3] for k in (1, 2))
+    expected = [
+        int((np.abs(im.astype(int) - EXPECTED_RGB) <= 10).all(-1).sum()) for im in (first, second)
+    ]
+    assert expected[0] == 0 and expected[1] > 40
     assert plan["arm_moved_rad"] == 0.0  # ground truth: the simulated arm stood still
     for action in plan["actions"]:
         names = [s["name"] for s in action["steps"]]

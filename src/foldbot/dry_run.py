@@ -40,13 +40,13 @@ from foldbot.loop import (
     actions_overlay,
     first_aim,
     plan_from_first_view,
-    plan_overlay,
     require_in_view,
     stage_carries,
 )
 from foldbot.perception.state import ClothState
 from foldbot.planning.actions import FoldAction
 from foldbot.planning.garment_recipes import PLANNED_FROM
+from foldbot.planning.recipes import CORNER_NAMES
 from foldbot.types import Observation
 
 PLAN_FILE = "plan.json"
@@ -212,13 +212,18 @@ def towel_stages(
             carries = StageCarries(tuple(plan.actions), False, None)
         centre = np.mean([np.asarray(c, dtype=float) for c in corners.values()], axis=0)
         aimed = tuple(first_aim(cfg, state, a, centre) for a in carries.actions)
+        # A later stage is drawn over the first frame with the outline it was planned on, the
+        # one the stage before predicts (orange).
+        outline = None if k == 0 else np.array([corners[n] for n in CORNER_NAMES], dtype=float)
         stages.append(
             DryStage(
                 fold_line=plan.fold_lines[0],
                 actions=aimed,
                 together=carries.together,
                 by_edge_middle=carries.edge_of is not None,
-                overlay=plan_overlay(obs, state, plan, cell.table_height, aimed),
+                overlay=actions_overlay(
+                    obs, state, aimed, plan.fold_lines[0], cell.table_height, outline
+                ),
                 pair_descent=cfg.pair_descent,
             )
         )
