@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import os
 import signal
 import sys
 import threading
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from typing import Any
 
 from foldbot import __version__
 from foldbot.errors import FoldbotError
@@ -82,8 +85,41 @@ class Terminated(BaseException):
     was writing is discarded on the way out instead of left half-written."""
 
 
+RESEND_S = 0.01
+"""How long after a swallowed Terminated the signal is sent again (sigterm_raises)."""
+
+
 def _terminate(signum: int, frame: object) -> None:
     raise Terminated
+
+
+@contextlib.contextmanager
+def sigterm_raises() -> Iterator[None]:
+    """While inside (in the main thread): SIGTERM raises Terminated where the command is, as
+    Ctrl-C raises KeyboardInterrupt. A Terminated the interpreter cannot raise, because the
+    signal came while it ran a callback of its own (an at-fork handler as a subprocess starts,
+    an object's __del__: it prints "Exception ignored" and goes on), is sent again a moment
+    later from another thread (RESEND_S), until it is raised where the command is: not lost."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous, previous_hook = signal.signal(signal.SIGTERM, _terminate), sys.unraisablehook
+
+    def hook(unraisable: Any) -> None:
+        if isinstance(unraisable.exc_value, Terminated):
+            # Not from here: a signal sent now would be handled inside this hook, swallowed too.
+            resend = threading.Timer(RESEND_S, os.kill, (os.getpid(), signal.SIGTERM))
+            resend.daemon = True
+            resend.start()
+            return
+        previous_hook(unraisable)
+
+    sys.unraisablehook = hook
+    try:
+        yield
+    finally:
+        sys.unraisablehook = previous_hook
+        signal.signal(signal.SIGTERM, previous)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -91,10 +127,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     # A `kill` or `timeout` stops a command as Ctrl-C does: staged output is cleaned up.
-    in_main = threading.current_thread() is threading.main_thread()
-    previous = signal.signal(signal.SIGTERM, _terminate) if in_main else None
     try:
-        return int(args.run(args) or 0)
+        with sigterm_raises():
+            return int(args.run(args) or 0)
     except FoldbotError as exc:
         print(f"foldbot {args.command}: error: {exc}", file=sys.stderr)
         for note in getattr(exc, "__notes__", ()):  # e.g. where a failed episode's video went
@@ -106,9 +141,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     except Terminated:
         print(f"foldbot {args.command}: terminated (SIGTERM)", file=sys.stderr)
         return 128 + signal.SIGTERM
-    finally:
-        if in_main:
-            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":
