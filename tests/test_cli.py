@@ -7,15 +7,19 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import pytest
+
 SWALLOWED = """
-import os, signal, time
+import os, signal, sys, time
 from foldbot.cli import Terminated, sigterm_raises
+
+signum = getattr(signal, sys.argv[1])
 
 class Late:
     def __del__(self):
-        # SIGTERM arrives in here, as it may in an at-fork handler while a subprocess starts:
-        # what this raises, Python prints as "Exception ignored" and goes on.
-        os.kill(os.getpid(), signal.SIGTERM)
+        # The signal arrives in here, as it may in an at-fork handler while a subprocess
+        # starts: what its handler raises, Python prints as "Exception ignored" and goes on.
+        os.kill(os.getpid(), signum)
         time.sleep(0.2)
 
 with sigterm_raises():
@@ -24,17 +28,20 @@ with sigterm_raises():
         for _ in range(100):
             time.sleep(0.01)
         print("not stopped")
-    except Terminated:
-        print("stopped")
+    except (Terminated, KeyboardInterrupt) as exc:
+        print("stopped by", type(exc).__name__)
 """
 
 
-def test_a_sigterm_the_interpreter_swallows_is_raised_once_it_can_be():
+@pytest.mark.parametrize(
+    ("signame", "raised"), [("SIGTERM", "Terminated"), ("SIGINT", "KeyboardInterrupt")]
+)
+def test_a_signal_the_interpreter_swallows_is_raised_once_it_can_be(signame, raised):
     proc = subprocess.run(
-        [sys.executable, "-c", SWALLOWED], capture_output=True, text=True, timeout=60
+        [sys.executable, "-c", SWALLOWED, signame], capture_output=True, text=True, timeout=60
     )
     assert proc.returncode == 0, proc.stderr
-    assert proc.stdout.strip() == "stopped", proc.stdout + proc.stderr
+    assert proc.stdout.strip() == f"stopped by {raised}", proc.stdout + proc.stderr
     assert "Exception ignored" not in proc.stderr
 
 

@@ -86,7 +86,8 @@ class Terminated(BaseException):
 
 
 RESEND_S = 0.01
-"""How long after a swallowed Terminated the signal is sent again (sigterm_raises)."""
+"""How long after a swallowed Terminated (or KeyboardInterrupt) its signal is sent again
+(sigterm_raises)."""
 
 
 def _terminate(signum: int, frame: object) -> None:
@@ -99,16 +100,19 @@ def sigterm_raises() -> Iterator[None]:
     Ctrl-C raises KeyboardInterrupt. A Terminated the interpreter cannot raise, because the
     signal came while it ran a callback of its own (an at-fork handler as a subprocess starts,
     an object's __del__: it prints "Exception ignored" and goes on), is sent again a moment
-    later from another thread (RESEND_S), until it is raised where the command is: not lost."""
+    later from another thread (RESEND_S), until it is raised where the command is: not lost.
+    So is a Ctrl-C's KeyboardInterrupt lost so."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     previous, previous_hook = signal.signal(signal.SIGTERM, _terminate), sys.unraisablehook
 
     def hook(unraisable: Any) -> None:
-        if isinstance(unraisable.exc_value, Terminated):
+        lost = unraisable.exc_value
+        if isinstance(lost, Terminated | KeyboardInterrupt):
             # Not from here: a signal sent now would be handled inside this hook, swallowed too.
-            resend = threading.Timer(RESEND_S, os.kill, (os.getpid(), signal.SIGTERM))
+            signum = signal.SIGTERM if isinstance(lost, Terminated) else signal.SIGINT
+            resend = threading.Timer(RESEND_S, os.kill, (os.getpid(), signum))
             resend.daemon = True
             resend.start()
             return

@@ -35,6 +35,7 @@ TOPICS = {
     "plan_request": "planner/request",
     "plan_response": "planner/response",
     "episode": "task/result",
+    "plan_overlay": "task/plan_overlay",
     # The actions interface (`--arm-interface actions`): ur_robot_driver's trajectory controller
     # and ros_control's gripper action controller, by their usual names.
     "trajectory_action": "scaled_pos_joint_traj_controller/follow_joint_trajectory",

@@ -165,7 +165,13 @@ class RosCell(FoldCell):
         """The depth camera's newest camera_info (a depth image not registered to the colour
         camera is registered onto it, as the perception node does)."""
         self.latest_state: ClothState | None = None
+        self.latest_obs: Observation | None = None
+        self._latest_frame_id = ""
         self.overlay: dict = {}
+        self.pub_plan_overlay = rospy.Publisher(
+            TOPICS["plan_overlay"], Image, queue_size=1, latch=True
+        )
+        """What the task plans next (show), drawn over the frame it was planned from."""
         self._planned: list[dict] = []
         """The last planned action's steps (the actions interface sends those up to a gripper
         event as one goal)."""
@@ -567,7 +573,8 @@ class RosCell(FoldCell):
             T_world_camera=self.camera_transform(),
             stamp=self.rest_stamp,
         )
-        self.latest_state = state
+        self.latest_state, self.latest_obs = state, obs
+        self._latest_frame_id = color.header.frame_id
         return state, obs
 
     def plan_stage(
@@ -946,7 +953,16 @@ class RosCell(FoldCell):
         self._command(self.pub_wait, Float64(data=float(seconds)), "wait")
 
     def show(self, state: ClothState | None = None, **overlay: Any) -> None:
+        # The video's marks from now on, and on task/plan_overlay (latched) the newest frame
+        # with them: what is about to move, for RViz and for an operator answering --confirm.
         self.overlay = overlay
+        obs, seen = self.latest_obs, state if state is not None else self.latest_state
+        if obs is None or seen is None:
+            return
+        image = draw_overlay(obs, seen, **overlay)
+        self.pub_plan_overlay.publish(
+            convert.image_msg(image, "rgb8", obs.stamp, self._latest_frame_id)
+        )
 
     def ground_truth(self) -> np.ndarray:
         """The cloth's vertices now (for scoring only)."""
