@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+from pathlib import Path
 
 import imageio.v3 as iio
 import numpy as np
@@ -21,6 +22,12 @@ from foldbot.sim.cloth import settle
 from foldbot.sim.world import SimWorld
 
 SMALL = ["--resolution", "9", "--video-fps", "0"]
+
+
+def expected_pixels(png: Path) -> int:
+    """Pixels of a dry run's picture in the colour of an expected outline (EXPECTED_RGB)."""
+    image = iio.imread(png)[..., :3].astype(int)
+    return int((np.abs(image - EXPECTED_RGB) <= 10).all(-1).sum())
 
 
 def test_a_dry_run_plans_every_stage_and_moves_nothing(tmp_path, capsys):
@@ -45,10 +52,7 @@ def test_a_dry_run_plans_every_stage_and_moves_nothing(tmp_path, capsys):
     assert stack["grasp"][2] == pytest.approx(0.754, abs=1e-6)
     # Stage 2's picture draws the outline it was planned on (the half-folded towel), stage 1's
     # none: the frame shows stage 1's.
-    first, second = (iio.imread(out / f"overlay_plan{k}.png")[..., :3] for k in (1, 2))
-    expected = [
-        int((np.abs(im.astype(int) - EXPECTED_RGB) <= 10).all(-1).sum()) for im in (first, second)
-    ]
+    expected = [expected_pixels(out / f"overlay_plan{k}.png") for k in (1, 2)]
     assert expected[0] == 0 and expected[1] > 40
     assert plan["arm_moved_rad"] == 0.0  # ground truth: the simulated arm stood still
     for action in plan["actions"]:
@@ -154,6 +158,9 @@ def test_a_tshirts_fold_is_planned_as_its_loop_carries_it(tmp_path, capsys):
         "overlay_plan3.png",
         "plan.json",
     ]
+    # A later stage's picture draws the pieces it was planned on (orange), the first's none.
+    drawn = [expected_pixels(out / f"overlay_plan{k}.png") for k in (1, 2, 3)]
+    assert drawn[0] == 0 and drawn[1] > 40 and drawn[2] > 40
     assert "3 stage(s), 6 pick-and-place(s) (2 pair(s) by two arms together)" in (
         capsys.readouterr().out
     )

@@ -45,7 +45,7 @@ from foldbot.loop import (
 )
 from foldbot.perception.state import ClothState
 from foldbot.planning.actions import FoldAction
-from foldbot.planning.garment_recipes import PLANNED_FROM
+from foldbot.planning.garment_recipes import PLANNED_FROM, fold_outline
 from foldbot.planning.recipes import CORNER_NAMES
 from foldbot.types import Observation
 
@@ -214,7 +214,7 @@ def towel_stages(
         aimed = tuple(first_aim(cfg, state, a, centre) for a in carries.actions)
         # A later stage is drawn over the first frame with the outline it was planned on, the
         # one the stage before predicts (orange).
-        outline = None if k == 0 else np.array([corners[n] for n in CORNER_NAMES], dtype=float)
+        outline = [] if k == 0 else [np.array([corners[n] for n in CORNER_NAMES], dtype=float)]
         stages.append(
             DryStage(
                 fold_line=plan.fold_lines[0],
@@ -245,8 +245,14 @@ def garment_stages(
         require_in_view(state)
     keypoints = garment_keypoints(state, cfg.recipe)
     plan = cell.plan_garment(cfg.recipe, keypoints, cfg.place_lift, cfg.layer_thickness)
+    height = float(np.median(state.keypoint_array()[:, 2]))
+    parts = [np.asarray(state.outline_world, dtype=float)[:, :2]]  # as the garment loop predicts
     stages = []
     for i, stage in enumerate(plan.stages):
+        # A later stage is drawn over the first frame with the pieces it was planned on, the
+        # ones the stages before predict (orange).
+        shown = [] if i == 0 else [np.c_[part, np.full(len(part), height)] for part in parts]
+        parts = fold_outline(parts, stage.fold_line)
         pair = cfg.closed_loop and together(cell, stage)
         if cfg.closed_loop and i == 0:
             aimed = tuple(aimed_actions(cfg, state, obs, stage, None, pair))
@@ -267,7 +273,9 @@ def garment_stages(
                 actions=aimed,
                 together=pair,
                 by_edge_middle=False,
-                overlay=actions_overlay(obs, state, aimed, stage.fold_line, cell.table_height),
+                overlay=actions_overlay(
+                    obs, state, aimed, stage.fold_line, cell.table_height, shown
+                ),
             )
         )
     return stages

@@ -239,18 +239,19 @@ def actions_overlay(
     actions: Sequence[FoldAction],
     fold_line: tuple[float, float, float, float],
     z: float,
-    expected_outline: np.ndarray | None = None,
+    expected_parts: Sequence[np.ndarray] = (),
 ) -> np.ndarray:
     """The perception overlay with `actions`' grasp and place points and `fold_line` at height
-    `z`: the picture of a stage's plan, towel or garment; with `expected_outline` (N×3, world),
-    the outline the stage was planned on where the frame does not show it (a dry run's)."""
+    `z`: the picture of a stage's plan, towel or garment; with `expected_parts` (polygons, each
+    N×3, world), the outline the stage was planned on where the frame does not show it (a dry
+    run's)."""
     return draw_overlay(
         obs,
         state,
         grasp_points=[a.grasp for a in actions],
         place_points=[a.place for a in actions],
         fold_line=line_points(fold_line, z),
-        expected_outline=expected_outline,
+        expected_parts=expected_parts,
     )
 
 

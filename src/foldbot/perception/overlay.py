@@ -57,6 +57,7 @@ def draw_overlay(
     reference: dict[str, np.ndarray] | None = None,
     uncovered: np.ndarray | None = None,
     expected_outline: np.ndarray | Sequence[Sequence[float]] | None = None,
+    expected_parts: Sequence[np.ndarray] | None = None,
 ) -> np.ndarray:
     """RGB image (H×W×3 uint8) of `obs` with the state's outline and labelled corners drawn on.
 
@@ -65,7 +66,8 @@ def draw_overlay(
     given by two points (white), and `reference` corners (e.g. the oracle's, magenta) by label.
     `uncovered` (H×W bool) tints, in orange, what a fold's laid layer left uncovered.
     `expected_outline` (N×3 world points, a closed polygon) is the outline the cloth should take,
-    e.g. flattening's expected rectangle (orange).
+    e.g. flattening's expected rectangle (orange); `expected_parts`, several such polygons (a
+    folded garment's predicted pieces), drawn alike.
     """
     check_observation(obs)
     img = np.ascontiguousarray(obs.rgb.copy())
@@ -80,10 +82,11 @@ def draw_overlay(
         uv, _ = project_points(points, intr, T)
         return uv
 
-    expected = _points(expected_outline)
-    if len(expected) >= 3:
-        uv = np.round(proj(expected)).astype(np.int32)
-        cv2.polylines(img, [uv], True, EXPECTED_RGB, 1, cv2.LINE_AA)
+    for polygon in [expected_outline, *(expected_parts or ())]:
+        expected = _points(polygon)
+        if len(expected) >= 3:
+            uv = np.round(proj(expected)).astype(np.int32)
+            cv2.polylines(img, [uv], True, EXPECTED_RGB, 1, cv2.LINE_AA)
     if state.detected and len(state.outline_world) >= 3:
         uv = proj(state.outline_world)
         cv2.polylines(img, [np.round(uv).astype(np.int32)], True, OUTLINE_RGB, 1, cv2.LINE_AA)
