@@ -93,13 +93,12 @@ class FoldCell(abc.ABC):
         try:
             for arm, action, steps in planned:
                 self.use_arm(arm)
-                place = getattr(action, "place", None)
                 motions.append(
                     PlannedMotion(
                         label=action.label,
                         arm=arm,
                         grasp=np.asarray(action.grasp, dtype=float),
-                        place=np.asarray(action.release if place is None else place, dtype=float),
+                        place=np.asarray(action.place, dtype=float),  # a spread's: its release
                         steps=len(steps),
                         seconds=float(sum(self.step_seconds(s) for s in steps)),
                     )
