@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import io
 import json
+import re
 import sys
 
 import numpy as np
@@ -12,7 +13,7 @@ import pytest
 
 from foldbot.cli import main
 from foldbot.errors import OperatorStopped
-from foldbot.operator import OperatorGate, PlannedMotion
+from foldbot.operator import ArmMove, OperatorGate, PlannedMotion
 
 SMALL = ["--resolution", "9", "--video-fps", "0"]
 
@@ -70,6 +71,15 @@ def test_two_arms_moving_together_are_one_question():
     assert out.getvalue().count("next:") == 1
 
 
+def test_a_park_is_asked_naming_the_arms_it_moves():
+    g, out = gate("\n")
+    g.ask([ArmMove("park", (0, 1), "joint move to the park pose", 1.25)])
+    assert out.getvalue().startswith(
+        "next: park with arms 0 and 1: joint move to the park pose, 1.2 s\n"
+    )
+    assert g.confirmed == 1
+
+
 def test_a_fold_asks_before_each_carry_and_records_it(tmp_path, monkeypatch, capsys):
     # Two arms' half fold: the two corners carried together are one question.
     monkeypatch.setattr(sys, "stdin", io.StringIO("\n" * 20))
@@ -80,16 +90,37 @@ def test_a_fold_asks_before_each_carry_and_records_it(tmp_path, monkeypatch, cap
     asked = said.count("next: ")
     assert result["operator"]["motions_confirmed"] == asked >= 1
     assert said.count(" together with ") >= 1
+    assert said.count("next: park with arms 0 and 1: joint move to the park pose") >= 1
     assert sum(1 for a in result["actions"] if a.get("together")) >= 2
 
 
-def test_a_stop_before_the_second_carry_ends_the_fold_named(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(sys, "stdin", io.StringIO("\ns\n"))
+def test_the_lift_after_a_miss_and_the_park_are_asked_and_a_stop_ends_the_fold_named(
+    tmp_path, monkeypatch, capsys
+):
+    # The first grasp is aimed 5 cm off the corner (a miss): the carry, the lift that lets go,
+    # the park, then the retry, where the operator stops.
+    monkeypatch.setattr(sys, "stdin", io.StringIO("\n\n\ns\n"))
     out = tmp_path / "ep"
-    assert main(["fold", "--confirm", *SMALL, "--out", str(out)]) == 2
+    argv = ["fold", "--confirm", "--fault-grasp-offset", "0.05", *SMALL, "--out", str(out)]
+    assert main(argv) == 2
     captured = capsys.readouterr()
-    assert captured.out.count("next: ") == 2
-    assert "error: stopped by the operator before far_right with arm 0" in captured.err
+    asked = [line for line in captured.out.splitlines() if line.startswith("next: ")]
+    assert [line.split(":")[1].strip() for line in asked] == [
+        "far_left with arm 0",
+        "lift after the missed grasp with arm 0",
+        "park with arm 0",
+        "far_left with arm 0",
+    ], asked
+    assert re.fullmatch(
+        r"next: lift after the missed grasp with arm 0: open the jaws, straight up 0\.080 m, "
+        r"\d+\.\d s",
+        asked[1],
+    ), asked[1]
+    assert re.fullmatch(
+        r"next: park with arm 0: joint move to the park pose, out of the camera's view, \d+\.\d s",
+        asked[2],
+    ), asked[2]
+    assert "error: stopped by the operator before far_left with arm 0" in captured.err
     assert not out.exists()  # no episode: it was stopped
     failure = json.loads((tmp_path / "ep.failed" / "error.json").read_text())
     assert failure["error_type"] == "OperatorStopped"

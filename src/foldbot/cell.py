@@ -16,12 +16,24 @@ from typing import Any
 import numpy as np
 
 from foldbot.errors import UnreachableTargetError
-from foldbot.operator import OperatorGate, PlannedMotion
+from foldbot.operator import ArmMove, OperatorGate, PlannedMotion
 from foldbot.perception.state import ClothState
 from foldbot.planning.actions import FoldAction, FoldPlan
 from foldbot.planning.garment_recipes import GarmentPlan, plan_garment
 from foldbot.planning.recipes import plan_stage, predicted_outline
 from foldbot.types import GraspResult, Observation
+
+
+def park_move(arms: tuple[int, ...], seconds: float) -> ArmMove:
+    """A park as the operator is asked about it (`arms`: those that move)."""
+    return ArmMove("park", arms, "joint move to the park pose, out of the camera's view", seconds)
+
+
+def lift_move(arm: int, height: float, seconds: float) -> ArmMove:
+    """The lift after a missed grasp as the operator is asked about it."""
+    return ArmMove(
+        "lift after the missed grasp", (arm,), f"open the jaws, straight up {height:.3f} m", seconds
+    )
 
 
 @dataclass
@@ -40,8 +52,9 @@ class FoldCell(abc.ABC):
     """Height of the table top in the world (m), for drawing fold lines."""
 
     gate: OperatorGate | None = None
-    """Where set (`--confirm`), the operator is asked before each pick-and-place moves
-    (confirm_motion); None: the arms move as planned."""
+    """Where set (`--confirm`), the operator is asked before each motion: a pick-and-place
+    (confirm_motion), a park or the lift after a missed grasp (confirm_move); None: the arms
+    move as planned."""
 
     @property
     @abc.abstractmethod
@@ -107,17 +120,25 @@ class FoldCell(abc.ABC):
             self.use_arm(previous)
         self.gate.ask(motions)
 
+    def confirm_move(self, move: ArmMove) -> None:
+        """Before a park or the lift after a missed grasp moves: with a gate, what it will do is
+        said and the operator's answer awaited (OperatorStopped on stop); without one, nothing."""
+        if self.gate is not None:
+            self.gate.ask([move])
+
     @abc.abstractmethod
     def run_step(self, step: Any) -> StepLog:
         """Move along one planned step, then apply its gripper event (close → grasp result)."""
 
     @abc.abstractmethod
     def release_and_lift(self) -> None:
-        """After a failed grasp: open the gripper and move straight up (the retreat height)."""
+        """After a failed grasp: open the gripper and move straight up (the retreat height); a
+        cell with a gate asks first (confirm_move, lift_move)."""
 
     @abc.abstractmethod
     def park(self) -> None:
-        """Move the arm (joint space) to its park pose, out of the camera's way."""
+        """Move the arms (joint space) to their park poses, out of the camera's way; a cell with
+        a gate asks first where an arm will move (confirm_move, park_move)."""
 
     @abc.abstractmethod
     def wait(self, seconds: float) -> None:

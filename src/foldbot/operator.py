@@ -1,12 +1,14 @@
-"""The operator's go or stop before each pick-and-place (`--confirm`): what the arm is about to
-do, said on the terminal, and the fold moves on Enter or ends, named, on `s`. For a first run on
-a real arm, beside the dry run and the speed scale: a person watching the cell decides each
-motion, with the planned grasp and place in front of them."""
+"""The operator's go or stop before each motion (`--confirm`): what the arms are about to do
+(a pick-and-place, a park, the lift after a missed grasp), said on the terminal, and the fold
+moves on Enter or ends, named, on `s`. For a first run on a real arm, beside the dry run and the
+speed scale: a person watching the cell decides each motion, with the planned grasp and place in
+front of them."""
 
 from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, TextIO
 
@@ -42,6 +44,28 @@ class PlannedMotion:
         )
 
 
+def arms_words(arms: tuple[int, ...]) -> str:
+    """ "arm 0", "arms 0 and 1"."""
+    if len(arms) == 1:
+        return f"arm {arms[0]}"
+    return f"arms {', '.join(str(a) for a in arms[:-1])} and {arms[-1]}"
+
+
+@dataclass(frozen=True)
+class ArmMove:
+    """A motion that is not a pick-and-place, before it moves: its label (park, lift), the arms
+    it moves, what it does in words and its seconds of motion."""
+
+    label: str
+    arms: tuple[int, ...]
+    what: str
+    seconds: float
+
+    def text(self) -> str:
+        """One line on it."""
+        return f"{self.label} with {arms_words(self.arms)}: {self.what}, {self.seconds:.1f} s"
+
+
 def _is_terminal(stream: TextIO) -> bool:
     """Whether `stream` is a terminal (which echoes what is typed)."""
     try:
@@ -50,13 +74,13 @@ def _is_terminal(stream: TextIO) -> bool:
         return False
 
 
-def motion_words(motions: list[PlannedMotion]) -> str:
+def motion_words(motions: Sequence[PlannedMotion | ArmMove]) -> str:
     """The motions' one-line description (two arms' joined by "together with")."""
     return " together with ".join(m.text() for m in motions)
 
 
 class OperatorGate:
-    """Asks before each pick-and-place (FoldCell.confirm_motion) on a terminal: Enter (or y)
+    """Asks before each motion (FoldCell.confirm_motion, confirm_move) on a terminal: Enter (or y)
     lets it run, `s` (or q, n) ends the fold there with OperatorStopped, as does input that
     closes (nothing more can be asked); anything else is asked again. Counts the motions let
     run and the seconds spent waiting (result.json's `operator`)."""
@@ -67,7 +91,7 @@ class OperatorGate:
         self.confirmed = 0
         self.wait_seconds = 0.0
 
-    def ask(self, motions: list[PlannedMotion]) -> None:
+    def ask(self, motions: Sequence[PlannedMotion | ArmMove]) -> None:
         """Return when the operator lets `motions` run; OperatorStopped when not."""
         answers = self.answers if self.answers is not None else sys.stdin
         out = self.out if self.out is not None else sys.stdout

@@ -20,12 +20,13 @@ from typing import Any
 import numpy as np
 
 from foldbot.carry import nearest_arm
-from foldbot.cell import FoldCell, StepLog
+from foldbot.cell import FoldCell, StepLog, lift_move, park_move
 from foldbot.cloth_options import changed_cloth_options
 from foldbot.control.bimanual import check_arms_clear, check_clear_of_still_arms
 from foldbot.control.executor import (
     ArmExecutor,
     PlannedSegment,
+    joint_move_trajectories,
     move_joints_together,
     run_together,
 )
@@ -511,6 +512,16 @@ class SimCell(FoldCell):
         return self._run_checked([(self.executor, step)])[0]
 
     def release_and_lift(self) -> None:
+        if self.gate is not None:
+            height = self.motion.retreat_height
+            up = self.executor.lift_segment(*self.robot.tcp_pose(), height, self.motion.free_speed)
+            try:
+                seconds = sum(self.step_seconds(s) for s in self.executor.plan([up]))
+            except UnreachableTargetError as exc:
+                raise UnreachableTargetError(
+                    f"cannot move to {np.round(up.points[-1], 3).tolist()}: {exc}"
+                ) from exc
+            self.confirm_move(lift_move(self.active_arm, height, seconds))
         self.executor.grasp.open()
         lift = self.executor.lift_segment(
             *self.robot.tcp_pose(), self.motion.retreat_height, self.motion.free_speed
@@ -523,7 +534,12 @@ class SimCell(FoldCell):
             ) from exc
 
     def park(self) -> None:
-        move_joints_together(list(zip(self.executors, self.park_qs, strict=True)), "park")
+        targets = list(zip(self.executors, self.park_qs, strict=True))
+        trajs = joint_move_trajectories(targets)
+        moving = [(arm, t.duration) for arm, t in enumerate(trajs) if t is not None]
+        if moving:
+            self.confirm_move(park_move(tuple(a for a, _ in moving), max(d for _, d in moving)))
+        move_joints_together(targets, "park", trajs)
 
     def wait(self, seconds: float) -> None:
         self.world.step(round(seconds / self.world.time_step))

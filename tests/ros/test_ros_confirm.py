@@ -21,19 +21,32 @@ from foldbot.perception.overlay import GRASP_RGB, PLACE_RGB
 pytestmark = requires_ros
 
 
-def test_the_operator_lets_one_carry_run_and_stops_the_next_over_ros(tmp_path):
+def test_the_operator_lets_a_missed_carry_its_lift_and_park_run_and_stops_the_retry_over_ros(
+    tmp_path,
+):
+    # The first grasp aimed 5 cm off the corner misses: the carry, the lift that lets go and the
+    # park are let run (the planner node's lift and park, asked as in process), the retry stopped.
     out = tmp_path / "ep"
     proc = subprocess.run(
         [
             sys.executable, "-m", "foldbot.cli", "ros-fold", "--confirm", "--resolution", "9",
-            "--video-fps", "0", "--out", str(out), "--port", str(free_port()),
+            "--video-fps", "0", "--fault-grasp-offset", "0.05", "--out", str(out),
+            "--port", str(free_port()),
         ],
-        input="\ns\n", capture_output=True, text=True, timeout=600,
+        input="\n\n\ns\n", capture_output=True, text=True, timeout=600,
     )  # fmt: skip
     assert proc.returncode == 2, proc.stdout[-3000:] + proc.stderr[-3000:]
-    assert proc.stdout.count("next: far_left with arm 0: grasp (") == 1
-    assert proc.stdout.count("next: far_right with arm 0: grasp (") == 1
-    assert "error: over ROS: stopped by the operator before far_right" in proc.stderr
+    asked = [line.split(":")[1].strip() for line in proc.stdout.splitlines() if "next: " in line]
+    assert asked == [
+        "far_left with arm 0",
+        "lift after the missed grasp with arm 0",
+        "park with arm 0",
+        "far_left with arm 0",
+    ], proc.stdout[-3000:]
+    assert "next: lift after the missed grasp with arm 0: open the jaws, straight up 0.080 m, " in (
+        proc.stdout
+    )
+    assert "error: over ROS: stopped by the operator before far_left" in proc.stderr
     assert not out.exists()
     failure = json.loads((tmp_path / "ep.failed" / "error.json").read_text())
     assert failure["error_type"] == "OperatorStopped"

@@ -367,9 +367,10 @@ def add_episode_arguments(parser: argparse.ArgumentParser, output: bool = True) 
     parser.add_argument(
         "--confirm",
         action="store_true",
-        help="before each pick-and-place moves, say what it will do (arm, grasp, place, "
-        "seconds) and wait for the operator: Enter moves, s stops the fold there (the "
-        "episode is then left as DIR.failed); for a first run on a real arm",
+        help="before each motion (a pick-and-place: arm, grasp, place, seconds; a park; the "
+        "lift after a missed grasp) say what it will do and wait for the operator: Enter "
+        "moves, s stops the fold there (the episode is then left as DIR.failed); for a first "
+        "run on a real arm",
     )
 
 

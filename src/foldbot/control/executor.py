@@ -312,19 +312,33 @@ def _diverged_in(
     return error
 
 
-def move_joints_together(
-    targets: list[tuple[ArmExecutor, np.ndarray]], name: str = "joint_move"
-) -> list[SegmentLog]:
-    """Rest-to-rest joint-space moves of every arm at once (one clock, as run_together); an arm
-    already at its target does not move."""
-    if not targets:
-        return []
-    world = targets[0][0].world
+def joint_move_trajectories(
+    targets: list[tuple[ArmExecutor, np.ndarray]],
+) -> list[JointTrajectory | None]:
+    """Each arm's rest-to-rest joint-space trajectory from where it is to its target, None for
+    an arm already there (what move_joints_together runs; apart, so a cell can say how long a
+    move takes before it moves)."""
     trajs: list[JointTrajectory | None] = []
     for ex, q in targets:
         q = np.asarray(q, dtype=float)
         q0 = ex.robot.joint_positions()
         trajs.append(None if np.abs(q - q0).max() < 1e-4 else ex.joint_move_trajectory(q0, q))
+    return trajs
+
+
+def move_joints_together(
+    targets: list[tuple[ArmExecutor, np.ndarray]],
+    name: str = "joint_move",
+    trajs: list[JointTrajectory | None] | None = None,
+) -> list[SegmentLog]:
+    """Rest-to-rest joint-space moves of every arm at once (one clock, as run_together); an arm
+    already at its target does not move. `trajs`: joint_move_trajectories(targets), where the
+    caller has them already."""
+    if not targets:
+        return []
+    world = targets[0][0].world
+    if trajs is None:
+        trajs = joint_move_trajectories(targets)
     steps = max((len(t.times) for t in trajs if t is not None), default=0)
     for k in range(1, steps):
         for (ex, _), t in zip(targets, trajs, strict=True):

@@ -22,7 +22,7 @@ from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
 
 from foldbot import errors
 from foldbot.carry import nearest_arm
-from foldbot.cell import FoldCell, StepLog
+from foldbot.cell import FoldCell, StepLog, lift_move, park_move
 from foldbot.io.episode import EpisodeWriter
 from foldbot.loop import corners_of
 from foldbot.perception.overlay import draw_overlay
@@ -35,6 +35,7 @@ from foldbot.ros import (
     TOPICS,
     WORLD_FRAME,
     arm_joint_names,
+    arm_prefixes,
     convert,
     driver_actions,
 )
@@ -929,6 +930,11 @@ class RosCell(FoldCell):
             driver.slip_travel = travel
 
     def release_and_lift(self) -> None:
+        if self.gate is not None:  # the lift as it would move now (the jaws leave the arm still)
+            up = self._plan("lift", arm=self.active, qs=self._qs())["steps"]
+            height = float(up[-1]["points"][-1][2] - up[0]["points"][0][2])
+            seconds = sum(self.step_seconds(step) for step in up)
+            self.confirm_move(lift_move(self.active, height, seconds))
         self._gripper("open", self.active)
         # Straight up by the episode's retreat height (the planner node's MotionConfig).
         for step in self._plan("lift", arm=self.active, qs=self._qs())["steps"]:
@@ -937,6 +943,13 @@ class RosCell(FoldCell):
     def park(self) -> None:
         traj = self._plan("park", qs=self._qs())["trajectory"]
         if traj is not None:
+            names = traj["joint_names"]
+            moving = tuple(
+                arm
+                for arm, prefix in enumerate(arm_prefixes(self.arms))
+                if any(n.startswith(prefix) for n in names)
+            )
+            self.confirm_move(park_move(moving, float(traj["times"][-1])))
             self._follow(traj)
 
     def wait(self, seconds: float) -> None:
