@@ -316,7 +316,7 @@ def test_a_fold_through_a_real_arms_driver_interface(tmp_path):
     # the camera stream, as on a real UR5. Not lockstep, so not repeatable to the digit: the
     # fold is checked, not its error. The diagonal fold, one carry: the half fold's second
     # carry, with ~0.05 s between each motion and its gripper event, is chaotic enough to blow
-    # the cloth up now and then (README, "A real arm's drivers"); the diagonal folded 5 of 5.
+    # the cloth up now and then (docs/ros.md, "A real arm's drivers"); the diagonal folded 5 of 5.
     out = tmp_path / "episode"
     proc = foldbot(
         "ros-fold", "--resolution", "8", "--video-fps", "2", "--recipe", "diagonal",

@@ -28,7 +28,7 @@ GRIPPER_LEAD_PARAM = "/foldbot/gripper_lead"
 gripper goal that follows it; negative: only after the motion's result (a round trip later)."""
 GRIPPER_LEAD_S = 0.05
 """The default lead: about the round trip a driver pair adds between a motion and its gripper
-event (README, "A real arm's drivers")."""
+event (docs/ros.md, "A real arm's drivers")."""
 TOGETHER_LEAD_PARAM = "/foldbot/together_lead"
 """With the actions interface and two arms: how far ahead of the cell's clock (s) the task node
 stamps the common start of a motion both arms make together, so that both goals reach their
