@@ -114,6 +114,40 @@ def test_a_slowed_arm_is_planned_slower(tmp_path):
     assert 0.0 <= dwell < 0.25 * a["motion_seconds"]
 
 
+LAMP = """[[obstacles]]
+name = "lamp"
+center_xyz = [0.66, 0.12, 1.11]
+size_xyz = [0.12, 0.12, 0.10]
+"""
+"""A lamp hanging 31–41 cm over the table above the demo towel's far left corner."""
+
+
+def test_an_action_into_a_layout_obstacle_is_named_and_the_rest_planned(tmp_path, capsys):
+    layout = tmp_path / "lamp.toml"
+    layout.write_text(LAMP)
+    out = tmp_path / "plan"
+    assert main(["fold", "--dry-run", "--layout", str(layout), *SMALL, "--out", str(out)]) == 1
+    plan = json.loads((out / "plan.json").read_text())
+    assert [(a["label"], a["feasible"]) for a in plan["actions"]] == [
+        ("far_left", False),
+        ("far_right", True),
+    ]
+    assert plan["actions"][0]["segment"] == "approach"
+    assert "obstacle 'lamp' (at least 20 mm needed)" in plan["actions"][0]["reason"]
+    assert "NOT feasible: stage 1 far_left" in capsys.readouterr().out
+
+
+def test_an_obstacle_where_the_arm_rests_is_refused_before_anything_is_written(tmp_path, capsys):
+    layout = tmp_path / "lamp.toml"
+    layout.write_text(LAMP.replace("[0.66, 0.12, 1.11]", "[0.55, 0.10, 1.10]"))
+    out = tmp_path / "ep"
+    assert main(["fold", "--layout", str(layout), *SMALL, "--out", str(out)]) == 2
+    assert "error: the arm's home posture meets an obstacle of the layout" in (
+        capsys.readouterr().err
+    )
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["lamp.toml"]
+
+
 def test_an_action_out_of_reach_is_named_and_the_rest_planned(tmp_path, capsys):
     # A Panda (855 mm reach) and a 55 cm towel: the far corner's approach has no IK.
     out = tmp_path / "plan"

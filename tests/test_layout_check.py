@@ -185,3 +185,55 @@ def test_the_example_layouts_can_fold_everywhere(arms):
         layout = load_layout(path)
         check = check_layout(layout, sim_camera(layout), arms=arms, grid=7)
         assert check.ok, f"{path.name}: " + "\n".join(check.lines())
+
+
+def test_an_obstacle_in_the_arms_way_or_the_cameras_view_is_found_and_named():
+    from foldbot.sim.layout import Obstacle
+
+    # A lamp 47–53 cm over the table between the camera (1.05, 0, 1.75) and the workspace: it
+    # hides part of the table from the camera, and the arm's wrist meets it over some points.
+    lamp = Obstacle("lamp", (0.75, 0.0, 1.25), (0.12, 0.12, 0.05))
+    layout = CellLayout(obstacles=(lamp,))
+    check = check_layout(layout, sim_camera(layout), grid=7)
+    assert not check.ok
+    assert check.hidden == {"lamp": int((~check.in_view).sum())} and check.hidden["lamp"] > 0
+    assert check.blocked_postures == ()
+    lines = check.lines()
+    assert (
+        f"  obstacle 'lamp' stands between the camera and {check.hidden['lamp']} of them" in lines
+    )
+    assert lines[-1].endswith("the camera or an obstacle")
+    record = check.record()
+    assert record["camera"]["points_hidden_by_obstacles"] == check.hidden
+    assert record["layout"]["obstacles"][0]["name"] == "lamp"
+    picture = check_picture(check)
+    assert picture.ndim == 3 and picture.shape[2] == 3
+
+
+def test_an_obstacle_where_the_arm_rests_or_reaches_fails_the_check():
+    from foldbot.sim.layout import Obstacle
+
+    lamp = Obstacle("lamp", (0.55, 0.10, 1.10), (0.30, 0.30, 0.08))  # 32 cm over the table
+    layout = CellLayout(obstacles=(lamp,))
+    check = check_layout(layout, sim_camera(layout), grid=5)
+    assert not check.ok
+    assert len(check.blocked_postures) == 1
+    assert check.blocked_postures[0].startswith("arm: the arm's home posture meets an obstacle")
+    assert check.blocked_postures[0] in check.lines()
+    whys = check.unreached(0).values()
+    assert whys and all("obstacle 'lamp'" in w for w in whys)
+
+
+def test_a_cell_resting_in_an_obstacle_or_out_of_reach_is_refused_before_anything_starts():
+    from foldbot.layout_check import check_cell_fits
+    from foldbot.sim.layout import Obstacle
+
+    check_cell_fits(DEFAULT_LAYOUT, "ur5", 2, "out_of_view")
+    lamp = Obstacle("lamp", (0.55, 0.10, 1.10), (0.30, 0.30, 0.08))
+    with pytest.raises(ConfigError, match=r"^the arm's home posture meets an obstacle"):
+        check_cell_fits(CellLayout(obstacles=(lamp,)), "ur5", 1, "home")
+    far = CellLayout(
+        table_size=(2.0, 1.2), table_center_xy=(0.9, 0.0), workspace_center_xy=(0.95, 0.0)
+    )
+    with pytest.raises(ConfigError, match=r"cannot reach the workspace centre \(0\.95, 0\) m"):
+        check_cell_fits(far, "ur5", 1, "home")

@@ -23,8 +23,10 @@ from foldbot.sim.camera import CameraConfig
 from foldbot.sim.layout import CellLayout
 from foldbot.sim.robots import (
     HOME_HEIGHT_ABOVE_TABLE,
+    check_workspace_reach,
     gripper_down_quaternion,
     make_robot,
+    rest_postures,
 )
 from foldbot.sim.robots import REACH_CHECK_HEIGHT as GRASP_HEIGHT
 from foldbot.sim.world import SimConfig, SimWorld
@@ -136,11 +138,17 @@ class LayoutCheck:
     camera: CameraPlacement
     in_view: np.ndarray
     """len(ys) × len(xs): the workspace point on the table top is inside the camera's image,
-    the camera above the table (from below it sees the table's underside)."""
+    the camera above the table (from below it sees the table's underside), and no obstacle of
+    the layout stands between them."""
     mm_per_px: float | None
     """The image's resolution on the table at the workspace centre (mm per pixel along u); None
     where the camera does not look down at it (below the table top, or facing away)."""
     arm_names: tuple[str, ...] = field(default=("arm",))
+    hidden: dict[str, int] = field(default_factory=dict)
+    """Per obstacle of the layout, how many workspace points inside the image it hides from
+    the camera (only those that hide some)."""
+    blocked_postures: tuple[str, ...] = ()
+    """Why an arm's home posture meets one of the layout's obstacles (one line per such arm)."""
 
     @property
     def points(self) -> int:
@@ -165,8 +173,9 @@ class LayoutCheck:
 
     @property
     def ok(self) -> bool:
-        """Every workspace point is reached by an arm and seen by the camera."""
-        return bool(self.covered.all() and self.in_view.all())
+        """Every workspace point is reached by an arm and seen by the camera, and no arm rests
+        in an obstacle."""
+        return bool(self.covered.all() and self.in_view.all() and not self.blocked_postures)
 
     def unreached(self, arm: int) -> dict[tuple[int, int], str]:
         """Where arm `arm` cannot grasp or place, and why."""
@@ -200,6 +209,7 @@ class LayoutCheck:
                 out.append(f"  ({self.xs[ix]:.3f}, {self.ys[iy]:.3f}) m: {why}")
             if len(fails) > listed:
                 out.append(f"  … and {len(fails) - listed} more")
+        out += self.blocked_postures
         if len(self.failures) > 1:
             out.append(
                 f"some arm reaches {int(self.covered.sum())} of {self.points} points, both "
@@ -220,11 +230,14 @@ class LayoutCheck:
                 + ", ".join(f"({x:.3f}, {y:.3f})" for x, y in missed[:listed])
                 + (f" … and {len(missed) - listed} more" if len(missed) > listed else "")
             )
+        for name, n in self.hidden.items():
+            out.append(f"  obstacle {name!r} stands between the camera and {n} of them")
         out.append(
             "the layout can fold: every workspace point reached and seen"
             if self.ok
             else "the layout cannot fold everywhere in its workspace: move the workspace "
-            "(workspace_center_xy, workspace_size), the arm (robot_base_xyz) or the camera"
+            "(workspace_center_xy, workspace_size), the arm (robot_base_xyz), the camera or an "
+            "obstacle"
         )
         return out
 
@@ -271,12 +284,14 @@ class LayoutCheck:
                 for a, name in enumerate(self.arm_names)
             },
             "covered_points": int(self.covered.sum()),
+            "blocked_postures": list(self.blocked_postures),
             "camera": {
                 "source": self.camera.source,
                 "T_world_camera": self.camera.T_world_camera.tolist(),
                 "K": self.camera.K.tolist(),
                 "image_size": [self.camera.width, self.camera.height],
                 "points_seen": int(self.in_view.sum()),
+                "points_hidden_by_obstacles": dict(self.hidden),
                 "mm_per_px": self.mm_per_px,
             },
             "points": self.points,
@@ -318,6 +333,22 @@ def _reach_failures(
     return out
 
 
+def check_cell_fits(layout: CellLayout, robot: str, arms: int, park: str) -> None:
+    """ConfigError where an arm cannot reach the workspace centre or would rest (home, park) in
+    one of the layout's obstacles: what the simulated cell and the planner node check as they
+    start, run before anything starts (`foldbot ros-fold`, whose nodes would otherwise die with
+    it at start-up). Kinematics only, on twins in a world of their own."""
+    world = SimWorld(SimConfig(layout=layout))
+    try:
+        for arm_layout in layout.arm_layouts(arms):
+            model = make_robot(robot, world.client, arm_layout)
+            check_workspace_reach(model, robot)
+            executor = ArmExecutor(world, model, None)  # type: ignore[arg-type]  # no cloth
+            executor.check_postures(rest_postures(model, park))
+    finally:
+        world.close()
+
+
 def check_layout(
     layout: CellLayout,
     camera: CameraPlacement,
@@ -334,11 +365,16 @@ def check_layout(
     xs, ys = _grid(layout, grid)
     world = SimWorld(SimConfig(layout=layout))
     try:
-        failures = []
+        failures, blocked = [], []
+        names = ("arm",) if arms == 1 else ("left arm", "right arm")
         for a, arm_layout in enumerate(layout.arm_layouts(arms)):
             model = make_robot(robot, world.client, arm_layout)
             executor = ArmExecutor(world, model, None)  # type: ignore[arg-type]  # no cloth
             failures.append(_reach_failures(executor, layout, xs, ys))
+            try:
+                executor.check_postures({"home": model.home_q})
+            except ConfigError as exc:
+                blocked.append(f"{names[a]}: {exc}")
             if progress is not None:
                 progress(a + 1, arms)
     finally:
@@ -347,6 +383,13 @@ def check_layout(
     table = np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, layout.table_height)], axis=1)
     above = bool(camera.T_world_camera[2, 3] > layout.table_height)
     in_view = camera.in_view(table).reshape(gx.shape) & above
+    eye = camera.T_world_camera[:3, 3]
+    hidden: dict[str, int] = {}
+    for o in layout.obstacles:
+        behind = np.array([o.blocks(eye, pt) for pt in table]).reshape(gx.shape) & in_view
+        if behind.any():
+            hidden[o.name] = int(behind.sum())
+        in_view &= ~behind
     cx, cy = layout.workspace_center_xy
     _, z = camera.project(np.array([[cx, cy, layout.table_height]]))
     mm_per_px = 1000.0 * float(z[0]) / float(camera.K[0, 0]) if above and z[0] > 0 else None
@@ -359,7 +402,9 @@ def check_layout(
         camera=camera,
         in_view=in_view,
         mm_per_px=mm_per_px,
-        arm_names=("arm",) if arms == 1 else ("left arm", "right arm"),
+        arm_names=names,
+        hidden=hidden,
+        blocked_postures=tuple(blocked),
     )
 
 
@@ -371,14 +416,16 @@ def check_picture(check: LayoutCheck, width_px: int = 720) -> np.ndarray:
     """The check from above, the arm at the bottom (+x up the picture, +y to the left): the
     table, the workspace's points (green: reached at every height, amber: grasp and place but
     not a carry's top, red: not; by the arm that reaches highest there; hollow: outside the
-    camera's image), the camera's view on the table (blue), the arms' bases."""
+    camera's image or hidden behind an obstacle), the camera's view on the table (blue), the
+    arms' bases, the layout's obstacles (dark, named)."""
     lay = check.layout
     arms = len(check.failures)
     tx, ty = lay.table_center_xy
     sx, sy = lay.table_size
     bases = [a.robot_base_xyz[:2] for a in lay.arm_layouts(arms)]
-    xs = [tx - sx / 2, tx + sx / 2] + [b[0] for b in bases]
-    ys = [ty - sy / 2, ty + sy / 2] + [b[1] for b in bases]
+    corners = [c for o in lay.obstacles for c in o.bounds]
+    xs = [tx - sx / 2, tx + sx / 2] + [b[0] for b in bases] + [c[0] for c in corners]
+    ys = [ty - sy / 2, ty + sy / 2] + [b[1] for b in bases] + [c[1] for c in corners]
     pad = 0.08
     x_lo, x_hi = min(xs) - pad, max(xs) + pad
     y_lo, y_hi = min(ys) - pad, max(ys) + pad
@@ -391,6 +438,18 @@ def check_picture(check: LayoutCheck, width_px: int = 720) -> np.ndarray:
         return round((y_hi - y) * scale), round((x_hi - x) * scale)
 
     cv2.rectangle(img, px(tx + sx / 2, ty + sy / 2), px(tx - sx / 2, ty - sy / 2), _GREY, -1)
+    font = cv2.FONT_HERSHEY_SIMPLEX
+    labels: list[tuple[int, int, int, int]] = []
+    for o in lay.obstacles:  # from above: their footprints, named (a name under another's
+        (ox0, oy0, _), (ox1, oy1, _) = o.bounds  # moves down to a line of its own)
+        cv2.rectangle(img, px(ox1, oy1), px(ox0, oy0), _DARK, -1)
+        u, v = px(ox1, oy0)
+        (w, h), _ = cv2.getTextSize(o.name, font, 0.4, 1)
+        u, v = u + 4, v + 12
+        while any(u < a + c and a < u + w and v - h < b and b - d < v for a, b, c, d in labels):
+            v += h + 4
+        labels.append((u, v, w, h))
+        cv2.putText(img, o.name, (u, v), font, 0.4, _DARK, 1, cv2.LINE_AA)
     x0, x1, y0, y1 = lay.workspace_bounds
     cv2.rectangle(img, px(x1, y1), px(x0, y0), _WHITE, 2)
     foot = check.camera.footprint(lay.table_height)
@@ -409,7 +468,6 @@ def check_picture(check: LayoutCheck, width_px: int = 720) -> np.ndarray:
             )
             seen = bool(check.in_view[iy, ix])
             cv2.circle(img, px(x, y), r, colour, -1 if seen else 2, cv2.LINE_AA)
-    font = cv2.FONT_HERSHEY_SIMPLEX
     base_r = max(6, round(0.04 * scale))
     for (bx, by), name in zip(bases, check.arm_names, strict=True):
         u, v = px(bx, by)
@@ -421,7 +479,7 @@ def check_picture(check: LayoutCheck, width_px: int = 720) -> np.ndarray:
         (_GREEN, -1, "reached"),
         (_AMBER, -1, f"grasp and place only (not {carry_mm:.0f} mm up)"),
         (_RED, -1, "not reached"),
-        (_GREEN, 2, "outside the camera's image"),
+        (_GREEN, 2, "not seen"),
     ]
     u = 12
     for colour, fill, text in legend:

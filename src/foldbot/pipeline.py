@@ -71,7 +71,7 @@ from foldbot.sim.flatten_oracle import CornerPullOracle
 from foldbot.sim.garment_oracle import GarmentOracleEstimator
 from foldbot.sim.grasp import JAW_CATCHES, ClothGrasp, SlipFault
 from foldbot.sim.oracle import GroundTruthOracle, OracleEstimator
-from foldbot.sim.robots import ROBOT_NAMES, check_workspace_reach, make_robot
+from foldbot.sim.robots import ROBOT_NAMES, check_workspace_reach, make_robot, rest_postures
 from foldbot.sim.world import SimConfig, SimWorld
 from foldbot.simd import late_libraries
 from foldbot.types import GraspResult, Observation
@@ -729,11 +729,13 @@ def build_sim_cell(cfg: EpisodeConfig, world: SimWorld) -> SimCellParts:
             model=make_robot(cfg.robot, model_world.client, lay),
             model_table_id=model_world.table_id,
             speed_scale=cfg.motion.speed_scale,
+            model_obstacle_ids=model_world.obstacle_ids,
         )
         for arm, lay in zip([robot, *others], arm_layouts, strict=True)
     ]
     for ex in executors:  # on the twins: IK on the simulated arms would change the cloth's run
         check_workspace_reach(ex.model, cfg.robot)
+        ex.check_postures(rest_postures(ex.model, cfg.park))
     return SimCellParts(
         world,
         robot,

@@ -315,6 +315,28 @@ def test_a_layout_table_reaches_the_cell_and_is_left_out_of_specs_by_default(tin
         suite_from_dict(data)
 
 
+def test_a_layouts_obstacles_reach_the_cell_and_resume_from_the_record(tiny_suite_data):
+    import json
+
+    from foldbot.sim.layout import Obstacle
+
+    data = tiny_suite_data()
+    post = {"name": "post", "center_xyz": [0.9, 0.5, 1.1], "size_xyz": [0.05, 0.05, 0.7]}
+    data["layout"] = {"obstacles": [post]}  # a suite file's [[layout.obstacles]]
+    spec = load_one(data)
+    assert spec.to_config().sim.layout.obstacles == (
+        Obstacle("post", (0.9, 0.5, 1.1), (0.05, 0.05, 0.7)),
+    )
+    record = json.loads(json.dumps(spec.as_dict()))
+    assert record["layout"] == {"obstacles": [post]}
+    assert EpisodeSpec.from_dict(record) == spec and hash(spec) == hash(
+        EpisodeSpec.from_dict(record)
+    )
+    data["layout"] = {"obstacles": [{**post, "size_xyz": [0.05, 0.05]}]}
+    with pytest.raises(ConfigError, match=r"\[layout\] obstacles\[0\]: obstacle 'post': size_xyz"):
+        suite_from_dict(data)
+
+
 @pytest.mark.parametrize(
     ("table", "needle"),
     [

@@ -232,6 +232,24 @@ def test_bad_input_is_named(args, needle, tmp_path, capsys, no_launch):
     assert not (tmp_path / "e").exists()
 
 
+@pytest.mark.parametrize("command", [["ros-fold", "--out", "{tmp}/e"], ["ros-cell"]])
+def test_a_layout_the_cell_cannot_start_in_is_named_before_anything_launches(
+    command, tmp_path, capsys, no_launch
+):
+    # A lamp 32 cm over the workspace, where the arm's home holds its gripper: the nodes would
+    # refuse it as they start, and the launch would end unexplained.
+    layout = tmp_path / "lamp.toml"
+    layout.write_text(
+        '[[obstacles]]\nname = "lamp"\ncenter_xyz = [0.55, 0.10, 1.10]\n'
+        "size_xyz = [0.30, 0.30, 0.08]\n"
+    )
+    args = [a.replace("{tmp}", str(tmp_path)) for a in command]
+    assert main([*args, "--layout", str(layout)]) == 2
+    err = capsys.readouterr().err
+    assert "error: the arm's home posture meets an obstacle of the layout" in err
+    assert "obstacle 'lamp'" in err and not (tmp_path / "e").exists()
+
+
 @pytest.mark.parametrize(
     ("args", "needle"),
     [

@@ -277,3 +277,48 @@ def test_a_speed_scale_outside_what_a_slider_allows_is_refused(scale):
         robot = make_robot("ur5", world.client, world.layout)
         with pytest.raises(ConfigError, match=r"speed_scale must be in \[0\.05, 1\]"):
             ArmExecutor(world, robot, grasp=None, speed_scale=scale)
+
+
+def test_a_path_into_a_layout_obstacle_is_refused_naming_it_before_anything_moves():
+    from foldbot.sim.layout import CellLayout, Obstacle
+    from foldbot.sim.world import SimConfig
+
+    # A lamp hanging 32–42 cm over the table above the workspace's far left: the wrist meets it
+    # coming down to (0.66, 0.12), 8 cm over the table; without it the same path is planned.
+    lamp = Obstacle("lamp", (0.66, 0.12, 1.12), (0.12, 0.12, 0.10))
+    segments = lambda start: [  # noqa: E731
+        Segment("down", line_path(start, np.array([0.66, 0.12, 0.83])), 0.25)
+    ]
+    with SimWorld() as world:
+        robot = make_robot("ur5", world.client, world.layout)
+        ArmExecutor(world, robot, grasp=None).plan(segments(robot.tcp_pose()[0]))
+    with SimWorld(SimConfig(layout=CellLayout(obstacles=(lamp,)))) as world:
+        robot = make_robot("ur5", world.client, world.layout)
+        executor = ArmExecutor(world, robot, grasp=None)
+        assert executor.model_obstacle_ids == world.obstacle_ids != {}
+        q0 = robot.joint_positions()
+        with pytest.raises(
+            UnreachableTargetError,
+            match=r"segment 'down': waypoint \d+: the arm's \w+ would (touch|come within "
+            r"[\d.]+ mm of) obstacle 'lamp' \(at least 20 mm needed\)",
+        ):
+            executor.plan(segments(robot.tcp_pose()[0]))
+        assert np.array_equal(robot.joint_positions(), q0) and world.steps == 0
+        # Where the arm rests is checked before it: its home is clear of the lamp.
+        executor.check_postures({"home": robot.home_q})
+
+
+def test_a_layout_obstacle_where_the_arm_rests_is_refused_by_name():
+    from foldbot.sim.layout import CellLayout, Obstacle
+    from foldbot.sim.world import SimConfig
+
+    # Hanging 32 cm over the workspace centre: the arm's home holds its gripper 25 cm up there.
+    lamp = Obstacle("lamp", (0.55, 0.10, 1.10), (0.30, 0.30, 0.08))
+    with SimWorld(SimConfig(layout=CellLayout(obstacles=(lamp,)))) as world:
+        robot = make_robot("ur5", world.client, world.layout)
+        with pytest.raises(
+            ConfigError,
+            match=r"^the arm's home posture meets an obstacle of the layout: the arm's \w+ would "
+            r"touch obstacle 'lamp'.*; move the obstacle, or the arm \(robot_base_xyz, home_xy\)$",
+        ):
+            ArmExecutor(world, robot, grasp=None).check_postures({"home": robot.home_q})

@@ -259,3 +259,27 @@ def test_a_bad_spread_part_is_named(two_arm_planner):
     pairs = [{"arm": 0, "action": bad}, {"arm": 1, "action": _spread_part(-0.15, "x")}]
     with pytest.raises(FoldbotError, match="spread action's 'hold' must be 3 finite numbers"):
         p.handle({"kind": "together", "pairs": pairs, "qs": _homes(p)})
+
+
+def test_the_layouts_obstacles_keep_the_planner_nodes_motions_clear(tmp_path):
+    from foldbot.errors import ConfigError, UnreachableTargetError
+    from foldbot.ros.planner_node import MotionPlanner
+
+    # A lamp hanging 31–41 cm over the table's far left: a grasp under it is refused by name.
+    layout = tmp_path / "lamp.toml"
+    lamp = '[[obstacles]]\nname = "lamp"\ncenter_xyz = [0.66, 0.12, 1.11]\n'
+    layout.write_text(lamp + "size_xyz = [0.12, 0.12, 0.10]\n")
+    p = MotionPlanner(f"--out /tmp/unused --layout {layout}")
+    try:
+        req = {"kind": "action", "arm": 0, "qs": _homes(p)}
+        with pytest.raises(UnreachableTargetError, match=r"obstacle 'lamp' \(at least 20 mm"):
+            p.handle({**req, "action": _action((0.66, 0.12), (0.4, 0.12))})
+        assert p.handle({**req, "action": _action((0.45, -0.15), (0.3, -0.15))})["steps"]
+    finally:
+        p.world.close()
+    # Where the arm rests, the node refuses to start.
+    layout.write_text(
+        lamp.replace("0.66, 0.12, 1.11", "0.55, 0.10, 1.10") + "size_xyz = [0.3, 0.3, 0.08]\n"
+    )
+    with pytest.raises(ConfigError, match=r"the arm's home posture meets an obstacle"):
+        MotionPlanner(f"--out /tmp/unused --layout {layout}")

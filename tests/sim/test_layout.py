@@ -138,3 +138,85 @@ def test_a_workspace_out_of_the_arms_reach_is_refused_naming_the_layout():
     text = str(exc.value)
     assert "the ur5 mounted at (0, 0, 0.75) m cannot reach the workspace centre (1.3, 0) m" in text
     assert "move the layout's workspace_center_xy, robot_base_xyz or table_height" in text
+
+
+CAMERA_MOUNT = Path(__file__).resolve().parents[2] / "layouts" / "camera_mount.toml"
+
+
+def test_a_layout_files_obstacles_load_named_and_are_recorded():
+    layout = load_layout(CAMERA_MOUNT)
+    assert [o.name for o in layout.obstacles] == ["camera_post", "camera_bar"]
+    post = layout.obstacles[0]
+    assert post.center_xyz == (1.20, 0.0, 0.90) and post.size_xyz == (0.08, 0.08, 1.80)
+    lo, hi = post.bounds
+    assert lo == pytest.approx((1.16, -0.04, 0.0)) and hi == pytest.approx((1.24, 0.04, 1.8))
+    assert layout.changes() == {
+        "obstacles": [
+            {"name": "camera_post", "center_xyz": [1.2, 0.0, 0.9], "size_xyz": [0.08, 0.08, 1.8]},
+            {"name": "camera_bar", "center_xyz": [1.17, 0.0, 1.8], "size_xyz": [0.14, 0.06, 0.06]},
+        ]
+    }
+    assert not any(layout.workspace_shift())  # the cell itself is the default one
+
+
+OBSTACLE = (
+    '[[obstacles]]\nname = "post"\ncenter_xyz = [0.9, 0.5, 1.1]\nsize_xyz = [0.05, 0.05, 0.7]\n'
+)
+
+
+@pytest.mark.parametrize(
+    ("text", "needle"),
+    [
+        (
+            OBSTACLE.replace("[0.9, 0.5, 1.1]", "[0.45, 0.0, 0.9]"),
+            "layout obstacle 'post' (x 0.425–0.475, y -0.025–0.025, z 0.550–1.250 m) reaches "
+            "into the cloth workspace (x 0.150–0.750, y -0.300–0.300 m, up to 0.3 m over the "
+            "table)",
+        ),
+        (OBSTACLE.replace('"post"', '"a post"'), "an obstacle's name must be a non-empty word"),
+        (
+            OBSTACLE.replace("[0.05, 0.05, 0.7]", "[0.05, 0.0, 0.7]"),
+            "obstacle 'post': size_xyz must be 3 sizes in (0, 10] m, got [0.05, 0.0, 0.7]",
+        ),
+        (
+            OBSTACLE.replace("[0.9, 0.5, 1.1]", "[0.9, 0.5]"),
+            "layout obstacles[0]: obstacle 'post': center_xyz must be 3 finite numbers (m)",
+        ),
+        (
+            OBSTACLE.replace("center_xyz", "centre"),
+            "layout obstacles[0]: unknown key 'centre'; missing 'center_xyz'; an obstacle has "
+            "exactly name, center_xyz, size_xyz",
+        ),
+        (OBSTACLE + OBSTACLE, "layout obstacles must have names of their own; 'post' named"),
+        ('obstacles = "post"\n', "layout obstacles must be a list of tables"),
+    ],
+)
+def test_a_bad_obstacle_is_named_with_what_is_allowed(tmp_path, text, needle):
+    path = tmp_path / "cell.toml"
+    path.write_text(text)
+    with pytest.raises(ConfigError) as exc:
+        load_layout(path)
+    assert needle in str(exc.value) and str(path) in str(exc.value)
+
+
+def test_an_obstacle_blocks_the_lines_through_it_only():
+    from foldbot.sim.layout import Obstacle
+
+    box = Obstacle("lamp", (0.0, 0.0, 1.0), (0.2, 0.2, 0.2))
+    assert box.blocks((0.0, 0.0, 2.0), (0.0, 0.0, 0.0))  # straight down through it
+    assert box.blocks((-1.0, 0.05, 1.05), (1.0, 0.05, 1.05))  # across it
+    assert not box.blocks((0.0, 0.0, 2.0), (0.0, 0.0, 1.2))  # stops short of its top
+    assert not box.blocks((0.5, 0.0, 2.0), (0.5, 0.0, 0.0))  # beside it
+    assert not box.blocks((1.0, 0.0, 2.0), (0.3, 0.0, 0.0))  # passes by its corner
+
+
+def test_the_simulated_cell_builds_each_obstacle_where_the_layout_puts_it():
+    import pybullet as p
+
+    with SimWorld(SimConfig(layout=load_layout(CAMERA_MOUNT))) as world:
+        assert list(world.obstacle_ids) == ["camera_post", "camera_bar"]
+        lo, hi = p.getAABB(world.obstacle_ids["camera_post"], physicsClientId=world.client)
+        assert lo == pytest.approx((1.16, -0.04, 0.0), abs=0.002)
+        assert hi == pytest.approx((1.24, 0.04, 1.8), abs=0.002)
+    with SimWorld() as world:
+        assert world.obstacle_ids == {}

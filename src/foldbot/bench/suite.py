@@ -101,7 +101,13 @@ from foldbot.planning.recipes import RECIPES
 from foldbot.sim.camera import CameraConfig
 from foldbot.sim.cloth import ClothConfig
 from foldbot.sim.grasp import JAW_CATCHES
-from foldbot.sim.layout import DEFAULT_LAYOUT, LAYOUT_FIELDS, CellLayout, layout_from_table
+from foldbot.sim.layout import (
+    DEFAULT_LAYOUT,
+    LAYOUT_FIELDS,
+    CellLayout,
+    layout_from_table,
+    obstacle_from_table,
+)
 from foldbot.sim.world import MAX_TIME_STEP, MIN_TIME_STEP, SimConfig
 
 ALL_RECIPES = RECIPES + tuple(r for rs in GARMENT_RECIPES.values() for r in rs)
@@ -334,7 +340,12 @@ class EpisodeSpec:
         if d["replicate"] == 0:
             del d["replicate"]  # likewise
         if d["layout"]:
-            d["layout"] = {k: list(v) if isinstance(v, tuple) else v for k, v in self.layout}
+            d["layout"] = {
+                k: [o.as_dict() for o in v]
+                if k == "obstacles"
+                else (list(v) if isinstance(v, tuple) else v)
+                for k, v in self.layout
+            }
         else:
             del d["layout"]  # likewise
         if d["camera"]:
@@ -547,10 +558,19 @@ def _range(value: Any, key: str, lo: float, hi: float, where: str) -> float:
 
 
 def layout_items(table: dict[str, Any]) -> tuple[tuple[str, Any], ...]:
-    """A `[layout]` table as EpisodeSpec.layout's (name, value) pairs, lists as tuples."""
+    """A `[layout]` table as EpisodeSpec.layout's (name, value) pairs, lists as tuples (its
+    `[[layout.obstacles]]` as sim.layout.Obstacle)."""
     if not isinstance(table, dict):
         raise ConfigError(f"[layout] must be a table of name = value, got {table!r}")
-    return tuple((k, tuple(v) if isinstance(v, list) else v) for k, v in table.items())
+
+    def value(k: str, v: Any) -> Any:
+        if k == "obstacles" and isinstance(v, list | tuple):
+            return tuple(
+                obstacle_from_table(o, f"[layout] obstacles[{i}]") for i, o in enumerate(v)
+            )
+        return tuple(v) if isinstance(v, list) else v
+
+    return tuple((k, value(k, v)) for k, v in table.items())
 
 
 def _option_table(

@@ -64,6 +64,7 @@ class SimCalibrationCell(CalibrationCell):
             model=self.model,
             model_table_id=self.model_world.table_id,
             speed_scale=speed_scale,
+            model_obstacle_ids=self.model_world.obstacle_ids,
         )
         self.board_id = attach_board(self.robot, board, mount)
         self.camera = RGBDCamera(self.world.client, camera)

@@ -32,6 +32,7 @@ from foldbot.commands.ros_fold import (
     stop_launch,
 )
 from foldbot.errors import ConfigError, FoldbotError
+from foldbot.layout_check import check_cell_fits
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 """What stops the cell cleanly: Ctrl-C, or `kill`. SIGINT is taken even where the cell
@@ -126,6 +127,7 @@ def run(args: argparse.Namespace) -> int:
             f"{'it' if one else 'them'} to ros-fold)",
             flush=True,
         )
+    check_cell_fits(cfg.sim.layout, cfg.robot, cfg.arms, cfg.park)  # before a node would
     missing = ros_missing()
     if missing:
         raise FoldbotError(missing)

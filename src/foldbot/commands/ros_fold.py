@@ -34,6 +34,7 @@ from foldbot.io.episode import (
     is_unscored_episode_dir,
 )
 from foldbot.io.staging import output_path
+from foldbot.layout_check import check_cell_fits
 from foldbot.pipeline import injected_faults
 from foldbot.ros.node_args import (
     ARM_INTERFACES,
@@ -641,6 +642,9 @@ def run(args: argparse.Namespace) -> int:
         check_dry_run_output(out, args.overwrite)
     else:
         check_episode_output(out, args.overwrite)
+    # The arms reach the workspace and rest clear of the layout's obstacles: refused here by
+    # name, where a node refusing it as it starts would end the launch unexplained.
+    check_cell_fits(cfg.sim.layout, cfg.robot, cfg.arms, cfg.park)
     if args.record is not None:
         check_bag_target(args.record, args.overwrite)
     bag_before = None if args.record is None else file_stamp(args.record)

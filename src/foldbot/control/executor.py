@@ -5,6 +5,7 @@ with velocity feed-forward every physics step, tracking monitoring."""
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -13,6 +14,7 @@ from foldbot.control.trajectory import JointTrajectory, time_parametrize
 from foldbot.errors import ConfigError, SimulationDivergedError, UnreachableTargetError
 from foldbot.planning.motion import MotionConfig, Segment, line_path
 from foldbot.sim.grasp import ClothGrasp
+from foldbot.sim.layout import OBSTACLE_CLEARANCE
 from foldbot.sim.robots.base import Robot
 from foldbot.sim.robots.base import gripper_down_quaternion as _down
 from foldbot.types import GraspResult
@@ -68,6 +70,7 @@ class ArmExecutor:
         model: Robot | None = None,
         model_table_id: int | None = None,
         speed_scale: float = 1.0,
+        model_obstacle_ids: Mapping[str, int] | None = None,
     ) -> None:
         MotionConfig(speed_scale=speed_scale)  # ConfigError naming a bad scale
         self.world = world
@@ -84,6 +87,10 @@ class ArmExecutor:
         self.model_table_id = world.table_id if model is None else model_table_id
         """The table in the model's world, which every planned waypoint must keep the arm clear
         of (None: not checked, for a twin in a world without one)."""
+        obstacles = getattr(world, "obstacle_ids", {}) if model is None else model_obstacle_ids
+        self.model_obstacle_ids: dict[str, int] = dict(obstacles or {})
+        """The layout's obstacles in the model's world, by name: every planned waypoint keeps
+        OBSTACLE_CLEARANCE from each (a twin's world builds them as the cell's does)."""
 
     def joint_path(
         self, points: np.ndarray, q_seed: np.ndarray, orientations: np.ndarray | None = None
@@ -116,17 +123,39 @@ class ArmExecutor:
         held = None if 2.0 * math.acos(cos) <= KEEP_TURN_RAD else np.tile(quat, (len(points), 1))
         return Segment("lift", points, speed, orientations=held)
 
-    def check_table_clearance(self, path: np.ndarray) -> None:
+    def check_table_clearance(self, path: np.ndarray, table: bool = True) -> None:
         """Raise UnreachableTargetError when at some waypoint of the joint path (N × dof) an arm
         link (Robot.body_link_indices: not the base on its mount, nor the fingers, which close on
-        cloth at the table) would touch the table."""
-        if self.model_table_id is None:
+        cloth at the table) would touch the table, or any link, fingers included, would come
+        within OBSTACLE_CLEARANCE of one of the layout's obstacles (only those: `table` false)."""
+        table_id = self.model_table_id if table else None
+        if table_id is None and not self.model_obstacle_ids:
             return
         m = self.model
         links = set(m.body_link_indices)
+        every_link = links | set(m.finger_link_indices)
         for i, q in enumerate(np.asarray(path, dtype=float)):
             with m.posed(q):
-                hit = m.nearest_within(self.model_table_id, TABLE_CLEARANCE, links)
+                hit = (
+                    None if table_id is None else m.nearest_within(table_id, TABLE_CLEARANCE, links)
+                )
+                near = [
+                    (name, m.nearest_within(body, OBSTACLE_CLEARANCE, every_link))
+                    for name, body in self.model_obstacle_ids.items()
+                ]
+            for name, close in near:
+                if close is not None:
+                    link, _, dist = close
+                    how = (
+                        "would touch"
+                        if dist <= 0.0
+                        else f"would come within {dist * 1000:.1f} mm of"
+                    )
+                    raise UnreachableTargetError(
+                        f"waypoint {i}: the arm's {m.link_name(link)} {how} obstacle {name!r} "
+                        f"(at least {OBSTACLE_CLEARANCE * 1000:.0f} mm needed) at joints "
+                        f"{np.round(q, 3).tolist()} rad"
+                    )
             if hit is not None:
                 link, _, dist = hit
                 raise UnreachableTargetError(
@@ -134,6 +163,20 @@ class ArmExecutor:
                     f"({dist * 1000:.1f} mm from it; at least {TABLE_CLEARANCE * 1000:.0f} mm "
                     f"needed) at joints {np.round(q, 3).tolist()} rad"
                 )
+
+    def check_postures(self, postures: Mapping[str, np.ndarray]) -> None:
+        """ConfigError naming the posture (home, park: where the arm rests between motions) in
+        which the arm would come within OBSTACLE_CLEARANCE of one of the layout's obstacles, so a
+        layout whose obstacle stands where the arm rests is refused before anything moves."""
+        for name, q in postures.items():
+            try:
+                self.check_table_clearance(np.asarray(q, dtype=float)[None], table=False)
+            except UnreachableTargetError as exc:
+                raise ConfigError(
+                    f"the arm's {name} posture meets an obstacle of the layout: "
+                    f"{str(exc).removeprefix('waypoint 0: ')}; move the obstacle, or the arm "
+                    "(robot_base_xyz, home_xy)"
+                ) from None
 
     def check_joint_move(self, q0: np.ndarray, q_target: np.ndarray) -> None:
         """UnreachableTargetError where a straight joint-space move from `q0` to `q_target`

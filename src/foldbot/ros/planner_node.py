@@ -38,7 +38,7 @@ from foldbot.planning.spread import action_from_dict, motion_segments
 from foldbot.ros import TOPICS, arm_joint_names, convert
 from foldbot.ros.node_args import FOLD_ARGS_PARAM, parse_fold_args
 from foldbot.ros.publish import publish_when_heard
-from foldbot.sim.robots import check_workspace_reach, make_robot
+from foldbot.sim.robots import check_workspace_reach, make_robot, rest_postures
 from foldbot.sim.world import SimWorld
 
 REQUEST_KINDS = (
@@ -96,6 +96,12 @@ class MotionPlanner:
             ArmExecutor(self.world, r, grasp=None, speed_scale=self.cfg.motion.speed_scale)
             for r in self.robots
         ]
+        try:  # a layout's obstacle where an arm rests: refused by name
+            for ex in self.executors:
+                ex.check_postures(rest_postures(ex.robot, self.cfg.park))
+        except FoldbotError:
+            self.world.close()
+            raise
         self.robot, self.executor = self.robots[0], self.executors[0]
         self.joint_names = arm_joint_names(self.robot.ARM_JOINT_NAMES, self.cfg.arms)
         """Each arm's joint names over topics (prefixed in a two-arm cell)."""

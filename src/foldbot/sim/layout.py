@@ -12,11 +12,125 @@ from __future__ import annotations
 import dataclasses
 import math
 import tomllib
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 from foldbot.errors import ConfigError, require
+
+OBSTACLE_CLEARANCE = 0.02
+"""Least distance (m) every planned arm pose keeps from a layout's obstacles (its links and
+fingers; the table keeps control.executor's TABLE_CLEARANCE): a real fixture is measured by hand
+and drawn as a box, so the arm keeps a margin from it."""
+OBSTACLE_FIELDS = ("name", "center_xyz", "size_xyz")
+"""The keys of a layout file's `[[obstacles]]` table."""
+WORKSPACE_CLEAR_HEIGHT = 0.3
+"""Height (m) over the cloth workspace an obstacle may not reach into: the cloth, its folds and
+the carries' arcs (a 45 cm towel's peaks 0.23 m up) need it clear."""
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """A fixed box in the cell that the arm must keep clear of (a camera's post, a wall, a bin,
+    a light): its name, its centre and its size along x, y and z (world frame, m; the box's sides
+    along the world's axes). The simulated cell builds it; every planned motion keeps
+    OBSTACLE_CLEARANCE from it, in process and over ROS, in the simulated cell or a real one."""
+
+    name: str
+    center_xyz: tuple[float, float, float]
+    size_xyz: tuple[float, float, float]
+
+    def __post_init__(self) -> None:
+        name = self.name
+        ok_name = (
+            isinstance(name, str) and name != "" and all(c.isalnum() or c in "_-" for c in name)
+        )
+        if not ok_name:
+            raise ConfigError(
+                f"an obstacle's name must be a non-empty word (letters, digits, _ and -), got "
+                f"{name!r}"
+            )
+        for key in ("center_xyz", "size_xyz"):
+            value = getattr(self, key)
+            try:
+                out = tuple(float(v) for v in value)
+            except (TypeError, ValueError):
+                out = ()
+            if (
+                len(out) != 3
+                or not all(math.isfinite(v) for v in out)
+                or any(isinstance(v, bool) for v in value)
+            ):
+                raise ConfigError(
+                    f"obstacle {name!r}: {key} must be 3 finite numbers (m), got {value!r}"
+                )
+            object.__setattr__(self, key, out)
+        if not all(0.0 < v <= 10.0 for v in self.size_xyz):
+            raise ConfigError(
+                f"obstacle {name!r}: size_xyz must be 3 sizes in (0, 10] m, got "
+                f"{list(self.size_xyz)!r}"
+            )
+
+    @property
+    def bounds(self) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+        """(lowest corner, highest corner) of the box (m)."""
+        c, h = self.center_xyz, tuple(v / 2 for v in self.size_xyz)
+        return (
+            (c[0] - h[0], c[1] - h[1], c[2] - h[2]),
+            (c[0] + h[0], c[1] + h[1], c[2] + h[2]),
+        )
+
+    def blocks(self, start: Sequence[float], end: Sequence[float]) -> bool:
+        """Whether the straight segment from `start` to `end` (world m) passes through the box
+        (a camera's line of sight to a point on the table)."""
+        lo, hi = self.bounds
+        t0, t1 = 0.0, 1.0
+        for a, b, low, high in zip(start, end, lo, hi, strict=True):
+            d = float(b) - float(a)
+            if abs(d) < 1e-12:
+                if not low <= a <= high:
+                    return False
+                continue
+            ta, tb = (low - a) / d, (high - a) / d
+            t0, t1 = max(t0, min(ta, tb)), min(t1, max(ta, tb))
+            if t0 > t1:
+                return False
+        return True
+
+    def as_dict(self) -> dict[str, object]:
+        """As a layout file's `[[obstacles]]` table (plain JSON)."""
+        return {
+            "name": self.name,
+            "center_xyz": list(self.center_xyz),
+            "size_xyz": list(self.size_xyz),
+        }
+
+
+def obstacle_from_table(table: object, where: str) -> Obstacle:
+    """An Obstacle from a layout file's `[[obstacles]]` table; ConfigError naming `where`, the
+    bad or missing key and what is allowed."""
+    if isinstance(table, Obstacle):
+        return table
+    if not isinstance(table, Mapping):
+        raise ConfigError(
+            f"{where}: an obstacle is a table of {', '.join(OBSTACLE_FIELDS)}, got {table!r}"
+        )
+    unknown = sorted(set(table) - set(OBSTACLE_FIELDS))
+    missing = [k for k in OBSTACLE_FIELDS if k not in table]
+    if unknown or missing:
+        what = []
+        if unknown:
+            plural = "s" if len(unknown) > 1 else ""
+            what.append(f"unknown key{plural} {', '.join(map(repr, unknown))}")
+        if missing:
+            what.append(f"missing {', '.join(map(repr, missing))}")
+        raise ConfigError(
+            f"{where}: {'; '.join(what)}; an obstacle has exactly {', '.join(OBSTACLE_FIELDS)}"
+        )
+    try:
+        return Obstacle(**dict(table))
+    except ConfigError as exc:
+        raise ConfigError(f"{where}: {exc}") from None
 
 
 @dataclass(frozen=True)
@@ -43,6 +157,10 @@ class CellLayout:
     """A two-arm cell: the bases stand this far apart (m) along y on the near edge, centred on
     `robot_base_xyz`; each arm's home (`home_xy`) is at the workspace centre's x and its own
     base's y, beside a towel of up to 45 cm rather than over it."""
+    obstacles: tuple[Obstacle, ...] = ()
+    """Fixed boxes in the cell the arm keeps OBSTACLE_CLEARANCE from (a layout file's
+    `[[obstacles]]` tables: name, center_xyz, size_xyz); none may reach into the cloth workspace
+    up to WORKSPACE_CLEAR_HEIGHT over the table."""
 
     def __post_init__(self) -> None:
         def numbers(name: str, count: int) -> tuple[float, ...]:
@@ -102,12 +220,45 @@ class CellLayout:
             "table_height) or beside the table (table_center_xy and table_size leaving its "
             "xy off the top)",
         )
+        self._check_obstacles()
         require(
             x0 - bx >= MIN_BASE_CLEARANCE - eps,
             f"layout workspace must lie at least {MIN_BASE_CLEARANCE:g} m ahead of the robot base "
             f"along +x (the arm faces +x): its near edge is at x = {x0:.3f} m, the base at "
             f"x = {bx:.3f} m",
         )
+
+    def _check_obstacles(self) -> None:
+        """Obstacles as Obstacle, named once each, none in the cloth workspace."""
+        given = self.obstacles
+        if isinstance(given, str | bytes | Mapping) or not isinstance(given, Sequence):
+            raise ConfigError(
+                f"layout obstacles must be a list of tables ({', '.join(OBSTACLE_FIELDS)}), "
+                f"got {given!r}"
+            )
+        obstacles = tuple(
+            obstacle_from_table(o, f"layout obstacles[{i}]") for i, o in enumerate(given)
+        )
+        names = [o.name for o in obstacles]
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            raise ConfigError(
+                f"layout obstacles must have names of their own; {', '.join(map(repr, twice))} "
+                "named more than once"
+            )
+        x0, x1, y0, y1 = self.workspace_bounds
+        z0, z1 = self.table_height, self.table_height + WORKSPACE_CLEAR_HEIGHT
+        for o in obstacles:
+            (ox0, oy0, oz0), (ox1, oy1, oz1) = o.bounds
+            if ox0 < x1 and x0 < ox1 and oy0 < y1 and y0 < oy1 and oz0 < z1 and z0 < oz1:
+                raise ConfigError(
+                    f"layout obstacle {o.name!r} (x {ox0:.3f}–{ox1:.3f}, y {oy0:.3f}–{oy1:.3f}, "
+                    f"z {oz0:.3f}–{oz1:.3f} m) reaches into the cloth workspace (x {x0:.3f}–"
+                    f"{x1:.3f}, y {y0:.3f}–{y1:.3f} m, up to {WORKSPACE_CLEAR_HEIGHT:g} m over "
+                    "the table), which the cloth and the carries need clear: move it or the "
+                    "workspace"
+                )
+        object.__setattr__(self, "obstacles", obstacles)
 
     @property
     def workspace_bounds(self) -> tuple[float, float, float, float]:
@@ -154,7 +305,10 @@ class CellLayout:
         out: dict[str, object] = {}
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
-            if value != getattr(DEFAULT_LAYOUT, f.name):
+            if f.name == "obstacles":
+                if value:
+                    out[f.name] = [o.as_dict() for o in value]
+            elif value != getattr(DEFAULT_LAYOUT, f.name):
                 out[f.name] = list(value) if isinstance(value, tuple) else value
         return out
 

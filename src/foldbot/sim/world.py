@@ -9,12 +9,14 @@ from dataclasses import dataclass, field
 import pybullet as p
 
 from foldbot.errors import ConfigError, require
-from foldbot.sim.layout import DEFAULT_LAYOUT, CellLayout
+from foldbot.sim.layout import DEFAULT_LAYOUT, CellLayout, Obstacle
 
 MIN_TIME_STEP = 1e-4
 """Shortest physics step (s) accepted: 10 kHz; shorter settles a cloth for hours."""
 MAX_TIME_STEP = 0.02
 """Longest physics step (s) accepted: 50 Hz; the cloth blows up well before."""
+OBSTACLE_RGBA = (0.45, 0.47, 0.5, 1.0)
+"""Colour of a layout's obstacles (grey)."""
 
 
 @dataclass(frozen=True)
@@ -75,6 +77,10 @@ class SimWorld:
                 1.3, 60, -40, [cx, cy, self.layout.table_height], physicsClientId=self.client
             )
         self.table_id = self._make_table()
+        self.obstacle_ids: dict[str, int] = {
+            o.name: self._make_obstacle(o) for o in self.layout.obstacles
+        }
+        """The layout's obstacles' body ids by name (static boxes the arm plans clear of)."""
         self.sim_time = 0.0
         self.steps = 0
         self._step_hooks: list = []
@@ -101,6 +107,17 @@ class SimWorld:
             body, -1, lateralFriction=self.config.table_friction, physicsClientId=self.client
         )
         return body
+
+    def _make_obstacle(self, obstacle: Obstacle) -> int:
+        """A static grey box where the layout puts `obstacle`."""
+        half = [v / 2 for v in obstacle.size_xyz]
+        col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=self.client)
+        vis = p.createVisualShape(
+            p.GEOM_BOX, halfExtents=half, rgbaColor=list(OBSTACLE_RGBA), physicsClientId=self.client
+        )
+        return p.createMultiBody(
+            0, col, vis, basePosition=list(obstacle.center_xyz), physicsClientId=self.client
+        )
 
     @property
     def time_step(self) -> float:

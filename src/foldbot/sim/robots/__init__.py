@@ -5,6 +5,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from foldbot.errors import ConfigError, UnreachableTargetError
 from foldbot.sim.layout import CellLayout
 from foldbot.sim.robots.base import HOME_HEIGHT_ABOVE_TABLE, Robot, gripper_down_quaternion
@@ -68,6 +70,16 @@ def check_workspace_reach(robot: Robot, name: str) -> None:
         raise _unreachable(name, layout, exc) from None
 
 
+def rest_postures(robot: Robot, park: str) -> dict[str, np.ndarray]:
+    """Where the arm rests between motions: its home, and its park pose where that is not the
+    home (`park` "out_of_view"), which a layout's obstacles must leave clear
+    (ArmExecutor.check_postures)."""
+    out = {"home": np.asarray(robot.home_q, dtype=float)}
+    if park == "out_of_view":
+        out["out-of-view park"] = np.asarray(robot.out_of_view_q, dtype=float)
+    return out
+
+
 __all__ = [
     "HOME_HEIGHT_ABOVE_TABLE",
     "ROBOT_NAMES",
@@ -77,5 +89,6 @@ __all__ = [
     "check_workspace_reach",
     "gripper_down_quaternion",
     "make_robot",
+    "rest_postures",
     "robot_class",
 ]
