@@ -537,6 +537,12 @@ class SimCell(FoldCell):
         targets = list(zip(self.executors, self.park_qs, strict=True))
         trajs = joint_move_trajectories(targets)
         moving = [(arm, t.duration) for arm, t in enumerate(trajs) if t is not None]
+        for arm, _ in moving:  # clear of the layout's obstacles (a no-op in a cell with none)
+            ex, q = targets[arm]
+            try:
+                ex.check_joint_move(ex.robot.joint_positions(), q, table=False)
+            except UnreachableTargetError as exc:
+                raise UnreachableTargetError(f"park of arm {arm}: joint move: {exc}") from exc
         if moving:
             self.confirm_move(park_move(tuple(a for a, _ in moving), max(d for _, d in moving)))
         move_joints_together(targets, "park", trajs)

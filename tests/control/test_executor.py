@@ -322,3 +322,26 @@ def test_a_layout_obstacle_where_the_arm_rests_is_refused_by_name():
             r"touch obstacle 'lamp'.*; move the obstacle, or the arm \(robot_base_xyz, home_xy\)$",
         ):
             ArmExecutor(world, robot, grasp=None).check_postures({"home": robot.home_q})
+
+
+def test_a_joint_move_sweeping_through_a_layout_obstacle_is_refused_naming_it():
+    from foldbot.sim.layout import CellLayout, Obstacle
+    from foldbot.sim.robots.base import gripper_down_quaternion
+    from foldbot.sim.world import SimConfig
+
+    # Gripper down 40 cm over the table at y = ±0.25: the joint move between the two carries
+    # the hand through y ≈ 0, where a lamp hangs; both ends are clear of it.
+    lamp = Obstacle("lamp", (0.42, 0.0, 1.15), (0.06, 0.06, 0.06))
+    with SimWorld(SimConfig(layout=CellLayout(obstacles=(lamp,)))) as world:
+        robot = make_robot("ur5", world.client, world.layout)
+        ex = ArmExecutor(world, robot, grasp=None)
+        down = gripper_down_quaternion(0.0)
+        ends = [robot.solve_ik([0.42, y, 1.15], down, q_seed=robot.home_q) for y in (0.25, -0.25)]
+        ex.check_postures({"one end": ends[0], "the other": ends[1]})
+        with pytest.raises(
+            UnreachableTargetError, match=r"would (touch|come within [\d.]+ mm of) obstacle 'lamp'"
+        ):
+            ex.check_joint_move(*ends, table=False)
+    with SimWorld() as world:  # without it, the move is free
+        robot = make_robot("ur5", world.client, world.layout)
+        ArmExecutor(world, robot, grasp=None).check_joint_move(*ends, table=False)

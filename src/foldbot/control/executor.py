@@ -23,6 +23,9 @@ TABLE_CLEARANCE = 0.0
 """An arm link closer to the table than this (m; 0 = touching) makes a waypoint infeasible."""
 JOINT_MOVE_SAMPLES = 12
 """A joint-space move is checked against the table at this many points along its path."""
+OBSTACLE_SAMPLE_RAD = 0.01
+"""A joint-space move is checked against a layout's obstacles every this much turn of its
+furthest-turning joint (about 9 mm of a UR5's reach)."""
 KEEP_TURN_RAD = 0.05
 """A tool turned further than this from gripper down (a tilted spread grasp) is lifted as it is
 held (ArmExecutor.lift_segment)."""
@@ -178,12 +181,20 @@ class ArmExecutor:
                     "(robot_base_xyz, home_xy)"
                 ) from None
 
-    def check_joint_move(self, q0: np.ndarray, q_target: np.ndarray) -> None:
+    def check_joint_move(self, q0: np.ndarray, q_target: np.ndarray, table: bool = True) -> None:
         """UnreachableTargetError where a straight joint-space move from `q0` to `q_target`
-        would bring an arm link to the table (checked at JOINT_MOVE_SAMPLES points)."""
+        would bring an arm link to the table (checked at JOINT_MOVE_SAMPLES points; not with
+        `table` false) or within OBSTACLE_CLEARANCE of a layout's obstacle (checked every
+        OBSTACLE_SAMPLE_RAD of the joint that turns furthest, a thin post not stepped over)."""
         q0, q_target = np.asarray(q0, dtype=float), np.asarray(q_target, dtype=float)
-        s = np.linspace(0.0, 1.0, JOINT_MOVE_SAMPLES)[:, None]
-        self.check_table_clearance(q0 + s * (q_target - q0))
+        if table:
+            s = np.linspace(0.0, 1.0, JOINT_MOVE_SAMPLES)[:, None]
+            self.check_table_clearance(q0 + s * (q_target - q0))
+        if self.model_obstacle_ids:
+            turn = float(np.abs(q_target - q0).max())
+            n = max(JOINT_MOVE_SAMPLES, math.ceil(turn / OBSTACLE_SAMPLE_RAD) + 1)
+            s = np.linspace(0.0, 1.0, n)[:, None]
+            self.check_table_clearance(q0 + s * (q_target - q0), table=False)
 
     def trajectory_for(self, path: np.ndarray, points: np.ndarray, speed: float) -> JointTrajectory:
         """Time-optimal trajectory along the joint path within the robot's joint velocity,

@@ -29,7 +29,7 @@ from std_msgs.msg import String
 from foldbot.control.bimanual import check_arms_clear, check_clear_of_still_arms
 from foldbot.control.executor import ArmExecutor, PlannedSegment
 from foldbot.control.trajectory import JointTrajectory
-from foldbot.errors import FoldbotError, failed_segment
+from foldbot.errors import FoldbotError, UnreachableTargetError, failed_segment
 from foldbot.planning.actions import FoldAction
 from foldbot.planning.garment_recipes import plan_garment
 from foldbot.planning.motion import action_segments
@@ -239,8 +239,15 @@ class MotionPlanner:
             for arm, (robot, q) in enumerate(zip(self.robots, qs, strict=True)):
                 park = robot.out_of_view_q if self.cfg.park == "out_of_view" else robot.home_q
                 if np.abs(park - q).max() >= 1e-4:
+                    ex = self.executors[arm]
+                    try:  # clear of the layout's obstacles (as SimCell.park)
+                        ex.check_joint_move(q, park, table=False)
+                    except UnreachableTargetError as exc:
+                        raise UnreachableTargetError(
+                            f"park of arm {arm}: joint move: {exc}"
+                        ) from exc
                     arms.append(arm)
-                    trajs.append(self.executors[arm].joint_move_trajectory(q, park))
+                    trajs.append(ex.joint_move_trajectory(q, park))
             if not arms:
                 return {"trajectory": None}
             return {"trajectory": self._stacked("park", arms, trajs)}
