@@ -85,9 +85,13 @@ class OperatorGate:
     closes (nothing more can be asked); anything else is asked again. Counts the motions let
     run and the seconds spent waiting (result.json's `operator`)."""
 
-    def __init__(self, answers: TextIO | None = None, out: TextIO | None = None) -> None:
+    def __init__(
+        self, answers: TextIO | None = None, out: TextIO | None = None, task: str = "the fold"
+    ) -> None:
         self.answers = answers
         self.out = out
+        self.task = task
+        """What a stop ends, as the prompt names it ("the fold", "the calibration")."""
         self.confirmed = 0
         self.wait_seconds = 0.0
 
@@ -99,7 +103,7 @@ class OperatorGate:
         t0 = time.perf_counter()
         try:
             while True:
-                out.write(f"next: {said}\n  Enter: move · s: stop the fold > ")
+                out.write(f"next: {said}\n  Enter: move · s: stop {self.task} > ")
                 out.flush()
                 line = answers.readline()
                 if line and not _is_terminal(answers):
@@ -107,7 +111,7 @@ class OperatorGate:
                 if not line:
                     out.write("\n")
                     raise OperatorStopped(
-                        f"no answer (input closed) before {said}: the fold stopped there"
+                        f"no answer (input closed) before {said}: {self.task} stopped there"
                     )
                 word = line.strip().lower()
                 if word in GO_WORDS:

@@ -120,6 +120,30 @@ def test_either_arm_of_two_holds_the_board(tmp_path):
     assert record["truth"]["translation_error_mm"] < 1.0
 
 
+def test_the_operator_lets_each_move_run_or_stops_the_calibration(tmp_path, monkeypatch, capsys):
+    import io
+    import sys
+
+    # The right arm of two, as the test above: each of its 4 views asked, then the way home.
+    args = ["calibrate", "--arms", "2", "--arm", "right", "--views", "4", "--confirm"]
+    monkeypatch.setattr(sys, "stdin", io.StringIO("\n" * 5))
+    assert main([*args, "--out", str(tmp_path / "cal")]) == 0
+    asked = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("next: ")]
+    assert [ln.split(":")[1].strip() for ln in asked] == [
+        *(f"view {i} with arm 1" for i in range(4)),
+        "home with arm 1",
+    ]
+    assert asked[0].endswith(" s") and "joint move holding the board up to the camera, " in asked[0]
+    record = json.loads((tmp_path / "cal" / "calibration.json").read_text())
+    assert record["operator"]["motions_confirmed"] == 5
+    # Stopped before the second view: named, nothing written.
+    monkeypatch.setattr(sys, "stdin", io.StringIO("\ns\n"))
+    assert main([*args, "--out", str(tmp_path / "stopped")]) == 2
+    err = capsys.readouterr().err
+    assert "error: stopped by the operator before view 1 with arm 1: joint move" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cal"]
+
+
 def test_a_board_mounted_elsewhere_is_found_where_it_is(tmp_path):
     # The board a quarter turn about the tool's axis on a shorter bracket: the views aim it
     # so, and the solve finds it there (and the camera) from the images alone.

@@ -16,10 +16,11 @@ from foldbot.sim.camera import CameraConfig
 pytestmark = requires_ros
 
 
-def foldbot(*args: str) -> subprocess.CompletedProcess:
+def foldbot(*args: str, answers: str | None = None) -> subprocess.CompletedProcess:
     return subprocess.run(
-        [sys.executable, "-m", "foldbot.cli", *args], capture_output=True, text=True, timeout=600
-    )
+        [sys.executable, "-m", "foldbot.cli", *args],
+        capture_output=True, text=True, timeout=600, input=answers,
+    )  # fmt: skip
 
 
 CHARUCO_CELL = ("--calibration-board-pattern", "charuco")
@@ -29,7 +30,9 @@ CHARUCO = ("--board-pattern", "charuco")
 @pytest.mark.parametrize(
     ("cell_arms", "calibrate_arms", "views"),
     [
-        ((), (), 6),
+        # The operator lets each move run (--confirm): asked by the calibrate node on this
+        # terminal, before each of the 6 views and the move back.
+        ((), ("--confirm",), 6),
         # The ChArUco board's corners are found less exactly at this resolution (0.34 px RMS
         # against 0.14): 6 views put the camera 2.9 mm off in process, 8 views 0.8 mm.
         (
@@ -51,9 +54,10 @@ def test_the_camera_of_a_running_cell_is_found_through_its_topics(
     out = tmp_path / "calibration"
     try:
         wait_for_master(port)
+        confirm = "--confirm" in calibrate_arms
         proc = foldbot(
             "ros-calibrate", "--out", str(out), "--views", str(views), "--port", str(port),
-            *calibrate_arms,
+            *calibrate_arms, answers="\n" * (views + 1) if confirm else None,
         )  # fmt: skip
     finally:
         log = stop_cell(cell)
@@ -75,6 +79,14 @@ def test_the_camera_of_a_running_cell_is_found_through_its_topics(
         "views.png",
     }
     assert f"of {views} views" in proc.stdout
+    asked = [ln for ln in proc.stdout.splitlines() if ln.startswith("next: ")]
+    if confirm:
+        assert asked[0].startswith("next: view 0 with arm 0: joint move holding the board")
+        assert asked[-1].startswith("next: back with arm 0: joint move back to where it started")
+        assert len(asked) == record["operator"]["motions_confirmed"]
+        assert record["views_used"] + 1 <= len(asked) <= views + 1  # a view out of reach: not
+    else:
+        assert not asked and "operator" not in record
 
 
 def test_no_master_no_calibration_and_no_folder(tmp_path):

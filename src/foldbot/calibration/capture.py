@@ -24,6 +24,7 @@ from foldbot.calibration.board import CalibrationBoard, board_pose, find_corners
 from foldbot.calibration.hand_eye import MIN_VIEWS, HandEyeSolution, solve_eye_to_hand
 from foldbot.calibration.views import CalibrationView
 from foldbot.errors import ConfigError, OutputError, PerceptionError, UnreachableTargetError
+from foldbot.operator import ArmMove, OperatorGate
 
 CAMERA_FRAME = "camera_color_optical_frame"
 WORLD_FRAME = "world"
@@ -37,6 +38,10 @@ handful, one of views that disagree takes ~200 (a second) and is bad whichever w
 MAX_RMS_PX = 2.0
 """A solve that still reprojects worse than this (px RMS) after dropping views is refused, not
 written: its views disagree (wrong corner order, wrong intrinsics, a board that slipped)."""
+
+
+VIEW_WORDS = "joint move holding the board up to the camera"
+"""What a view's move does, as the operator is told (`--confirm`)."""
 
 
 class CalibrationCell(abc.ABC):
@@ -59,6 +64,17 @@ class CalibrationCell(abc.ABC):
 
     def finish(self) -> None:  # noqa: B027 - optional
         """Take the arm back out of the way (its home)."""
+
+    gate: OperatorGate | None = None
+    """Where set (`--confirm`), the operator is asked before each move (confirm_move)."""
+    arm_index: int = 0
+    """The arm that holds the board (0, or 1 of two), as the operator is told."""
+
+    def confirm_move(self, label: str, what: str, seconds: float) -> None:
+        """Before a move: with a gate, what it will do is said and the operator's answer awaited
+        (OperatorStopped on stop); without one, nothing."""
+        if self.gate is not None:
+            self.gate.ask([ArmMove(label, (self.arm_index,), what, seconds)])
 
 
 @dataclass

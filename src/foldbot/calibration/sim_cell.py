@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from foldbot.calibration.board import CalibrationBoard
-from foldbot.calibration.capture import CalibrationCell, pose_matrix
+from foldbot.calibration.capture import VIEW_WORDS, CalibrationCell, pose_matrix
 from foldbot.calibration.views import BoardMount, CalibrationView
 from foldbot.control.executor import ArmExecutor, move_joints_together
 from foldbot.sim.calibration_board import attach_board
@@ -56,6 +56,7 @@ class SimCalibrationCell(CalibrationCell):
     ) -> None:
         robots = [make_robot(robot, self.world.client, lay) for lay in layouts]
         self.robot = robots[arm]
+        self.arm_index = arm
         self.model = make_robot(robot, self.model_world.client, layouts[arm])
         self.executor = ArmExecutor(
             self.world,
@@ -83,7 +84,9 @@ class SimCalibrationCell(CalibrationCell):
         q0 = self.robot.joint_positions()
         q = self.model.solve_ik(view.position, view.quaternion, q_seed=q0)
         self.executor.check_joint_move(q0, q)
-        move_joints_together([(self.executor, q)], view.name)
+        traj = self.executor.joint_move_trajectory(q0, q)
+        self.confirm_move(view.name, VIEW_WORDS, traj.duration)
+        move_joints_together([(self.executor, q)], view.name, [traj])
         self.world.step(int(SETTLE_S / self.world.time_step))
 
     def frame(self) -> tuple[np.ndarray, np.ndarray]:
@@ -92,7 +95,10 @@ class SimCalibrationCell(CalibrationCell):
         return obs.rgb, pose_matrix(*self.model.fk_tcp(q))
 
     def finish(self) -> None:
-        move_joints_together([(self.executor, self.robot.home_q)], "home")
+        q0, home = self.robot.joint_positions(), self.robot.home_q
+        traj = self.executor.joint_move_trajectory(q0, home)
+        self.confirm_move("home", "joint move back to its home, the board away", traj.duration)
+        move_joints_together([(self.executor, home)], "home", [traj])
 
     def close(self) -> None:
         self.world.close()

@@ -43,6 +43,7 @@ from foldbot.calibration.hand_eye import pose_error
 from foldbot.calibration.views import MAX_VIEWS, BoardMount, CalibrationView, calibration_views
 from foldbot.errors import ConfigError
 from foldbot.io.staging import commit_output, output_path, prepare_output
+from foldbot.operator import OperatorGate
 from foldbot.planning.motion import MIN_SPEED_SCALE, MotionConfig
 from foldbot.sim.camera import CameraConfig, camera_for_layout
 from foldbot.sim.layout import DEFAULT_LAYOUT, CellLayout, load_layout
@@ -157,6 +158,13 @@ def add_board_arguments(parser: argparse.ArgumentParser) -> None:
         help="with --arms 2: the arm that holds the board (default left, +y)",
     )
     add_board_shape_arguments(parser)
+    parser.add_argument(
+        "--confirm",
+        action="store_true",
+        help="before each move (to a view, and back) say what it will do and wait for the "
+        "operator: Enter moves, s stops the calibration there (nothing is written); for a "
+        "first run on a real arm",
+    )
     default = BoardMount()
     parser.add_argument(
         "--board-offset",
@@ -383,6 +391,8 @@ def run(args: argparse.Namespace) -> int:
             plan.arm,
             plan.speed_scale,
         )
+        gate = OperatorGate(task="the calibration") if args.confirm else None
+        cell.gate = gate
         try:
             captures = capture_views(
                 cell, views, board, lambda line: print(f"calibrate: {line}", flush=True)
@@ -411,6 +421,7 @@ def run(args: argparse.Namespace) -> int:
                     "table_error_mm": 1000.0 * table,
                 },
                 "wall_s": time.monotonic() - t0,
+                **({} if gate is None else {"operator": gate.record()}),
             },
         )
     except BaseException:

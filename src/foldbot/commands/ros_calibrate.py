@@ -56,6 +56,8 @@ def run(args: argparse.Namespace) -> int:
         cmd += ["--board-turn", *(repr(v) for v in args.board_turn)]
         cmd += ["--views", str(args.views), "--look-from", *(repr(v) for v in plan.look_from)]
         cmd += ["--speed-scale", repr(plan.speed_scale)]
+        if args.confirm:  # the node asks on this terminal (it inherits stdin and stdout)
+            cmd += ["--confirm"]
         if args.layout is not None:
             cmd += ["--layout", str(Path(args.layout).resolve())]
         run_node("foldbot.ros.calibrate_node", cmd, env, "the calibration")

@@ -20,6 +20,7 @@ import rospy
 from sensor_msgs.msg import CameraInfo, Image
 
 from foldbot.calibration.capture import (
+    VIEW_WORDS,
     CalibrationCell,
     capture_views,
     pose_matrix,
@@ -29,6 +30,7 @@ from foldbot.calibration.capture import (
 from foldbot.calibration.views import CalibrationView
 from foldbot.control.executor import ArmExecutor
 from foldbot.errors import FoldbotError
+from foldbot.operator import OperatorGate
 from foldbot.ros import TOPICS, arm_joint_names, convert, driver_actions
 from foldbot.ros.drivers import ActionArm
 from foldbot.sim.robots import make_robot
@@ -56,6 +58,7 @@ class RosCalibrationCell(CalibrationCell):
             model_table_id=self.model_world.table_id, speed_scale=speed_scale,
         )  # fmt: skip
         self.joint_names = arm_joint_names(self.model.ARM_JOINT_NAMES, arms)[arm]
+        self.arm_index = arm
         self.arm = ActionArm(
             self.joint_names, failure=lambda: None, actions=driver_actions(arms)[arm]
         )
@@ -94,10 +97,11 @@ class RosCalibrationCell(CalibrationCell):
         dist = np.asarray(info.D, dtype=float) if len(info.D) else np.zeros(5)
         return np.array(info.K, dtype=float).reshape(3, 3), dist, info.width, info.height
 
-    def _move(self, q: np.ndarray, name: str) -> None:
+    def _move(self, q: np.ndarray, name: str, label: str, what: str) -> None:
         q0 = self.arm.joint_positions()
         self.planner.check_joint_move(q0, q)
         traj = self.planner.joint_move_trajectory(q0, q)
+        self.confirm_move(label, what, traj.duration)
         self.arm.follow(  # a slowed arm's move (--speed-scale) gets its own time too
             self.joint_names,
             traj.times,
@@ -116,7 +120,7 @@ class RosCalibrationCell(CalibrationCell):
     def move_to(self, view: CalibrationView) -> None:
         q0 = self.arm.joint_positions()
         q = self.model.solve_ik(view.position, view.quaternion, q_seed=q0)
-        self._move(q, view.name)
+        self._move(q, view.name, view.name, VIEW_WORDS)
 
     def frame(self) -> tuple[np.ndarray, np.ndarray]:
         since = rospy.get_time()
@@ -134,7 +138,7 @@ class RosCalibrationCell(CalibrationCell):
         return convert.color_array(image), pose_matrix(*self.model.fk_tcp(q))
 
     def finish(self) -> None:
-        self._move(self.q_start, "back to the start")
+        self._move(self.q_start, "back to the start", "back", "joint move back to where it started")
 
     def close(self) -> None:
         self.model_world.close()
@@ -152,6 +156,8 @@ def main(argv: list[str] | None = None) -> int:
         plan = plan_from_args(args)
         board = plan.board
         cell = RosCalibrationCell(args.robot, plan.layout, args.arms, plan.arm, plan.speed_scale)
+        gate = OperatorGate(task="the calibration") if args.confirm else None
+        cell.gate = gate
         try:
             captures = capture_views(
                 cell, plan.views, board, lambda line: print(f"ros-calibrate: {line}", flush=True)
@@ -160,8 +166,15 @@ def main(argv: list[str] | None = None) -> int:
             solution = solve_captures(captures, board, K, dist)
         finally:
             cell.close()
+        extra = {} if gate is None else {"operator": gate.record()}
         write_calibration(
-            args.stage, captures, solution, board, K, dist, {"cell": "ros", **plan.record()}
+            args.stage,
+            captures,
+            solution,
+            board,
+            K,
+            dist,
+            {"cell": "ros", **plan.record(), **extra},
         )
     except FoldbotError as exc:
         print(f"{type(exc).__name__}: {exc}", file=sys.stderr, flush=True)
