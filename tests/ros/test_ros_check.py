@@ -34,6 +34,11 @@ def test_a_running_cell_is_checked_for_all_a_fold_needs(tmp_path):
     )
     high = tmp_path / "high.toml"  # the table and the arm 2 cm higher than the cell's
     high.write_text("table_height = 0.77\nrobot_base_xyz = [0.0, 0.0, 0.77]\n")
+    lamp = tmp_path / "lamp.toml"  # a lamp between the camera and the table's far middle
+    lamp.write_text(
+        '[[obstacles]]\nname = "lamp"\ncenter_xyz = [0.75, 0.0, 1.25]\n'
+        "size_xyz = [0.12, 0.12, 0.05]\n"
+    )
     cell, port = start_cell("--hide-camera-pose", "--resolution", "5", "--camera-rate", "2")
     runs = {}
     try:
@@ -42,6 +47,7 @@ def test_a_running_cell_is_checked_for_all_a_fold_needs(tmp_path):
             ("no_pose", []),
             ("calibrated", ["--camera-pose", str(calibration)]),
             ("high", ["--camera-pose", str(calibration), "--layout", str(high)]),
+            ("lamp", ["--camera-pose", str(calibration), "--layout", str(lamp)]),
         ):
             runs[name] = foldbot(
                 "ros-check", "--out", str(tmp_path / name), "--port", str(port), *extra
@@ -80,6 +86,14 @@ def test_a_running_cell_is_checked_for_all_a_fold_needs(tmp_path):
         "FAIL the table in depth: at 0.7500 m over the workspace centre (-20.0 mm" in wrong.stdout
     )
     assert "2 of 10 checks failed: world → base_link, the table in depth" in wrong.stdout
+
+    lamped = runs["lamp"]
+    assert lamped.returncode == 1, lamped.stdout + lamped.stderr
+    assert "FAIL the workspace in view: 139 of 169 workspace points inside the image and not " in (
+        lamped.stdout
+    )
+    assert "behind an obstacle (30 behind one)" in lamped.stdout
+    assert "ok   the layout's obstacles: 'lamp': none where an arm rests" in lamped.stdout
 
 
 def test_no_master_no_check_and_no_folder(tmp_path):

@@ -369,14 +369,27 @@ def run_checks(
             )
         )
         seen = int(found.in_view.sum())
+        hidden = sum(found.hidden.values())
         checks.append(
             Check(
                 "the workspace in view",
                 seen == found.points,
-                f"{seen} of {found.points} workspace points inside the image, "
+                f"{seen} of {found.points} workspace points inside the image"
+                + (f" and not behind an obstacle ({hidden} behind one)" if hidden else "")
+                + ", "
                 + found.resolution_words("its centre"),
             )
         )
+        if layout.obstacles:
+            names = ", ".join(repr(o.name) for o in layout.obstacles)
+            checks.append(
+                Check(
+                    "the layout's obstacles",
+                    not found.blocked_postures,
+                    "; ".join(found.blocked_postures)
+                    or f"{names}: none where an arm rests (every motion keeps 2 cm from them)",
+                )
+            )
         extra["T_world_camera"] = T_cam.tolist()
         extra["K"] = intr.K.tolist()
         if rgb is not None:
