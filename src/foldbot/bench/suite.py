@@ -58,6 +58,11 @@ finish_coverage = "none"                # crumpled starts only), e.g. stop at th
 table_height = 0.72                     # as `foldbot fold --layout FILE.toml`; the rest the default
 robot_base_xyz = [0.0, 0.0, 0.72]       # cell's
 
+[[layout.obstacles]]                    # a fixture every motion keeps 2 cm from (a named box,
+name = "camera_post"                    # world m; foldbot.sim.layout.Obstacle), as a layout
+center_xyz = [1.20, 0.0, 0.90]          # file's [[obstacles]]
+size_xyz = [0.08, 0.08, 1.80]
+
 [reference]
 ravens_speed = true                     # plain-PyBullet speed reference (ravens_reference.py)
 ```
