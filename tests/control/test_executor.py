@@ -3,6 +3,7 @@ table, and several arms move on one clock; on real UR5s in a PyBullet world."""
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from foldbot.control.executor import ArmExecutor, move_joints_together, run_together
 from foldbot.errors import (
@@ -345,3 +346,38 @@ def test_a_joint_move_sweeping_through_a_layout_obstacle_is_refused_naming_it():
     with SimWorld() as world:  # without it, the move is free
         robot = make_robot("ur5", world.client, world.layout)
         ArmExecutor(world, robot, grasp=None).check_joint_move(*ends, table=False)
+
+
+def test_a_board_held_at_the_tool_is_kept_clear_of_the_layouts_obstacles_too():
+    from foldbot.calibration.board import Chessboard
+    from foldbot.calibration.views import BoardMount
+    from foldbot.sim.calibration_board import board_twin
+    from foldbot.sim.layout import CellLayout, Obstacle
+    from foldbot.sim.robots.base import gripper_down_quaternion
+    from foldbot.sim.world import SimConfig
+
+    board, mount = Chessboard(), BoardMount()
+    # Where the board's plate stands with the gripper down 50 cm over the workspace centre.
+    with SimWorld() as world:
+        robot = make_robot("ur5", world.client, world.layout)
+        q = robot.solve_ik([0.45, 0.0, 1.25], gripper_down_quaternion(0.0), q_seed=robot.home_q)
+        pos, quat = robot.fk_tcp(q)
+    T_tcp = np.eye(4)
+    T_tcp[:3, :3] = Rotation.from_quat(quat).as_matrix()
+    T_tcp[:3, 3] = pos
+    _x0, x1, _y0, y1 = board.plate_bounds()
+    corner = (T_tcp @ mount.T_tcp_board() @ np.array([x1, y1, 0.0, 1.0]))[:3]
+    # A small box just beyond the plate's far corner, out of the arm's own way.
+    box = Obstacle("box", tuple(corner + 0.025 * (corner - pos) / np.linalg.norm(corner - pos)),
+                   (0.02, 0.02, 0.02))  # fmt: skip
+    with SimWorld(SimConfig(layout=CellLayout(obstacles=(box,)))) as world:
+        robot = make_robot("ur5", world.client, world.layout)
+        ex = ArmExecutor(world, robot, grasp=None)
+        ex.check_table_clearance(q[None])  # the arm alone keeps clear of it
+        ex.carry_body("the board", board_twin(world.client, board), mount.T_tcp_board())
+        with pytest.raises(
+            UnreachableTargetError,
+            match=r"^waypoint 0: the board held at the tool would (touch|come within [\d.]+ mm "
+            r"of) obstacle 'box' \(at least 20 mm needed\)",
+        ):
+            ex.check_table_clearance(q[None])

@@ -10,7 +10,7 @@ from foldbot.calibration.board import CalibrationBoard
 from foldbot.calibration.capture import VIEW_WORDS, CalibrationCell, pose_matrix
 from foldbot.calibration.views import BoardMount, CalibrationView
 from foldbot.control.executor import ArmExecutor, move_joints_together
-from foldbot.sim.calibration_board import attach_board
+from foldbot.sim.calibration_board import attach_board, board_twin
 from foldbot.sim.camera import CameraConfig, RGBDCamera
 from foldbot.sim.layout import CellLayout
 from foldbot.sim.robots import make_robot
@@ -68,6 +68,10 @@ class SimCalibrationCell(CalibrationCell):
             model_obstacle_ids=self.model_world.obstacle_ids,
         )
         self.board_id = attach_board(self.robot, board, mount)
+        # The board's plate on the twin's tool: kept clear of the layout's obstacles too.
+        self.executor.carry_body(
+            "the board", board_twin(self.model_world.client, board), mount.T_tcp_board()
+        )
         self.camera = RGBDCamera(self.world.client, camera)
         self.world.step(int(SETTLE_S / self.world.time_step))
 

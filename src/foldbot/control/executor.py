@@ -9,6 +9,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
+import pybullet as p
+from scipy.spatial.transform import Rotation
 
 from foldbot.control.trajectory import JointTrajectory, time_parametrize
 from foldbot.errors import ConfigError, SimulationDivergedError, UnreachableTargetError
@@ -94,6 +96,9 @@ class ArmExecutor:
         self.model_obstacle_ids: dict[str, int] = dict(obstacles or {})
         """The layout's obstacles in the model's world, by name: every planned waypoint keeps
         OBSTACLE_CLEARANCE from each (a twin's world builds them as the cell's does)."""
+        self.carried: list[tuple[str, int, np.ndarray]] = []
+        """Bodies fixed to the tool in the model's world (carry_body): name, body id, 4 × 4
+        body → TCP."""
 
     def joint_path(
         self, points: np.ndarray, q_seed: np.ndarray, orientations: np.ndarray | None = None
@@ -126,6 +131,32 @@ class ArmExecutor:
         held = None if 2.0 * math.acos(cos) <= KEEP_TURN_RAD else np.tile(quat, (len(points), 1))
         return Segment("lift", points, speed, orientations=held)
 
+    def carry_body(self, name: str, body: int, T_tcp_body: np.ndarray) -> None:
+        """Keep `body` (in the model's world: a calibration board's twin), fixed to the tool at
+        `T_tcp_body` (4 × 4), OBSTACLE_CLEARANCE from the layout's obstacles at every planned
+        waypoint, as the arm's own links are."""
+        self.carried.append((name, int(body), np.asarray(T_tcp_body, dtype=float)))
+
+    def _carried_near(self) -> tuple[str, str, float] | None:
+        """In the model's current pose: the first carried body within OBSTACLE_CLEARANCE of an
+        obstacle, as (its name, the obstacle's, the distance in m)."""
+        m = self.model
+        pos, quat = m.tcp_pose()
+        T_world_tcp = np.eye(4)
+        T_world_tcp[:3, :3] = Rotation.from_quat(quat).as_matrix()
+        T_world_tcp[:3, 3] = pos
+        for name, body, T_tcp_body in self.carried:
+            T = T_world_tcp @ T_tcp_body
+            p.resetBasePositionAndOrientation(
+                body, T[:3, 3].tolist(), Rotation.from_matrix(T[:3, :3]).as_quat().tolist(),
+                physicsClientId=m.client,
+            )  # fmt: skip
+            for obstacle, other in self.model_obstacle_ids.items():
+                hits = p.getClosestPoints(body, other, OBSTACLE_CLEARANCE, physicsClientId=m.client)
+                if hits:
+                    return name, obstacle, float(min(h[8] for h in hits))
+        return None
+
     def check_table_clearance(self, path: np.ndarray, table: bool = True) -> None:
         """Raise UnreachableTargetError when at some waypoint of the joint path (N × dof) an arm
         link (Robot.body_link_indices: not the base on its mount, nor the fingers, which close on
@@ -146,6 +177,15 @@ class ArmExecutor:
                     (name, m.nearest_within(body, OBSTACLE_CLEARANCE, every_link))
                     for name, body in self.model_obstacle_ids.items()
                 ]
+                held = self._carried_near() if self.carried and self.model_obstacle_ids else None
+            if held is not None:
+                what, name, dist = held
+                how = "would touch" if dist <= 0.0 else f"would come within {dist * 1000:.1f} mm of"
+                raise UnreachableTargetError(
+                    f"waypoint {i}: {what} held at the tool {how} obstacle {name!r} (at least "
+                    f"{OBSTACLE_CLEARANCE * 1000:.0f} mm needed) at joints "
+                    f"{np.round(q, 3).tolist()} rad"
+                )
             for name, close in near:
                 if close is not None:
                     link, _, dist = close

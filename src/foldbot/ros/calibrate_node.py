@@ -19,6 +19,7 @@ import numpy as np
 import rospy
 from sensor_msgs.msg import CameraInfo, Image
 
+from foldbot.calibration.board import CalibrationBoard
 from foldbot.calibration.capture import (
     VIEW_WORDS,
     CalibrationCell,
@@ -27,12 +28,13 @@ from foldbot.calibration.capture import (
     solve_captures,
     write_calibration,
 )
-from foldbot.calibration.views import CalibrationView
+from foldbot.calibration.views import BoardMount, CalibrationView
 from foldbot.control.executor import ArmExecutor
 from foldbot.errors import FoldbotError
 from foldbot.operator import OperatorGate
 from foldbot.ros import TOPICS, arm_joint_names, convert, driver_actions
 from foldbot.ros.drivers import ActionArm
+from foldbot.sim.calibration_board import board_twin
 from foldbot.sim.robots import make_robot
 from foldbot.sim.world import SimConfig, SimWorld
 
@@ -49,7 +51,14 @@ class RosCalibrationCell(CalibrationCell):
     prefixed joints and namespaced action), the camera's topics."""
 
     def __init__(
-        self, robot: str, layout, arms: int = 1, arm: int = 0, speed_scale: float = 1.0
+        self,
+        robot: str,
+        layout,
+        arms: int = 1,
+        arm: int = 0,
+        speed_scale: float = 1.0,
+        board: CalibrationBoard | None = None,
+        mount: BoardMount | None = None,
     ) -> None:
         self.model_world = SimWorld(SimConfig(layout=layout))
         self.model = make_robot(robot, self.model_world.client, layout.arm_layouts(arms)[arm])
@@ -57,6 +66,10 @@ class RosCalibrationCell(CalibrationCell):
             self.model_world, self.model, None,  # type: ignore[arg-type]  # no grasps: moves only
             model_table_id=self.model_world.table_id, speed_scale=speed_scale,
         )  # fmt: skip
+        if board is not None and mount is not None:  # its plate kept clear of obstacles too
+            self.planner.carry_body(
+                "the board", board_twin(self.model_world.client, board), mount.T_tcp_board()
+            )
         self.joint_names = arm_joint_names(self.model.ARM_JOINT_NAMES, arms)[arm]
         self.arm_index = arm
         self.arm = ActionArm(
@@ -155,7 +168,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         plan = plan_from_args(args)
         board = plan.board
-        cell = RosCalibrationCell(args.robot, plan.layout, args.arms, plan.arm, plan.speed_scale)
+        cell = RosCalibrationCell(
+            args.robot, plan.layout, args.arms, plan.arm, plan.speed_scale, board, plan.mount
+        )
         gate = OperatorGate(task="the calibration") if args.confirm else None
         cell.gate = gate
         try:

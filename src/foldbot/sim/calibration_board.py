@@ -23,6 +23,20 @@ BOARD_MASS = 0.05
 """The board and its bracket (kg)."""
 
 
+def board_twin(client: int, board: CalibrationBoard) -> int:
+    """The board's plate as a static box in a planning world (`client`: a kinematic twin's,
+    never stepped), for ArmExecutor.carry_body to keep clear of a layout's obstacles; its base
+    frame is the board frame."""
+    x0, x1, y0, y1 = board.plate_bounds()
+    shape = p.createCollisionShape(
+        p.GEOM_BOX,
+        halfExtents=[(x1 - x0) / 2.0, (y1 - y0) / 2.0, PLATE_THICKNESS / 2.0],
+        collisionFramePosition=[(x0 + x1) / 2.0, (y0 + y1) / 2.0, PLATE_THICKNESS / 2.0],
+        physicsClientId=client,
+    )
+    return p.createMultiBody(0.0, shape, -1, physicsClientId=client)
+
+
 def attach_board(robot, board: CalibrationBoard, mount: BoardMount) -> int:
     """Build `board` in the robot's PyBullet client and fix it to the robot's TCP as `mount`
     says; returns the board's body id. Its base frame is the board frame (calibration.board)."""
