@@ -12,6 +12,9 @@ from foldbot.sim.robots import ROBOT_NAMES, check_workspace_reach, make_robot
 from foldbot.sim.world import SimConfig, SimWorld
 
 PEDESTAL = Path(__file__).resolve().parents[2] / "layouts" / "pedestal.toml"
+OBSTACLE = (
+    '[[obstacles]]\nname = "post"\ncenter_xyz = [0.9, 0.5, 1.1]\nsize_xyz = [0.05, 0.05, 0.7]\n'
+)
 
 
 def test_one_arm_layout_is_the_cell_itself():
@@ -76,6 +79,28 @@ def test_the_shipped_example_layout_loads_and_names_what_it_changes():
             "faces +x): its near edge is at x = 0.150 m, the base at x = 0.100 m",
         ),
         ("table_height = [\n", "is not valid TOML"),
+        (
+            OBSTACLE.replace("[0.9, 0.5, 1.1]", "[0.45, 0.0, 0.9]"),
+            "layout obstacle 'post' (x 0.425–0.475, y -0.025–0.025, z 0.550–1.250 m) reaches "
+            "into the cloth workspace (x 0.150–0.750, y -0.300–0.300 m, up to 0.3 m over the "
+            "table)",
+        ),
+        (OBSTACLE.replace('"post"', '"a post"'), "an obstacle's name must be a non-empty word"),
+        (
+            OBSTACLE.replace("[0.05, 0.05, 0.7]", "[0.05, 0.0, 0.7]"),
+            "obstacle 'post': size_xyz must be 3 sizes in (0, 10] m, got [0.05, 0.0, 0.7]",
+        ),
+        (
+            OBSTACLE.replace("[0.9, 0.5, 1.1]", "[0.9, 0.5]"),
+            "layout obstacles[0]: obstacle 'post': center_xyz must be 3 finite numbers (m)",
+        ),
+        (
+            OBSTACLE.replace("center_xyz", "centre"),
+            "layout obstacles[0]: unknown key 'centre'; missing 'center_xyz'; an obstacle has "
+            "exactly name, center_xyz, size_xyz",
+        ),
+        (OBSTACLE + OBSTACLE, "layout obstacles must have names of their own; 'post' named"),
+        ('obstacles = "post"\n', "layout obstacles must be a list of tables"),
     ],
 )
 def test_a_bad_layout_file_is_named_with_what_is_allowed(tmp_path, text, needle):
@@ -157,46 +182,6 @@ def test_a_layout_files_obstacles_load_named_and_are_recorded():
         ]
     }
     assert not any(layout.workspace_shift())  # the cell itself is the default one
-
-
-OBSTACLE = (
-    '[[obstacles]]\nname = "post"\ncenter_xyz = [0.9, 0.5, 1.1]\nsize_xyz = [0.05, 0.05, 0.7]\n'
-)
-
-
-@pytest.mark.parametrize(
-    ("text", "needle"),
-    [
-        (
-            OBSTACLE.replace("[0.9, 0.5, 1.1]", "[0.45, 0.0, 0.9]"),
-            "layout obstacle 'post' (x 0.425–0.475, y -0.025–0.025, z 0.550–1.250 m) reaches "
-            "into the cloth workspace (x 0.150–0.750, y -0.300–0.300 m, up to 0.3 m over the "
-            "table)",
-        ),
-        (OBSTACLE.replace('"post"', '"a post"'), "an obstacle's name must be a non-empty word"),
-        (
-            OBSTACLE.replace("[0.05, 0.05, 0.7]", "[0.05, 0.0, 0.7]"),
-            "obstacle 'post': size_xyz must be 3 sizes in (0, 10] m, got [0.05, 0.0, 0.7]",
-        ),
-        (
-            OBSTACLE.replace("[0.9, 0.5, 1.1]", "[0.9, 0.5]"),
-            "layout obstacles[0]: obstacle 'post': center_xyz must be 3 finite numbers (m)",
-        ),
-        (
-            OBSTACLE.replace("center_xyz", "centre"),
-            "layout obstacles[0]: unknown key 'centre'; missing 'center_xyz'; an obstacle has "
-            "exactly name, center_xyz, size_xyz",
-        ),
-        (OBSTACLE + OBSTACLE, "layout obstacles must have names of their own; 'post' named"),
-        ('obstacles = "post"\n', "layout obstacles must be a list of tables"),
-    ],
-)
-def test_a_bad_obstacle_is_named_with_what_is_allowed(tmp_path, text, needle):
-    path = tmp_path / "cell.toml"
-    path.write_text(text)
-    with pytest.raises(ConfigError) as exc:
-        load_layout(path)
-    assert needle in str(exc.value) and str(path) in str(exc.value)
 
 
 def test_an_obstacle_blocks_the_lines_through_it_only():

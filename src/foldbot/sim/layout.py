@@ -29,6 +29,19 @@ WORKSPACE_CLEAR_HEIGHT = 0.3
 the carries' arcs (a 45 cm towel's peaks 0.23 m up) need it clear."""
 
 
+def finite_numbers(value: object, count: int) -> tuple[float, ...] | None:
+    """`value` as `count` finite floats, or None where it is not that (booleans refused)."""
+    try:
+        out = tuple(float(v) for v in value)  # type: ignore[union-attr]
+    except (TypeError, ValueError):
+        return None
+    if len(out) != count or not all(math.isfinite(v) for v in out):
+        return None
+    if any(isinstance(v, bool) for v in value):  # type: ignore[union-attr]
+        return None
+    return out
+
+
 @dataclass(frozen=True)
 class Obstacle:
     """A fixed box in the cell that the arm must keep clear of (a camera's post, a wall, a bin,
@@ -52,15 +65,8 @@ class Obstacle:
             )
         for key in ("center_xyz", "size_xyz"):
             value = getattr(self, key)
-            try:
-                out = tuple(float(v) for v in value)
-            except (TypeError, ValueError):
-                out = ()
-            if (
-                len(out) != 3
-                or not all(math.isfinite(v) for v in out)
-                or any(isinstance(v, bool) for v in value)
-            ):
+            out = finite_numbers(value, 3)
+            if out is None:
                 raise ConfigError(
                     f"obstacle {name!r}: {key} must be 3 finite numbers (m), got {value!r}"
                 )
@@ -165,15 +171,8 @@ class CellLayout:
     def __post_init__(self) -> None:
         def numbers(name: str, count: int) -> tuple[float, ...]:
             value = getattr(self, name)
-            try:
-                out = tuple(float(v) for v in value)
-            except (TypeError, ValueError):
-                out = ()
-            if (
-                len(out) != count
-                or not all(math.isfinite(v) for v in out)
-                or any(isinstance(v, bool) for v in value)
-            ):
+            out = finite_numbers(value, count)
+            if out is None:
                 raise ConfigError(
                     f"layout {name} must be {count} finite numbers (m), got {value!r}"
                 )
