@@ -441,8 +441,8 @@ def check_picture(check: LayoutCheck, width_px: int = 720) -> np.ndarray:
     font = cv2.FONT_HERSHEY_SIMPLEX
     labels: list[tuple[int, int, int, int]] = []
     for o in lay.obstacles:  # from above: their footprints, named (a name under another's
-        (ox0, oy0, _), (ox1, oy1, _) = o.bounds  # moves down to a line of its own)
-        cv2.rectangle(img, px(ox1, oy1), px(ox0, oy0), _DARK, -1)
+        (_, oy0, _), (ox1, _, _) = o.bounds  # moves down to a line of its own)
+        cv2.fillPoly(img, [np.array([px(x, y) for x, y in o.footprint()], np.int32)], _DARK)
         u, v = px(ox1, oy0)
         (w, h), _ = cv2.getTextSize(o.name, font, 0.4, 1)
         u, v = u + 4, v + 12

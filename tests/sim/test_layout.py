@@ -3,6 +3,7 @@ named, the camera and the arm placed by it."""
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from foldbot.errors import ConfigError
@@ -97,7 +98,11 @@ def test_the_shipped_example_layout_loads_and_names_what_it_changes():
         (
             OBSTACLE.replace("center_xyz", "centre"),
             "layout obstacles[0]: unknown key 'centre'; missing 'center_xyz'; an obstacle has "
-            "exactly name, center_xyz, size_xyz",
+            "name, center_xyz, size_xyz and may have yaw_deg",
+        ),
+        (
+            OBSTACLE + "yaw_deg = 400\n",
+            "obstacle 'post': yaw_deg must be degrees in [-360, 360], got 400",
         ),
         (OBSTACLE + OBSTACLE, "layout obstacles must have names of their own; 'post' named"),
         ('obstacles = "post"\n', "layout obstacles must be a list of tables"),
@@ -193,6 +198,39 @@ def test_an_obstacle_blocks_the_lines_through_it_only():
     assert not box.blocks((0.0, 0.0, 2.0), (0.0, 0.0, 1.2))  # stops short of its top
     assert not box.blocks((0.5, 0.0, 2.0), (0.5, 0.0, 0.0))  # beside it
     assert not box.blocks((1.0, 0.0, 2.0), (0.3, 0.0, 0.0))  # passes by its corner
+
+
+def test_a_turned_obstacle_blocks_reaches_and_is_built_as_turned():
+    import pybullet as p
+
+    from foldbot.sim.layout import Obstacle
+
+    # A 40 × 4 cm wall turned 45°: its corners, its extent along the world's axes, the lines
+    # through it and past its ends, and the cell's box.
+    wall = Obstacle("wall", (1.0, 0.5, 1.0), (0.4, 0.04, 0.5), yaw_deg=45.0)
+    corners = np.array(wall.footprint())
+    assert np.linalg.norm(corners[1] - corners[0]) == pytest.approx(0.4)
+    lo, hi = wall.bounds
+    assert hi[0] - lo[0] == pytest.approx((0.4 + 0.04) / np.sqrt(2))
+    assert wall.blocks((1.0, 0.3, 1.0), (1.0, 0.7, 1.0))  # across its middle
+    assert not wall.blocks((1.1, 0.3, 1.0), (1.1, 0.42, 1.0))  # inside its extent, not it
+    assert (
+        wall.as_dict()["yaw_deg"] == 45.0
+        and "yaw_deg" not in Obstacle("post", (1.0, 0.5, 1.0), (0.1, 0.1, 0.1)).as_dict()
+    )
+    # Turned, a box whose extent along the axes meets the workspace's corner is allowed where
+    # it does not: its side passes 1.8 cm beside the corner (0.75, 0.3).
+    near = Obstacle("near", (0.77, 0.32, 0.9), (0.02, 0.30, 0.3), yaw_deg=45.0)
+    assert near.bounds[0][0] < 0.75 and near.bounds[0][1] < 0.3
+    CellLayout(obstacles=(near,))
+    with pytest.raises(ConfigError, match="reaches into the cloth workspace"):
+        CellLayout(obstacles=(Obstacle("in", (0.755, 0.305, 0.9), (0.02, 0.30, 0.3), 45.0),))
+    with SimWorld(SimConfig(layout=CellLayout(obstacles=(wall,)))) as world:
+        pos, quat = p.getBasePositionAndOrientation(
+            world.obstacle_ids["wall"], physicsClientId=world.client
+        )
+        assert pos == pytest.approx((1.0, 0.5, 1.0))
+        assert p.getEulerFromQuaternion(quat)[2] == pytest.approx(np.pi / 4)
 
 
 def test_the_simulated_cell_builds_each_obstacle_where_the_layout_puts_it():

@@ -330,7 +330,7 @@ def add_episode_arguments(parser: argparse.ArgumentParser, output: bool = True) 
         + " (e.g. table_height = 0.72, robot_base_xyz = [0, 0, 0.72], workspace_center_xy = "
         "[0.5, 0.05]); the rest at the default cell's (a 1.2 m table, its top at 0.75 m, the arm "
         "on it at the origin, a 0.6 m workspace centred at (0.45, 0), no obstacles). Each "
-        "[[obstacles]] table (name, center_xyz, size_xyz: a box) is a fixture the arm keeps "
+        "[[obstacles]] table (name, center_xyz, size_xyz, yaw_deg: a box) is a fixture the arm keeps "
         "2 cm from. The simulated cell is built so, its camera moved with the workspace; a real "
         "cell (ros-fold --cell real) is planned for it",
     )

@@ -22,8 +22,8 @@ OBSTACLE_CLEARANCE = 0.02
 """Least distance (m) every planned arm pose keeps from a layout's obstacles (its links and
 fingers; the table keeps control.executor's TABLE_CLEARANCE): a real fixture is measured by hand
 and drawn as a box, so the arm keeps a margin from it."""
-OBSTACLE_FIELDS = ("name", "center_xyz", "size_xyz")
-"""The keys of a layout file's `[[obstacles]]` table."""
+OBSTACLE_FIELDS = ("name", "center_xyz", "size_xyz", "yaw_deg")
+"""The keys of a layout file's `[[obstacles]]` table (yaw_deg may be left out: 0)."""
 WORKSPACE_CLEAR_HEIGHT = 0.3
 """Height (m) over the cloth workspace an obstacle may not reach into: the cloth, its folds and
 the carries' arcs (a 45 cm towel's peaks 0.23 m up) need it clear."""
@@ -45,13 +45,15 @@ def finite_numbers(value: object, count: int) -> tuple[float, ...] | None:
 @dataclass(frozen=True)
 class Obstacle:
     """A fixed box in the cell that the arm must keep clear of (a camera's post, a wall, a bin,
-    a light): its name, its centre and its size along x, y and z (world frame, m; the box's sides
-    along the world's axes). The simulated cell builds it; every planned motion keeps
-    OBSTACLE_CLEARANCE from it, in process and over ROS, in the simulated cell or a real one."""
+    a light): its name, its centre and its size along its own x, y and z (world frame, m), turned
+    `yaw_deg` about the vertical (0: its sides along the world's axes). The simulated cell builds
+    it; every planned motion keeps OBSTACLE_CLEARANCE from it, in process and over ROS, in the
+    simulated cell or a real one."""
 
     name: str
     center_xyz: tuple[float, float, float]
     size_xyz: tuple[float, float, float]
+    yaw_deg: float = 0.0
 
     def __post_init__(self) -> None:
         name = self.name
@@ -76,22 +78,57 @@ class Obstacle:
                 f"obstacle {name!r}: size_xyz must be 3 sizes in (0, 10] m, got "
                 f"{list(self.size_xyz)!r}"
             )
+        yaw = self.yaw_deg
+        if isinstance(yaw, bool) or not isinstance(yaw, int | float) or not -360 <= yaw <= 360:
+            raise ConfigError(
+                f"obstacle {name!r}: yaw_deg must be degrees in [-360, 360], got {yaw!r}"
+            )
+        object.__setattr__(self, "yaw_deg", float(yaw))
+
+    def footprint(self) -> tuple[tuple[float, float], ...]:
+        """The box's four corners seen from above (world xy, m), counter-clockwise."""
+        c, s = math.cos(math.radians(self.yaw_deg)), math.sin(math.radians(self.yaw_deg))
+        hx, hy = self.size_xyz[0] / 2, self.size_xyz[1] / 2
+        x, y = self.center_xyz[:2]
+        return tuple(
+            (x + c * u - s * v, y + s * u + c * v)
+            for u, v in ((-hx, -hy), (hx, -hy), (hx, hy), (-hx, hy))
+        )
+
+    def overlaps_area(self, x0: float, x1: float, y0: float, y1: float) -> bool:
+        """Whether its footprint overlaps the rectangle x0–x1, y0–y1 (world m) by more than a
+        touch (separating axes: the rectangle's two and the box's two)."""
+        box = self.footprint()
+        area = ((x0, y0), (x1, y0), (x1, y1), (x0, y1))
+        c, s = math.cos(math.radians(self.yaw_deg)), math.sin(math.radians(self.yaw_deg))
+        for ax, ay in ((1.0, 0.0), (0.0, 1.0), (c, s), (-s, c)):
+            a = [ax * x + ay * y for x, y in box]
+            b = [ax * x + ay * y for x, y in area]
+            if max(a) <= min(b) + 1e-12 or max(b) <= min(a) + 1e-12:
+                return False
+        return True
 
     @property
     def bounds(self) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
-        """(lowest corner, highest corner) of the box (m)."""
-        c, h = self.center_xyz, tuple(v / 2 for v in self.size_xyz)
-        return (
-            (c[0] - h[0], c[1] - h[1], c[2] - h[2]),
-            (c[0] + h[0], c[1] + h[1], c[2] + h[2]),
-        )
+        """(lowest corner, highest corner) of the box's extent along the world's axes (m): the
+        box itself where it is not turned."""
+        xs, ys = zip(*self.footprint(), strict=True)
+        z, hz = self.center_xyz[2], self.size_xyz[2] / 2
+        return (min(xs), min(ys), z - hz), (max(xs), max(ys), z + hz)
+
+    def _local(self, point: Sequence[float]) -> tuple[float, float, float]:
+        """A world point (m) in the box's own frame (its centre, its sides' axes)."""
+        c, s = math.cos(math.radians(self.yaw_deg)), math.sin(math.radians(self.yaw_deg))
+        dx, dy, dz = (float(a) - b for a, b in zip(point, self.center_xyz, strict=True))
+        return (c * dx + s * dy, -s * dx + c * dy, dz)
 
     def blocks(self, start: Sequence[float], end: Sequence[float]) -> bool:
         """Whether the straight segment from `start` to `end` (world m) passes through the box
         (a camera's line of sight to a point on the table)."""
-        lo, hi = self.bounds
+        h = tuple(v / 2 for v in self.size_xyz)
+        lo, hi = tuple(-v for v in h), h
         t0, t1 = 0.0, 1.0
-        for a, b, low, high in zip(start, end, lo, hi, strict=True):
+        for a, b, low, high in zip(self._local(start), self._local(end), lo, hi, strict=True):
             d = float(b) - float(a)
             if abs(d) < 1e-12:
                 if not low <= a <= high:
@@ -104,11 +141,13 @@ class Obstacle:
         return True
 
     def as_dict(self) -> dict[str, object]:
-        """As a layout file's `[[obstacles]]` table (plain JSON)."""
+        """As a layout file's `[[obstacles]]` table (plain JSON; yaw_deg where turned)."""
+        turned = {"yaw_deg": self.yaw_deg} if self.yaw_deg else {}
         return {
             "name": self.name,
             "center_xyz": list(self.center_xyz),
             "size_xyz": list(self.size_xyz),
+            **turned,
         }
 
 
@@ -122,7 +161,7 @@ def obstacle_from_table(table: object, where: str) -> Obstacle:
             f"{where}: an obstacle is a table of {', '.join(OBSTACLE_FIELDS)}, got {table!r}"
         )
     unknown = sorted(set(table) - set(OBSTACLE_FIELDS))
-    missing = [k for k in OBSTACLE_FIELDS if k not in table]
+    missing = [k for k in OBSTACLE_FIELDS if k not in table and k != "yaw_deg"]
     if unknown or missing:
         what = []
         if unknown:
@@ -131,7 +170,8 @@ def obstacle_from_table(table: object, where: str) -> Obstacle:
         if missing:
             what.append(f"missing {', '.join(map(repr, missing))}")
         raise ConfigError(
-            f"{where}: {'; '.join(what)}; an obstacle has exactly {', '.join(OBSTACLE_FIELDS)}"
+            f"{where}: {'; '.join(what)}; an obstacle has {', '.join(OBSTACLE_FIELDS[:-1])} "
+            "and may have yaw_deg"
         )
     try:
         return Obstacle(**dict(table))
@@ -249,7 +289,7 @@ class CellLayout:
         z0, z1 = self.table_height, self.table_height + WORKSPACE_CLEAR_HEIGHT
         for o in obstacles:
             (ox0, oy0, oz0), (ox1, oy1, oz1) = o.bounds
-            if ox0 < x1 and x0 < ox1 and oy0 < y1 and y0 < oy1 and oz0 < z1 and z0 < oz1:
+            if oz0 < z1 and z0 < oz1 and o.overlaps_area(x0, x1, y0, y1):
                 raise ConfigError(
                     f"layout obstacle {o.name!r} (x {ox0:.3f}–{ox1:.3f}, y {oy0:.3f}–{oy1:.3f}, "
                     f"z {oz0:.3f}–{oz1:.3f} m) reaches into the cloth workspace (x {x0:.3f}–"

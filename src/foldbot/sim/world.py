@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 from dataclasses import dataclass, field
 
@@ -115,8 +116,14 @@ class SimWorld:
         vis = p.createVisualShape(
             p.GEOM_BOX, halfExtents=half, rgbaColor=list(OBSTACLE_RGBA), physicsClientId=self.client
         )
+        turn = p.getQuaternionFromEuler([0.0, 0.0, math.radians(obstacle.yaw_deg)])
         return p.createMultiBody(
-            0, col, vis, basePosition=list(obstacle.center_xyz), physicsClientId=self.client
+            0,
+            col,
+            vis,
+            basePosition=list(obstacle.center_xyz),
+            baseOrientation=turn,
+            physicsClientId=self.client,
         )
 
     @property
