@@ -144,6 +144,35 @@ def test_the_operator_lets_each_move_run_or_stops_the_calibration(tmp_path, monk
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cal"]
 
 
+def test_a_dry_run_plans_every_views_move_and_names_those_an_obstacle_blocks(tmp_path, capsys):
+    # A lamp 60 cm over the table, among the views: the forearm or wrist would pass within
+    # 2 cm of it on the way to two of six.
+    layout = tmp_path / "lamp.toml"
+    layout.write_text(
+        '[[obstacles]]\nname = "lamp"\ncenter_xyz = [0.50, 0.0, 1.35]\n'
+        "size_xyz = [0.10, 0.10, 0.05]\n"
+    )
+    out = tmp_path / "plan"
+    args = ["calibrate", "--dry-run", "--views", "6", "--layout", str(layout)]
+    assert main([*args, "--out", str(out)]) == 1
+    said = capsys.readouterr().out
+    plan = json.loads((out / "plan.json").read_text())
+    assert sorted(p.name for p in out.iterdir()) == ["plan.json"]  # nothing calibrated
+    assert plan["dry_run"] and not plan["feasible"] and plan["cell"] == "sim"
+    bad = [v for v in plan["views"] if not v["feasible"]]
+    assert [v["view"] for v in bad] == ["view 1", "view 5"]
+    assert all("obstacle 'lamp' (at least 20 mm needed)" in v["reason"] for v in bad)
+    good = [v for v in plan["views"] if v["feasible"]]
+    assert plan["motion_seconds"] == pytest.approx(
+        sum(v["seconds"] for v in good) + plan["back_seconds"]
+    )
+    assert "dry run: view 1: NOT feasible: " in said
+    assert "dry run: 4 of 6 views reachable" in said and "nothing moved" in said
+    assert main([*args, "--confirm", "--out", str(tmp_path / "x")]) == 2
+    assert "--confirm asks before each move, and --dry-run makes none" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
+
+
 def test_a_board_mounted_elsewhere_is_found_where_it_is(tmp_path):
     # The board a quarter turn about the tool's axis on a shorter bracket: the views aim it
     # so, and the solve finds it there (and the camera) from the images alone.

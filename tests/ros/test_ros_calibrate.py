@@ -55,6 +55,11 @@ def test_the_camera_of_a_running_cell_is_found_through_its_topics(
     try:
         wait_for_master(port)
         confirm = "--confirm" in calibrate_arms
+        if confirm:  # first, a dry run: every view planned from where the arm stands
+            dry = foldbot(
+                "ros-calibrate", "--dry-run", "--out", str(tmp_path / "plan"), "--views",
+                str(views), "--port", str(port),
+            )  # fmt: skip
         proc = foldbot(
             "ros-calibrate", "--out", str(out), "--views", str(views), "--port", str(port),
             *calibrate_arms, answers="\n" * (views + 1) if confirm else None,
@@ -62,6 +67,12 @@ def test_the_camera_of_a_running_cell_is_found_through_its_topics(
     finally:
         log = stop_cell(cell)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:] + log[-3000:]
+    if confirm:
+        assert dry.returncode == 0, dry.stdout[-3000:] + dry.stderr[-3000:]
+        planned = json.loads((tmp_path / "plan" / "plan.json").read_text())
+        assert planned["dry_run"] and planned["cell"] == "ros" and planned["feasible"]
+        assert len(planned["views"]) == views and planned["motion_seconds"] > 0
+        assert f"ros-calibrate: dry run: {views} of {views} views reachable" in dry.stdout
     assert f"find its camera with `foldbot ros-calibrate --port {port} --out DIR" in log
     record = json.loads((out / "calibration.json").read_text())
     assert record["cell"] == "ros" and record["views_used"] >= 5

@@ -70,6 +70,14 @@ class CalibrationCell(abc.ABC):
     arm_index: int = 0
     """The arm that holds the board (0, or 1 of two), as the operator is told."""
 
+    def rest_positions(self) -> tuple[np.ndarray, np.ndarray]:
+        """Where the arm stands now and where `finish` takes it back to (joint angles, rad)."""
+        raise NotImplementedError(f"{type(self).__name__} plans no dry run")
+
+    planner: Any = None
+    """The ArmExecutor on the arm's kinematic twin every move is planned on (IK, the table and
+    the layout's obstacles checked, time-parametrised); `planner.model` is the twin."""
+
     def confirm_move(self, label: str, what: str, seconds: float) -> None:
         """Before a move: with a gate, what it will do is said and the operator's answer awaited
         (OperatorStopped on stop); without one, nothing."""
@@ -99,6 +107,43 @@ def pose_matrix(position: np.ndarray, quaternion: np.ndarray) -> np.ndarray:
     T[:3, :3] = Rotation.from_quat(quaternion).as_matrix()
     T[:3, 3] = position
     return T
+
+
+def plan_views(
+    cell: CalibrationCell,
+    views: list[CalibrationView],
+    progress: Callable[[str], None] = lambda line: None,
+) -> dict[str, Any]:
+    """A dry run (`--dry-run`): every view's move planned in turn from where the arm stands, as
+    capture_views would make it (IK seeded from the view before, the joint move checked against
+    the table and the layout's obstacles, its time under the joint limits), then the move back;
+    nothing moves. plan.json's content: each view feasible with its seconds, or why not."""
+    planner = cell.planner
+    q, back_to = cell.rest_positions()
+    entries: list[dict[str, Any]] = []
+    for view in views:
+        entry: dict[str, Any] = {"view": view.name, "tcp_m": [float(v) for v in view.position]}
+        try:
+            q_next = planner.model.solve_ik(view.position, view.quaternion, q_seed=q)
+            planner.check_joint_move(q, q_next)
+            seconds = planner.joint_move_trajectory(q, q_next).duration
+        except UnreachableTargetError as exc:
+            entries.append(entry | {"feasible": False, "reason": str(exc)})
+            progress(f"{view.name}: NOT feasible: {exc}")
+            continue
+        entries.append(entry | {"feasible": True, "seconds": seconds})
+        progress(f"{view.name}: {seconds:.1f} s of motion")
+        q = q_next
+    back = planner.joint_move_trajectory(q, back_to).duration
+    feasible = sum(e["feasible"] for e in entries)
+    return {
+        "dry_run": True,
+        "views": entries,
+        "views_feasible": feasible,
+        "back_seconds": back,
+        "motion_seconds": sum(e.get("seconds", 0.0) for e in entries) + back,
+        "feasible": feasible == len(entries),
+    }
 
 
 def capture_views(

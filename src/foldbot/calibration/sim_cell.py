@@ -67,6 +67,7 @@ class SimCalibrationCell(CalibrationCell):
             speed_scale=speed_scale,
             model_obstacle_ids=self.model_world.obstacle_ids,
         )
+        self.planner = self.executor
         self.board_id = attach_board(self.robot, board, mount)
         # The board's plate on the twin's tool: kept clear of the layout's obstacles too.
         self.executor.carry_body(
@@ -83,6 +84,9 @@ class SimCalibrationCell(CalibrationCell):
     def intrinsics(self) -> tuple[np.ndarray, np.ndarray, int, int]:
         intr = self.camera.intrinsics
         return intr.K, np.zeros(5), intr.width, intr.height
+
+    def rest_positions(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.robot.joint_positions(), np.asarray(self.robot.home_q, dtype=float)
 
     def move_to(self, view: CalibrationView) -> None:
         q0 = self.robot.joint_positions()

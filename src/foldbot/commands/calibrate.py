@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import shutil
 import time
 from dataclasses import dataclass
@@ -38,9 +39,15 @@ from foldbot.calibration.board import (
     CharucoBoard,
     Chessboard,
 )
-from foldbot.calibration.capture import capture_views, solve_captures, write_calibration
+from foldbot.calibration.capture import (
+    capture_views,
+    plan_views,
+    solve_captures,
+    write_calibration,
+)
 from foldbot.calibration.hand_eye import pose_error
 from foldbot.calibration.views import MAX_VIEWS, BoardMount, CalibrationView, calibration_views
+from foldbot.dry_run import PLAN_FILE
 from foldbot.errors import ConfigError
 from foldbot.io.staging import commit_output, output_path, prepare_output
 from foldbot.operator import OperatorGate
@@ -164,6 +171,13 @@ def add_board_arguments(parser: argparse.ArgumentParser) -> None:
         help="before each move (to a view, and back) say what it will do and wait for the "
         "operator: Enter moves, s stops the calibration there (nothing is written); for a "
         "first run on a real arm",
+    )
+    parser.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="plan every view's move from where the arm stands (IK, the table and the layout's "
+        "obstacles checked, its time) and write DIR/plan.json; nothing moves (exit 1 where a "
+        "view is out of reach)",
     )
     default = BoardMount()
     parser.add_argument(
@@ -370,9 +384,30 @@ def table_error_m(
     return float(np.max(np.linalg.norm(seen - pts, axis=1)))
 
 
+def check_dry_run(args: argparse.Namespace) -> None:
+    """--dry-run with --confirm refused by name (nothing moves to ask about)."""
+    if args.dry_run and args.confirm:
+        raise ConfigError("--confirm asks before each move, and --dry-run makes none: drop one")
+
+
+def write_view_plan(stage: Path, planned: dict[str, Any], record: dict[str, Any]) -> None:
+    """A calibration's dry run as plan.json in `stage`: the views' moves and the run's set-up."""
+    (stage / PLAN_FILE).write_text(json.dumps(planned | record, indent=2) + "\n")
+
+
+def dry_run_words(planned: dict[str, Any], speed_scale: float) -> str:
+    """The dry run's one-line verdict."""
+    n, k = len(planned["views"]), planned["views_feasible"]
+    return (
+        f"{k} of {n} views reachable, {planned['motion_seconds']:.1f} s of arm motion at speed "
+        f"scale {speed_scale:g} (the move back included); nothing moved"
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     from foldbot.calibration.sim_cell import SimCalibrationCell
 
+    check_dry_run(args)
     layout = layout_from_args(args)
     camera = sim_camera(args, layout)
     # Who moved the simulated camera knows roughly where it stands.
@@ -393,6 +428,16 @@ def run(args: argparse.Namespace) -> int:
         )
         gate = OperatorGate(task="the calibration") if args.confirm else None
         cell.gate = gate
+        if args.dry_run:
+            try:
+                planned = plan_views(cell, views, lambda line: print(f"dry run: {line}"))
+            finally:
+                cell.close()
+            write_view_plan(stage, planned, {"cell": "sim", **plan.record()})
+            commit_output(stage, args.out)
+            print(f"dry run: {dry_run_words(planned, plan.speed_scale)}")
+            print(f"dry run: plan written to {args.out}/{PLAN_FILE}")
+            return 0 if planned["feasible"] else 1
         try:
             captures = capture_views(
                 cell, views, board, lambda line: print(f"calibrate: {line}", flush=True)

@@ -25,7 +25,13 @@ import json
 import shutil
 from pathlib import Path
 
-from foldbot.commands.calibrate import add_board_arguments, board_words, plan_from_args
+from foldbot.commands.calibrate import (
+    add_board_arguments,
+    board_words,
+    check_dry_run,
+    dry_run_words,
+    plan_from_args,
+)
 from foldbot.commands.ros_fold import (
     add_running_cell_master,
     check_port,
@@ -33,6 +39,7 @@ from foldbot.commands.ros_fold import (
     run_node,
     running_cell_env,
 )
+from foldbot.dry_run import PLAN_FILE
 from foldbot.io.staging import commit_output, output_path, prepare_output
 
 
@@ -43,6 +50,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    check_dry_run(args)
     plan = plan_from_args(args)  # every option checked before the cell is asked anything
     check_port(args.port)
     master_wait_s(args.master_wait)
@@ -60,11 +68,20 @@ def run(args: argparse.Namespace) -> int:
             cmd += ["--confirm"]
         if args.layout is not None:
             cmd += ["--layout", str(Path(args.layout).resolve())]
-        run_node("foldbot.ros.calibrate_node", cmd, env, "the calibration")
+        if args.dry_run:
+            cmd += ["--dry-run"]
+        # A dry run with a view out of reach exits 1 with its plan written.
+        ok = (0, 1) if args.dry_run else (0,)
+        code = run_node("foldbot.ros.calibrate_node", cmd, env, "the calibration", ok)
     except BaseException:
         shutil.rmtree(stage, ignore_errors=True)
         raise
     commit_output(stage, args.out)
+    if args.dry_run:
+        planned = json.loads((args.out / PLAN_FILE).read_text())
+        print(f"ros-calibrate: dry run: {dry_run_words(planned, plan.speed_scale)}")
+        print(f"ros-calibrate: wrote {args.out}/{PLAN_FILE}")
+        return code
     record = json.loads((args.out / "calibration.json").read_text())
     print(
         f"ros-calibrate: {record['views_used']} of {len(record['views'])} views, reprojection "

@@ -24,6 +24,7 @@ from foldbot.calibration.capture import (
     VIEW_WORDS,
     CalibrationCell,
     capture_views,
+    plan_views,
     pose_matrix,
     solve_captures,
     write_calibration,
@@ -130,6 +131,9 @@ class RosCalibrationCell(CalibrationCell):
                 raise FoldbotError("the cell's clock stopped while the arm settled")
             time.sleep(0.01)
 
+    def rest_positions(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.arm.joint_positions(), np.asarray(self.q_start, dtype=float)
+
     def move_to(self, view: CalibrationView) -> None:
         q0 = self.arm.joint_positions()
         q = self.model.solve_ik(view.position, view.quaternion, q_seed=q0)
@@ -158,7 +162,7 @@ class RosCalibrationCell(CalibrationCell):
 
 
 def main(argv: list[str] | None = None) -> int:
-    from foldbot.commands.calibrate import add_board_arguments, plan_from_args
+    from foldbot.commands.calibrate import add_board_arguments, plan_from_args, write_view_plan
 
     parser = argparse.ArgumentParser(prog="foldbot_calibrate")
     parser.add_argument("--stage", type=Path, required=True)
@@ -173,6 +177,17 @@ def main(argv: list[str] | None = None) -> int:
         )
         gate = OperatorGate(task="the calibration") if args.confirm else None
         cell.gate = gate
+        if args.dry_run:  # every view planned from where the arm stands; nothing moves
+            try:
+                planned = plan_views(
+                    cell,
+                    plan.views,
+                    lambda line: print(f"ros-calibrate: dry run: {line}", flush=True),
+                )
+            finally:
+                cell.close()
+            write_view_plan(args.stage, planned, {"cell": "ros", **plan.record()})
+            return 0 if planned["feasible"] else 1
         try:
             captures = capture_views(
                 cell, plan.views, board, lambda line: print(f"ros-calibrate: {line}", flush=True)
