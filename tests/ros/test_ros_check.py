@@ -39,6 +39,11 @@ def test_a_running_cell_is_checked_for_all_a_fold_needs(tmp_path):
         '[[obstacles]]\nname = "lamp"\ncenter_xyz = [0.75, 0.0, 1.25]\n'
         "size_xyz = [0.12, 0.12, 0.05]\n"
     )
+    low = tmp_path / "low.toml"  # a lamp 32 cm over the workspace: where the arm rests, and is
+    low.write_text(
+        '[[obstacles]]\nname = "lamp"\ncenter_xyz = [0.55, 0.10, 1.10]\n'
+        "size_xyz = [0.30, 0.30, 0.08]\n"
+    )
     cell, port = start_cell("--hide-camera-pose", "--resolution", "5", "--camera-rate", "2")
     runs = {}
     try:
@@ -48,6 +53,7 @@ def test_a_running_cell_is_checked_for_all_a_fold_needs(tmp_path):
             ("calibrated", ["--camera-pose", str(calibration)]),
             ("high", ["--camera-pose", str(calibration), "--layout", str(high)]),
             ("lamp", ["--camera-pose", str(calibration), "--layout", str(lamp)]),
+            ("low", ["--camera-pose", str(calibration), "--layout", str(low)]),
         ):
             runs[name] = foldbot(
                 "ros-check", "--out", str(tmp_path / name), "--port", str(port), *extra
@@ -93,7 +99,13 @@ def test_a_running_cell_is_checked_for_all_a_fold_needs(tmp_path):
         lamped.stdout
     )
     assert "behind an obstacle (30 behind one)" in lamped.stdout
-    assert "ok   the layout's obstacles: 'lamp': none where an arm rests" in lamped.stdout
+    assert "ok   the layout's obstacles: 'lamp': no arm rests or stands in one" in lamped.stdout
+
+    low_run = runs["low"]
+    assert low_run.returncode == 1, low_run.stdout + low_run.stderr
+    line = next(ln for ln in low_run.stdout.splitlines() if "the layout's obstacles" in ln)
+    assert line.startswith("FAIL the layout's obstacles: arm: the arm's home posture meets an")
+    assert "obstacle 'lamp'" in line
 
 
 def test_no_master_no_check_and_no_folder(tmp_path):

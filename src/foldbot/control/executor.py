@@ -227,14 +227,23 @@ class ArmExecutor:
         `table` false) or within OBSTACLE_CLEARANCE of a layout's obstacle (checked every
         OBSTACLE_SAMPLE_RAD of the joint that turns furthest, a thin post not stepped over)."""
         q0, q_target = np.asarray(q0, dtype=float), np.asarray(q_target, dtype=float)
+        samples = []
         if table:
-            s = np.linspace(0.0, 1.0, JOINT_MOVE_SAMPLES)[:, None]
-            self.check_table_clearance(q0 + s * (q_target - q0))
+            samples.append((JOINT_MOVE_SAMPLES, True))
         if self.model_obstacle_ids:
             turn = float(np.abs(q_target - q0).max())
-            n = max(JOINT_MOVE_SAMPLES, math.ceil(turn / OBSTACLE_SAMPLE_RAD) + 1)
+            samples.append(
+                (max(JOINT_MOVE_SAMPLES, math.ceil(turn / OBSTACLE_SAMPLE_RAD) + 1), False)
+            )
+        for n, with_table in samples:
             s = np.linspace(0.0, 1.0, n)[:, None]
-            self.check_table_clearance(q0 + s * (q_target - q0), table=False)
+            try:
+                self.check_table_clearance(q0 + s * (q_target - q0), table=with_table)
+            except UnreachableTargetError as exc:  # "waypoint i" is a point along the move
+                i, _, why = str(exc).removeprefix("waypoint ").partition(": ")
+                raise UnreachableTargetError(
+                    f"at point {i} of {n} along the joint move: {why}"
+                ) from exc
 
     def trajectory_for(self, path: np.ndarray, points: np.ndarray, speed: float) -> JointTrajectory:
         """Time-optimal trajectory along the joint path within the robot's joint velocity,

@@ -28,7 +28,8 @@ import rospy
 from sensor_msgs.msg import CameraInfo, Image, JointState
 from tf2_msgs.msg import TFMessage
 
-from foldbot.errors import FoldbotError
+from foldbot.control.executor import ArmExecutor
+from foldbot.errors import ConfigError, FoldbotError
 from foldbot.garments import GARMENTS
 from foldbot.layout_check import CameraPlacement, check_layout
 from foldbot.loop import cut_by_image_edge
@@ -46,7 +47,8 @@ from foldbot.ros import (
 from foldbot.ros.control_msgs import msg as control_msgs
 from foldbot.ros.frames import StaticFrames
 from foldbot.sim.layout import DEFAULT_LAYOUT, CellLayout, load_layout
-from foldbot.sim.robots import robot_class
+from foldbot.sim.robots import make_robot, robot_class
+from foldbot.sim.world import SimConfig, SimWorld
 from foldbot.types import Observation
 
 WAIT_S = 30.0
@@ -164,6 +166,39 @@ def check_joints(inbox: _Inbox, robot: str, arms: int) -> Check:
         return Check(f"joints on {topic}", False, "; ".join(problems))
     return Check(
         f"joints on {topic}", True, f"all {count} arm joints of the {robot}, within limits"
+    )
+
+
+def check_obstacles(inbox: _Inbox, layout: CellLayout, robot: str, arms: int) -> Check:
+    """No arm rests in one of the layout's obstacles (its home), nor stands in one now (the
+    joints on /joint_states): either would say the layout's obstacles are not where the cell's
+    fixtures are, or the arm is where no motion may start. On twins in a world of their own."""
+    msg = inbox.wait(("joint_states",), WAIT_S).get("joint_states")
+    position = {} if msg is None else dict(zip(msg.name, msg.position, strict=False))
+    cls = robot_class(robot)
+    world = SimWorld(SimConfig(layout=layout))
+    problems = []
+    try:
+        arm_names = ("arm",) if arms == 1 else ("left arm", "right arm")
+        for a, (arm_layout, names) in enumerate(
+            zip(layout.arm_layouts(arms), arm_joint_names(cls.ARM_JOINT_NAMES, arms), strict=True)
+        ):
+            model = make_robot(robot, world.client, arm_layout)
+            postures = {"home": np.asarray(model.home_q, dtype=float)}
+            if all(n in position for n in names):
+                postures["current (/joint_states)"] = np.array([position[n] for n in names])
+            try:
+                ArmExecutor(world, model, None).check_postures(postures)  # type: ignore[arg-type]
+            except ConfigError as exc:
+                problems.append(f"{arm_names[a]}: {exc}")
+    finally:
+        world.close()
+    names = ", ".join(repr(o.name) for o in layout.obstacles)
+    return Check(
+        "the layout's obstacles",
+        not problems,
+        "; ".join(problems)
+        or f"{names}: no arm rests or stands in one (every motion keeps 2 cm from them)",
     )
 
 
@@ -291,6 +326,8 @@ def run_checks(
     inbox = _Inbox()
     checks = check_drivers(arms)
     checks.append(check_joints(inbox, robot, arms))
+    if layout.obstacles:
+        checks.append(check_obstacles(inbox, layout, robot, arms))
     got = inbox.wait(("color", "color_info", "depth"), WAIT_S)
     depth_info = inbox.wait(("depth_info",), 0.5).get("depth_info")
     missing = [TOPICS[k] for k in ("color", "color_info", "depth") if k not in got]
@@ -380,16 +417,6 @@ def run_checks(
                 + found.resolution_words("its centre"),
             )
         )
-        if layout.obstacles:
-            names = ", ".join(repr(o.name) for o in layout.obstacles)
-            checks.append(
-                Check(
-                    "the layout's obstacles",
-                    not found.blocked_postures,
-                    "; ".join(found.blocked_postures)
-                    or f"{names}: none where an arm rests (every motion keeps 2 cm from them)",
-                )
-            )
         extra["T_world_camera"] = T_cam.tolist()
         extra["K"] = intr.K.tolist()
         if rgb is not None:
