@@ -16,17 +16,15 @@ from typing import Any
 import cv2
 import numpy as np
 
-from foldbot.control.executor import ArmExecutor
+from foldbot.control.executor import ArmExecutor, check_arm_fits
 from foldbot.errors import ConfigError, UnreachableTargetError
 from foldbot.planning.motion import MotionConfig
 from foldbot.sim.camera import CameraConfig
 from foldbot.sim.layout import CellLayout
 from foldbot.sim.robots import (
     HOME_HEIGHT_ABOVE_TABLE,
-    check_workspace_reach,
     gripper_down_quaternion,
     make_robot,
-    rest_postures,
 )
 from foldbot.sim.robots import REACH_CHECK_HEIGHT as GRASP_HEIGHT
 from foldbot.sim.world import SimConfig, SimWorld
@@ -342,9 +340,8 @@ def check_cell_fits(layout: CellLayout, robot: str, arms: int, park: str) -> Non
     try:
         for arm_layout in layout.arm_layouts(arms):
             model = make_robot(robot, world.client, arm_layout)
-            check_workspace_reach(model, robot)
             executor = ArmExecutor(world, model, None)  # type: ignore[arg-type]  # no cloth
-            executor.check_postures(rest_postures(model, park))
+            check_arm_fits(executor, robot, park)
     finally:
         world.close()
 

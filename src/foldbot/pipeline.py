@@ -26,6 +26,7 @@ from foldbot.control.bimanual import check_arms_clear, check_clear_of_still_arms
 from foldbot.control.executor import (
     ArmExecutor,
     PlannedSegment,
+    check_arm_fits,
     joint_move_trajectories,
     move_joints_together,
     run_together,
@@ -71,7 +72,7 @@ from foldbot.sim.flatten_oracle import CornerPullOracle
 from foldbot.sim.garment_oracle import GarmentOracleEstimator
 from foldbot.sim.grasp import JAW_CATCHES, ClothGrasp, SlipFault
 from foldbot.sim.oracle import GroundTruthOracle, OracleEstimator
-from foldbot.sim.robots import ROBOT_NAMES, check_workspace_reach, make_robot, rest_postures
+from foldbot.sim.robots import ROBOT_NAMES, make_robot
 from foldbot.sim.world import SimConfig, SimWorld
 from foldbot.simd import late_libraries
 from foldbot.types import GraspResult, Observation
@@ -740,8 +741,7 @@ def build_sim_cell(cfg: EpisodeConfig, world: SimWorld) -> SimCellParts:
         for arm, lay in zip([robot, *others], arm_layouts, strict=True)
     ]
     for ex in executors:  # on the twins: IK on the simulated arms would change the cloth's run
-        check_workspace_reach(ex.model, cfg.robot)
-        ex.check_postures(rest_postures(ex.model, cfg.park))
+        check_arm_fits(ex, cfg.robot, cfg.park)
     return SimCellParts(
         world,
         robot,

@@ -67,7 +67,6 @@ class SimCalibrationCell(CalibrationCell):
             speed_scale=speed_scale,
             model_obstacle_ids=self.model_world.obstacle_ids,
         )
-        self.planner = self.executor
         self.board_id = attach_board(self.robot, board, mount)
         # The board's plate on the twin's tool: kept clear of the layout's obstacles too.
         self.executor.carry_body(
@@ -84,6 +83,10 @@ class SimCalibrationCell(CalibrationCell):
     def intrinsics(self) -> tuple[np.ndarray, np.ndarray, int, int]:
         intr = self.camera.intrinsics
         return intr.K, np.zeros(5), intr.width, intr.height
+
+    @property
+    def planner(self) -> ArmExecutor:  # type: ignore[override]
+        return self.executor
 
     def rest_positions(self) -> tuple[np.ndarray, np.ndarray]:
         return self.robot.joint_positions(), np.asarray(self.robot.home_q, dtype=float)

@@ -17,6 +17,7 @@ from foldbot.errors import ConfigError, SimulationDivergedError, UnreachableTarg
 from foldbot.planning.motion import MotionConfig, Segment, line_path
 from foldbot.sim.grasp import ClothGrasp
 from foldbot.sim.layout import OBSTACLE_CLEARANCE
+from foldbot.sim.robots import check_workspace_reach, rest_postures
 from foldbot.sim.robots.base import Robot
 from foldbot.sim.robots.base import gripper_down_quaternion as _down
 from foldbot.types import GraspResult
@@ -413,6 +414,14 @@ def _diverged_in(
     error = SimulationDivergedError(f"{exc} (in segment {' + '.join(names)}, {t:.2f} s in)")
     error.segment = names[0]
     return error
+
+
+def check_arm_fits(executor: ArmExecutor, robot: str, park: str) -> None:
+    """ConfigError, before anything moves, where the arm (on `executor`'s planning model) cannot
+    reach the workspace centre, or would rest (home, and its park pose by `park`) in one of the
+    layout's obstacles: what every cell checks as it starts."""
+    check_workspace_reach(executor.model, robot)
+    executor.check_postures(rest_postures(executor.model, park))
 
 
 def joint_move_trajectories(

@@ -27,7 +27,7 @@ from geometry_msgs.msg import PoseArray
 from std_msgs.msg import String
 
 from foldbot.control.bimanual import check_arms_clear, check_clear_of_still_arms
-from foldbot.control.executor import ArmExecutor, PlannedSegment
+from foldbot.control.executor import ArmExecutor, PlannedSegment, check_arm_fits
 from foldbot.control.trajectory import JointTrajectory
 from foldbot.errors import FoldbotError, UnreachableTargetError, failed_segment
 from foldbot.planning.actions import FoldAction
@@ -38,7 +38,7 @@ from foldbot.planning.spread import action_from_dict, motion_segments
 from foldbot.ros import TOPICS, arm_joint_names, convert
 from foldbot.ros.node_args import FOLD_ARGS_PARAM, parse_fold_args
 from foldbot.ros.publish import publish_when_heard
-from foldbot.sim.robots import check_workspace_reach, make_robot, rest_postures
+from foldbot.sim.robots import make_robot
 from foldbot.sim.world import SimWorld
 
 REQUEST_KINDS = (
@@ -90,15 +90,13 @@ class MotionPlanner:
             make_robot(self.cfg.robot, self.world.client, lay)
             for lay in self.world.layout.arm_layouts(self.cfg.arms)
         ]
-        for robot in self.robots:
-            check_workspace_reach(robot, self.cfg.robot)
         self.executors = [
             ArmExecutor(self.world, r, grasp=None, speed_scale=self.cfg.motion.speed_scale)
             for r in self.robots
         ]
-        try:  # a layout's obstacle where an arm rests: refused by name
+        try:  # out of reach, or an obstacle where an arm rests: refused by name
             for ex in self.executors:
-                ex.check_postures(rest_postures(ex.robot, self.cfg.park))
+                check_arm_fits(ex, self.cfg.robot, self.cfg.park)
         except FoldbotError:
             self.world.close()
             raise
