@@ -603,3 +603,15 @@ def test_a_cloth_whose_layers_slide_keeps_the_tables_grip():
                 assert info[1] == pytest.approx(table)
             finally:
                 parts.model_world.close()
+
+
+def test_a_folds_vision_knows_the_layouts_obstacles_as_fixtures():
+    from foldbot.pipeline import make_estimator
+    from foldbot.sim.layout import load_layout
+    from foldbot.sim.world import SimConfig
+
+    layout = load_layout(Path(__file__).resolve().parents[1] / "layouts" / "cloth_tray.toml")
+    cfg = dataclasses.replace(EpisodeConfig(), sim=SimConfig(layout=layout))
+    estimator = make_estimator(cfg, oracle=None)
+    assert estimator.config.segmentation.fixtures == layout.obstacles
+    assert make_estimator(EpisodeConfig(), oracle=None).config.segmentation.fixtures == ()

@@ -761,9 +761,10 @@ def build_sim_cell(cfg: EpisodeConfig, world: SimWorld) -> SimCellParts:
 
 
 def make_estimator(cfg: EpisodeConfig, oracle: GroundTruthOracle):
-    """The episode's eyes: vision (RGB-D only) or the named ground-truth oracle, for its garment."""
+    """The episode's eyes: vision (RGB-D only; the layout's obstacles known as fixtures) or the
+    named ground-truth oracle, for its garment."""
     if cfg.perception == "vision":
-        return vision_estimator(cfg.garment)
+        return vision_estimator(cfg.garment, cfg.sim.layout.obstacles)
     return OracleEstimator(oracle) if cfg.garment == "towel" else GarmentOracleEstimator(oracle)
 
 

@@ -85,3 +85,21 @@ def test_a_towel_cut_by_the_image_edge_is_named(towel_view):
     assert not check.ok
     assert check.detail == "found, but cut by the image's edge: its corners cannot all be seen"
     assert state.mask[:, 0].any()
+
+
+def test_a_tray_the_layout_names_is_not_taken_for_the_towel():
+    # layouts/cloth_tray.toml's tray beside a folded towel (eval-perception's scene 19): ros-check
+    # knows it as the cell's fixture, as the fold's perception does, and finds the towel.
+    from pathlib import Path
+
+    from foldbot.ros.check_node import check_cloth
+    from foldbot.sim.layout import load_layout
+    from foldbot.sim.perception_scenes import render_scene, sample_scene
+
+    layout = load_layout(Path(__file__).resolve().parents[2] / "layouts" / "cloth_tray.toml")
+    scene = sample_scene(np.random.default_rng([0, 19]), 19, 0.3, 0.0, layout=layout)
+    r = render_scene(scene, 320, 240, 10, 19, layout=layout)
+    check, state = check_cloth(r.obs, layout, "towel")
+    assert check.ok, check.detail
+    assert state.detected and (state.mask & r.cloth_mask).sum() > 0.97 * r.cloth_mask.sum()
+    assert (state.mask & ~r.cloth_mask).sum() < 0.03 * r.cloth_mask.sum()

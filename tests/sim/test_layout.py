@@ -243,3 +243,27 @@ def test_the_simulated_cell_builds_each_obstacle_where_the_layout_puts_it():
         assert hi == pytest.approx((1.24, 0.04, 1.8), abs=0.002)
     with SimWorld() as world:
         assert world.obstacle_ids == {}
+
+
+def test_an_obstacle_contains_the_points_inside_it_grown_by_a_margin():
+    from foldbot.sim.layout import Obstacle
+
+    # A 20 × 4 × 10 cm box turned 90°: its long side along the world's y.
+    box = Obstacle("bin", (1.0, 0.5, 0.8), (0.2, 0.04, 0.1), yaw_deg=90.0)
+    points = np.array(
+        [
+            [1.0, 0.5, 0.8],  # its centre
+            [1.0, 0.59, 0.8],  # 9 cm along its long side: inside
+            [1.05, 0.5, 0.8],  # 5 cm across it, 3 cm past its side
+            [1.025, 0.5, 0.8],  # 0.5 cm past its side
+            [1.0, 0.5, 0.86],  # 1 cm over its top
+        ]
+    )
+    np.testing.assert_array_equal(box.contains(points), [True, True, False, False, False])
+    np.testing.assert_array_equal(box.contains(points, 0.015), [True, True, False, True, True])
+    assert box.contains(points.reshape(5, 1, 3)).shape == (5, 1)
+    corners = box.corners(0.01)
+    assert corners.shape == (8, 3)
+    np.testing.assert_allclose(corners.min(axis=0), [0.97, 0.39, 0.74], atol=1e-12)
+    np.testing.assert_allclose(corners.max(axis=0), [1.03, 0.61, 0.86], atol=1e-12)
+    assert box.contains(corners, 0.01 + 1e-9).all()

@@ -42,7 +42,10 @@ Renders N randomised scenes and compares `VisionEstimator` with the `GroundTruth
   the gripper hides (a keypoint the arm hides that no other outline gives is not guessed).
 
 `--layout FILE.toml` (either kind): the scenes in that cell, as `foldbot fold --layout` builds
-it (the towel on its table in its workspace, its arm, the camera moved with the workspace).
+it (the towel on its table in its workspace, its arm, its obstacles, the camera moved with the
+workspace); the estimator knows the obstacles as the cell's fixtures, as a fold's does.
+`layouts/cloth_tray.toml` (a low tray in the image), 40 scenes, seed 0: max 6.59 mm, mask IoU
+0.996; with the tray unknown 5 scenes read the tray as the towel, 460–630 mm off.
 `--camera-pose CALIBRATION.json`: every scene seen from the camera a calibration found
 (`foldbot ros-calibrate`: its pose, and its image size and intrinsics where the file keeps
 them), without the ±3 cm jitter: perception's accuracy from where a real camera stands. A
@@ -80,10 +83,11 @@ from foldbot.garments.towel import TowelSpec
 from foldbot.garments.tshirt import TShirtSpec
 from foldbot.io.staging import commit_output, output_path, prepare_output
 from foldbot.metrics import keypoint_errors_mm
-from foldbot.perception.estimator import VisionEstimator
-from foldbot.perception.garment_keypoints import GarmentEstimator
+from foldbot.perception.estimator import EstimatorConfig, VisionEstimator
+from foldbot.perception.garment_keypoints import GarmentEstimator, GarmentKeypointConfig
 from foldbot.perception.keypoints import CORNER_LABELS
 from foldbot.perception.overlay import draw_overlay
+from foldbot.perception.segmentation import SegmentationConfig
 from foldbot.perception.state import ClothState, mask_iou
 from foldbot.sim.camera import CameraConfig
 from foldbot.sim.layout import DEFAULT_LAYOUT, load_layout
@@ -429,7 +433,8 @@ def _evaluate(args: argparse.Namespace, stage: Path) -> dict[str, Any]:
         return _evaluate_garment(args, stage)
     from tqdm import tqdm
 
-    estimator = VisionEstimator()
+    seg = SegmentationConfig(fixtures=args.cell_layout.obstacles)  # the cell's, known to it
+    estimator = VisionEstimator(EstimatorConfig(segmentation=seg))
     rows: list[dict[str, Any]] = []
     failures: list[int] = []
     keep = int(args.save_overlays)
@@ -632,7 +637,8 @@ def _evaluate_garment(args: argparse.Namespace, stage: Path) -> dict[str, Any]:
     from tqdm import tqdm
 
     names = GARMENT_KEYPOINTS[args.garment]
-    estimator = GarmentEstimator(args.garment)
+    seg = SegmentationConfig(fixtures=args.cell_layout.obstacles)
+    estimator = GarmentEstimator(args.garment, GarmentKeypointConfig(segmentation=seg))
     rows: list[dict[str, Any]] = []
     failures: list[int] = []
     keep = int(args.save_overlays)

@@ -27,7 +27,7 @@ from foldbot.envs.towel_task import TowelTaskEnv
 from foldbot.errors import ConfigError, FoldbotError
 from foldbot.grasp_points import regrasp_point
 from foldbot.loop import LoopConfig
-from foldbot.perception.estimator import VisionEstimator
+from foldbot.perception.fallback import vision_estimator
 from foldbot.planning.actions import FoldAction, edge_middle
 from foldbot.planning.flatten import cloth_surface, plan_pulls
 from foldbot.planning.recipes import carries_stack, folded_as, plan_stage, recipe_stages
@@ -58,7 +58,7 @@ class PullPolicy:
     def __init__(self, env: TowelFlattenEnv) -> None:
         self.env = env.unwrapped
         self.cfg = self.env.flatten
-        self.estimator = VisionEstimator()
+        self.estimator = vision_estimator("towel", self.env.layout.obstacles)
         self.reset()
 
     def reset(self) -> None:
@@ -103,7 +103,7 @@ class SpreadPolicy:
         self.env = env.unwrapped
         if not isinstance(self.env, TowelSpreadEnv):
             raise FoldbotError(f"SpreadPolicy drives TowelSpread, not {type(self.env).__name__}")
-        self.estimator = VisionEstimator()
+        self.estimator = vision_estimator("towel", self.env.layout.obstacles)
         self.reset()
 
     def reset(self) -> None:
@@ -160,7 +160,7 @@ class RecipePolicy:
         self.pairs = isinstance(self.env, TowelFoldPairEnv)
         self.recipe = folded_as(self.env.config.recipe)
         self.loop = LoopConfig()
-        self.estimator = VisionEstimator()
+        self.estimator = vision_estimator("towel", self.env.layout.obstacles)
         self.reset()
 
     def reset(self) -> None:

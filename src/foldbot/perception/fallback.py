@@ -6,11 +6,15 @@ outline (all the garment loop needs after its first observation) come from the g
 
 from __future__ import annotations
 
-from typing import Protocol
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Protocol
 
 from foldbot.errors import ConfigError
 from foldbot.perception.state import ClothState
 from foldbot.types import Observation
+
+if TYPE_CHECKING:
+    from foldbot.perception.segmentation import Fixture
 
 
 class Estimator(Protocol):
@@ -34,12 +38,16 @@ class FirstDetected:
         return state
 
 
-def vision_estimator(garment: str) -> Estimator:
+def vision_estimator(garment: str, fixtures: Sequence[Fixture] = ()) -> Estimator:
     """The RGB-D estimator for `garment`: a towel's corners (VisionEstimator), or a garment's
-    keypoints on the flat garment and, once folded, the outline and mask of any cloth."""
-    from foldbot.perception.estimator import VisionEstimator
-    from foldbot.perception.garment_keypoints import GarmentEstimator
+    keypoints on the flat garment and, once folded, the outline and mask of any cloth; the cell's
+    `fixtures` (its layout's obstacles) masked as occluders (segmentation.SegmentationConfig)."""
+    from foldbot.perception.estimator import EstimatorConfig, VisionEstimator
+    from foldbot.perception.garment_keypoints import GarmentEstimator, GarmentKeypointConfig
+    from foldbot.perception.segmentation import SegmentationConfig
 
+    seg = SegmentationConfig(fixtures=tuple(fixtures))
+    towel = VisionEstimator(EstimatorConfig(segmentation=seg))
     if garment == "towel":
-        return VisionEstimator()
-    return FirstDetected(GarmentEstimator(garment), VisionEstimator())
+        return towel
+    return FirstDetected(GarmentEstimator(garment, GarmentKeypointConfig(segmentation=seg)), towel)

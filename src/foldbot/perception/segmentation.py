@@ -24,6 +24,12 @@ Method (each step is what makes it robust to one nuisance):
    filled and the cloth hidden under the arm (inside their convex hull) is filled in — an amodal
    mask.
 
+The cell's fixtures (`fixtures`: the layout's obstacles, a bin or a tray beside the workspace)
+are occluders wherever the depth image sees a point inside one: a fixture lower than
+`occluder_height` would otherwise pass for cloth lying on the table, and one as large as a towel
+was taken for it (`foldbot eval-perception --layout layouts/cloth_tray.toml`). Their pixels are
+also left out of the table-plane fit.
+
 Measured on `foldbot eval-perception` scenes (640×480): see the command's summary.
 """
 
@@ -32,6 +38,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Protocol
 
 import cv2
 import numpy as np
@@ -44,6 +51,17 @@ from foldbot.perception.geometry import (
     fit_plane_ransac,
 )
 from foldbot.types import Observation
+
+
+class Fixture(Protocol):
+    """A fixed box of the cell that perception is told of (a layout's sim.layout.Obstacle is
+    one): its corners and which world points (m) lie in it, each grown by `margin` (m)."""
+
+    name: str
+
+    def corners(self, margin: float = 0.0) -> np.ndarray: ...
+
+    def contains(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray: ...
 
 
 @dataclass(frozen=True)
@@ -89,6 +107,12 @@ class SegmentationConfig:
     """RGB distance (0..255 units) between cloth and table from which the colour cue is used."""
     min_area: float = 0.003
     """Smallest cloth area (m², top view) reported as a detection."""
+    fixtures: tuple[Fixture, ...] = ()
+    """The cell's fixtures (its layout's obstacles, world frame): what the depth image sees
+    inside one is an occluder, never cloth or table (the module's docstring)."""
+    fixture_margin: float = 0.015
+    """How far (m) around a fixture a seen point still counts as the fixture's: the depth's
+    noise and the camera pose's error (a calibration's ~1 cm at the table)."""
 
     def __post_init__(self) -> None:
         def odd(v: object, hi: int) -> bool:
@@ -115,12 +139,25 @@ class SegmentationConfig:
             "edge_noise_factor": 0.0 <= self.edge_noise_factor < 100.0,
             "min_colour_separation": 0.0 < self.min_colour_separation < 400.0,
             "min_area": 0.0 <= self.min_area < 10.0,
+            "fixture_margin": isinstance(self.fixture_margin, int | float)
+            and not isinstance(self.fixture_margin, bool)
+            and 0.0 <= self.fixture_margin <= 0.2,
         }
         for name, ok in checks.items():
             if not ok:
                 raise ConfigError(
                     f"SegmentationConfig.{name} = {getattr(self, name)!r} is out of range"
                 )
+        fixtures = self.fixtures
+        if not isinstance(fixtures, tuple | list) or not all(
+            callable(getattr(f, "corners", None)) and callable(getattr(f, "contains", None))
+            for f in fixtures
+        ):
+            raise ConfigError(
+                f"SegmentationConfig.fixtures must be a tuple of fixtures (a layout's obstacles, "
+                f"sim.layout.Obstacle), got {fixtures!r}"
+            )
+        object.__setattr__(self, "fixtures", tuple(fixtures))
 
 
 @dataclass(frozen=True)
@@ -133,7 +170,8 @@ class Segmentation:
     """float32 (H/2)×(W/2): height above the table (m) of each 2×2 pixel block — pixel (u, v) is
     in block [v // 2, u // 2]; NaN where unknown or occluded."""
     occluder: np.ndarray
-    """bool: arm/gripper or anything else above `occluder_height` (slightly dilated)."""
+    """bool: arm/gripper or anything else above `occluder_height`, and the cell's fixtures
+    (slightly dilated)."""
     plane_world: Plane
     """The fitted table plane in the world frame, normal pointing up."""
     plane_camera: Plane
@@ -146,6 +184,9 @@ class Segmentation:
     """Height threshold of the coarse depth cue (m)."""
     colour_separation: float
     """RGB distance between the cloth's and the table's median colours (NaN if unknown)."""
+    fixture: np.ndarray | None = None
+    """bool: the pixels that see one of the config's fixtures (in `occluder` too); None where
+    it named none."""
 
     @property
     def found(self) -> bool:
@@ -333,12 +374,16 @@ def segment_cloth(obs: Observation, config: SegmentationConfig | None = None) ->
     x2, y2 = _block_grid(w_img, h_img, fx, fy, cx, cy, 2)
     xl, yl = _block_grid(w_img, h_img, fx, fy, cx, cy, 2 * cfg.block)
 
+    # The cell's fixtures: the blocks whose point lies in one (left out of the plane, occluders).
+    fix2 = _fixture_blocks(z2, x2, y2, valid2, T, cfg) if cfg.fixtures else None
+    surface2 = valid2 if fix2 is None else valid2 & ~fix2
+
     def sample(stride: int) -> tuple[np.ndarray, np.ndarray]:
         zs = z2[::stride, ::stride]
         xs = np.broadcast_to(x2[:, ::stride], zs.shape)
         ys = np.broadcast_to(y2[::stride, :], zs.shape)
         pts = np.stack([xs * zs, ys * zs, zs], axis=-1).astype(np.float64)
-        return pts, valid2[::stride, ::stride]
+        return pts, surface2[::stride, ::stride]
 
     # Table plane (camera frame): RANSAC on a coarse subsample.
     pts, vs = sample(cfg.ransac_stride)
@@ -351,7 +396,8 @@ def segment_cloth(obs: Observation, config: SegmentationConfig | None = None) ->
     h2[~valid2] = 0.0  # heights are used with weight2, which is 0 there
 
     # 2. Occluders, and block means of what is left (smoothing that ignores the arm and holes).
-    occ2 = _with_shadow(valid2 & (h2 > cfg.occluder_height), ~valid2, cfg.occluder_shadow)
+    above2 = valid2 & (h2 > cfg.occluder_height)
+    occ2 = _with_shadow(above2 if fix2 is None else above2 | fix2, ~valid2, cfg.occluder_shadow)
     weight2 = (valid2 & ~occ2).astype(np.float32)
     b = cfg.block
     hl, _ = _weighted_block_mean(h2, weight2, b)
@@ -481,4 +527,41 @@ def segment_cloth(obs: Observation, config: SegmentationConfig | None = None) ->
         cloth_height=cloth_height,
         depth_threshold=thr,
         colour_separation=separation,
+        fixture=None
+        if fix2 is None
+        else _upsample(fix2.view(np.uint8), shape, False, 0).view(bool),
     )
+
+
+def _fixture_blocks(
+    z2: np.ndarray,
+    x2: np.ndarray,
+    y2: np.ndarray,
+    valid2: np.ndarray,
+    T_world_camera: np.ndarray,
+    cfg: SegmentationConfig,
+) -> np.ndarray:
+    """Bool per 2×2 block: its point (depth `z2` at normalised image coordinates `x2`, `y2`)
+    lies in one of `cfg.fixtures`, grown by `cfg.fixture_margin` (world frame). Only the blocks
+    inside a fixture's image (its corners' bounding box) are tested."""
+    R, t = T_world_camera[:3, :3], T_world_camera[:3, 3]
+    xs, ys = x2[0], y2[:, 0]  # ascending normalised coordinates of the block centres
+    out = np.zeros(z2.shape, bool)
+    for fixture in cfg.fixtures:
+        corners = (fixture.corners(cfg.fixture_margin) - t) @ R  # camera frame
+        if np.all(corners[:, 2] <= 1e-3):  # wholly behind the camera: out of its view
+            continue
+        rows, cols = slice(None), slice(None)
+        if np.all(corners[:, 2] > 1e-3):  # wholly in front of the camera: its image's box
+            u, v = corners[:, 0] / corners[:, 2], corners[:, 1] / corners[:, 2]
+            c0, c1 = np.searchsorted(xs, [u.min(), u.max()])
+            r0, r1 = np.searchsorted(ys, [v.min(), v.max()])
+            cols = slice(max(int(c0) - 1, 0), int(c1) + 1)
+            rows = slice(max(int(r0) - 1, 0), int(r1) + 1)
+        z = z2[rows, cols]
+        if z.size == 0:
+            continue
+        cam = np.stack([xs[cols] * z, ys[rows, None] * z, z], axis=-1)
+        world = cam @ R.T.astype(np.float32) + t.astype(np.float32)
+        out[rows, cols] |= fixture.contains(world, cfg.fixture_margin)
+    return out & valid2

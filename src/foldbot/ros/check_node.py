@@ -269,7 +269,7 @@ def check_cloth(obs: Observation, layout: CellLayout, garment: str) -> tuple[Che
     found, whole in the image (a cloth cut by the image's edge hides its corners), and every
     keypoint over the layout's workspace (where the arm is checked to reach)."""
     name = CLOTH_NAMES[garment]
-    state = vision_estimator(garment).estimate(obs)
+    state = vision_estimator(garment, layout.obstacles).estimate(obs)
     if not state.detected:
         return Check(name, False, f"not found ({state.reason}): lay it flat on the table"), state
     if cut_by_image_edge(state):

@@ -7,6 +7,7 @@ as a PoseArray in CORNER_LABELS order, JSON on std_msgs/String for the control-p
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 
 import genpy
 import numpy as np
@@ -23,6 +24,7 @@ from foldbot.perception.keypoints import CORNER_LABELS
 from foldbot.perception.rectify import rectify, rectify_depth
 from foldbot.perception.register import register_depth
 from foldbot.perception.state import ClothState
+from foldbot.sim.layout import Obstacle
 from foldbot.types import CameraIntrinsics
 
 _ENCODINGS = {
@@ -223,8 +225,10 @@ def matrix_of(t: TransformStamped) -> np.ndarray:
     return T
 
 
-def state_json(state: ClothState) -> str:
-    """ClothState without its mask (which travels as an image) as JSON."""
+def state_json(state: ClothState, fixtures: Sequence[Obstacle] = ()) -> str:
+    """ClothState without its mask (which travels as an image) as JSON; with the cell's
+    `fixtures` the estimator masked, where it had any (so a replay masks them alike)."""
+    named = {"fixtures": [f.as_dict() for f in fixtures]} if fixtures else {}
     return json.dumps(
         {
             "stamp": state.stamp,
@@ -237,6 +241,7 @@ def state_json(state: ClothState) -> str:
             "flatness": state.flatness,
             "outline_world": np.asarray(state.outline_world).tolist(),
             "table_plane": np.asarray(state.table_plane).tolist(),
+            **named,
         }
     )
 

@@ -1,13 +1,16 @@
 """The perception node: synchronised RGB-D frames + camera_info (+ the camera pose from
-/tf_static) → the RGB-D estimator for the episode's garment (perception.fallback.vision_estimator)
-→ cloth/keypoints (geometry_msgs/PoseArray, world frame, corners
-in CORNER_LABELS order), cloth/mask (mono8) and cloth/state (the full ClothState as JSON),
-all stamped with the frame's stamp so a consumer can match them to the image."""
+/tf_static) → the RGB-D estimator for the episode's garment (perception.fallback.vision_estimator,
+the layout's obstacles masked as the cell's fixtures) → cloth/keypoints (geometry_msgs/PoseArray,
+world frame, corners in CORNER_LABELS order), cloth/mask (mono8) and cloth/state (the full
+ClothState as JSON), all stamped with the frame's stamp so a consumer can match them to the
+image."""
 
 from __future__ import annotations
 
+import json
 import sys
 import threading
+from collections.abc import Sequence
 
 import message_filters
 import numpy as np
@@ -24,17 +27,23 @@ from foldbot.ros import CAMERA_FRAME, SYNC_SLOP_S, TOPICS, WORLD_FRAME, convert
 from foldbot.ros.frames import StaticFrames
 from foldbot.ros.node_args import FOLD_ARGS_PARAM, parse_fold_args
 from foldbot.ros.publish import wait_for_listed_subscribers
+from foldbot.sim.layout import Obstacle, obstacle_from_table
 from foldbot.types import Observation
 
 
 class PerceptionNode:
     """Runs the vision estimator for `garment` on every synchronised frame (images in, values
-    out)."""
+    out), the cell's `fixtures` (its layout's obstacles) masked as what is not cloth."""
 
     def __init__(
-        self, garment: str = "towel", queue_size: int = 200, sync_slop: float = SYNC_SLOP_S
+        self,
+        garment: str = "towel",
+        queue_size: int = 200,
+        sync_slop: float = SYNC_SLOP_S,
+        fixtures: Sequence[Obstacle] = (),
     ) -> None:
-        self.estimator = vision_estimator(garment)
+        self.fixtures = tuple(fixtures)
+        self.estimator = vision_estimator(garment, self.fixtures)
         self.T_world_camera: np.ndarray | None = None
         self.frames = StaticFrames()
         self.depth_info: CameraInfo | None = None
@@ -152,7 +161,7 @@ class PerceptionNode:
                     state.mask.astype(np.uint8) * 255, "mono8", stamp, color.header.frame_id
                 )
             )
-            self.pub_state.publish(String(data=convert.state_json(state)))
+            self.pub_state.publish(String(data=convert.state_json(state, self.fixtures)))
             self.pub_keypoints.publish(convert.keypoints_msg(state, stamp, WORLD_FRAME))
         except rospy.ROSException:
             # A frame estimated while the launch shuts the node down (the fold done) has nowhere
@@ -175,11 +184,30 @@ def node_garment() -> str:
     return "towel"
 
 
+def node_fixtures() -> tuple[Obstacle, ...]:
+    """The cell's fixtures: the private parameter ~fixtures (a list of layout `[[obstacles]]`
+    tables, or that list as JSON; a replay sets it from the recorded states), else the
+    episode's layout's obstacles (/foldbot/fold_args), else none."""
+    value = rospy.get_param("~fixtures", None)
+    if value is not None:
+        if isinstance(value, str):
+            try:
+                value = json.loads(value) if value.strip() else []
+            except json.JSONDecodeError as e:
+                raise ConfigError(f"~fixtures is not JSON ({e}): {value!r}") from None
+        if not isinstance(value, list):
+            raise ConfigError(f"~fixtures must be a list of obstacle tables, got {value!r}")
+        return tuple(obstacle_from_table(t, f"~fixtures[{i}]") for i, t in enumerate(value))
+    if rospy.has_param(FOLD_ARGS_PARAM):
+        return parse_fold_args(rospy.get_param(FOLD_ARGS_PARAM))[1].sim.layout.obstacles
+    return ()
+
+
 def main(argv: list[str] | None = None) -> int:
     rospy.init_node("foldbot_perception", argv=argv if argv is not None else sys.argv)
     slop = float(rospy.get_param("~sync_slop", SYNC_SLOP_S))
     if not 0.0 <= slop <= 1.0:
         raise ConfigError(f"~sync_slop must be in [0, 1] s, got {slop!r}")
-    PerceptionNode(node_garment(), sync_slop=slop)
+    PerceptionNode(node_garment(), sync_slop=slop, fixtures=node_fixtures())
     rospy.spin()
     return 0

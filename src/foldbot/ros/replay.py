@@ -142,6 +142,15 @@ def recorded_garment(states: dict[float, dict]) -> str:
     return "towel"
 
 
+def recorded_fixtures(states: dict[float, dict]) -> list[dict]:
+    """The cell's fixtures the live run's perception masked (layout `[[obstacles]]` tables, as
+    its states name them), so the replay masks the same."""
+    for d in states.values():
+        if d.get("fixtures"):
+            return list(d["fixtures"])
+    return []
+
+
 def recorded_seconds(bag_path: Path) -> float:
     """The seconds the bag's messages span (0 for one with none)."""
     with read_bag(bag_path) as bag:
@@ -205,6 +214,7 @@ def replay(
                     str(node),
                     "__name:=foldbot_perception_replay",
                     f"_garment:={recorded_garment(live)}",
+                    f"_fixtures:={json.dumps(recorded_fixtures(live))}",
                 ],
                 env,
                 sys.stderr,

@@ -16,6 +16,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+import numpy as np
+
 from foldbot.errors import ConfigError, require
 
 OBSTACLE_CLEARANCE = 0.02
@@ -121,6 +123,26 @@ class Obstacle:
         c, s = math.cos(math.radians(self.yaw_deg)), math.sin(math.radians(self.yaw_deg))
         dx, dy, dz = (float(a) - b for a, b in zip(point, self.center_xyz, strict=True))
         return (c * dx + s * dy, -s * dx + c * dy, dz)
+
+    def corners(self, margin: float = 0.0) -> np.ndarray:
+        """The box's 8 corners (8×3 world m), grown by `margin` on every side."""
+        c, s = math.cos(math.radians(self.yaw_deg)), math.sin(math.radians(self.yaw_deg))
+        hx, hy, hz = (v / 2 + margin for v in self.size_xyz)
+        local = np.array([(u, v, w) for u in (-hx, hx) for v in (-hy, hy) for w in (-hz, hz)])
+        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        return local @ rot.T + np.asarray(self.center_xyz)
+
+    def contains(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
+        """Bool per world point (…×3, m): whether it lies inside the box grown by `margin` on
+        every side (what a depth camera sees of the box, less its noise)."""
+        c, s = math.cos(math.radians(self.yaw_deg)), math.sin(math.radians(self.yaw_deg))
+        d = np.asarray(points, dtype=np.float64) - np.asarray(self.center_xyz)
+        hx, hy, hz = (v / 2 + margin for v in self.size_xyz)
+        return (
+            (np.abs(c * d[..., 0] + s * d[..., 1]) <= hx)
+            & (np.abs(-s * d[..., 0] + c * d[..., 1]) <= hy)
+            & (np.abs(d[..., 2]) <= hz)
+        )
 
     def blocks(self, start: Sequence[float], end: Sequence[float]) -> bool:
         """Whether the straight segment from `start` to `end` (world m) passes through the box
