@@ -237,3 +237,44 @@ def test_a_cell_resting_in_an_obstacle_or_out_of_reach_is_refused_before_anythin
     )
     with pytest.raises(ConfigError, match=r"cannot reach the workspace centre \(0\.95, 0\) m"):
         check_cell_fits(far, "ur5", 1, "home")
+
+
+def test_the_depth_shows_an_obstacle_where_the_layout_puts_it_or_sees_past_it():
+    """ros-check's look at the layout's obstacles (obstacles_in_depth): layouts/cloth_tray.toml's
+    tray, 4 cm tall, seen where the file puts it; told of it in a cell without it, or 8 cm off
+    across its width, the camera sees the table past it; drawn a little larger than it is, it
+    still passes; the camera's post, behind the camera, is out of view."""
+    import dataclasses
+    from pathlib import Path
+
+    from foldbot.layout_check import obstacles_in_depth
+    from foldbot.sim.layout import load_layout
+    from foldbot.sim.perception_scenes import render_scene, sample_scene
+
+    root = Path(__file__).resolve().parents[1] / "layouts"
+    tray = load_layout(root / "cloth_tray.toml")
+    mount = load_layout(root / "camera_mount.toml")
+
+    def depth_of(layout):
+        scene = sample_scene(np.random.default_rng([0, 19]), 19, 0.3, 0.4, layout=layout)
+        obs = render_scene(scene, 320, 240, 8, 19, layout=layout).obs
+        return obs.depth, obs.intrinsics.K, obs.T_world_camera
+
+    def told(obstacle, **change):
+        return (dataclasses.replace(obstacle, **change),)
+
+    built = depth_of(tray)
+    box = tray.obstacles[0]
+    (there,) = obstacles_in_depth(*built, tray.obstacles)
+    assert there.in_view and there.seen_fraction > 0.95 and there.where_the_layout_says
+    (larger,) = obstacles_in_depth(
+        *built, told(box, size_xyz=(0.64, 0.12, 0.05), center_xyz=(0.45, 0.37, 0.775))
+    )
+    assert 0.5 < larger.seen_fraction < 0.9 and larger.where_the_layout_says
+    (off,) = obstacles_in_depth(*built, told(box, center_xyz=(0.45, 0.45, 0.77)))
+    assert off.in_view and off.seen_fraction < 0.3 and not off.where_the_layout_says
+    (absent,) = obstacles_in_depth(*depth_of(DEFAULT_LAYOUT), tray.obstacles)
+    assert absent.in_view and absent.seen_fraction < 0.2 and not absent.where_the_layout_says
+    assert absent.past > 0.8 * absent.pixels  # the table under where the tray should be
+    for out in obstacles_in_depth(*depth_of(mount), mount.obstacles):
+        assert out.pixels == 0 and not out.in_view and out.where_the_layout_says

@@ -501,3 +501,103 @@ def check_picture(check: LayoutCheck, width_px: int = 720) -> np.ndarray:
         cv2.LINE_AA,
     )
     return img
+
+
+OBSTACLE_SEEN_MARGIN = 0.02
+"""How far (m) from a layout's obstacle a depth point may lie and still be the obstacle's: the
+depth's noise and a calibration's centimetre at the table."""
+OBSTACLE_SEEN_FRACTION = 0.5
+"""Share of the pixels whose line of sight meets an obstacle that must see it there (the rest
+see past it) for it to count as where the layout puts it: half, so that a box drawn a little
+larger than its fixture passes (layouts/cloth_tray.toml's 60 × 8 × 4 cm tray drawn 64 × 12 × 5:
+67 %) and one where nothing stands, or moved off by its width, does not (7 %, 17 %)."""
+OBSTACLE_MIN_PIXELS = 50
+"""Fewer pixels than this on an obstacle: too little of it in view to say."""
+
+
+@dataclass(frozen=True)
+class ObstacleSighting:
+    """What a depth image shows where a layout puts one obstacle: `pixels` whose line of sight
+    meets the box and have a depth, of them `seen` whose depth is where the ray enters the box
+    (within OBSTACLE_SEEN_MARGIN) and `past` whose depth lies beyond it (the camera sees through
+    where the box should be: the table under a tray that is not there); the rest see something
+    in front of it (the arm, the cloth). An obstacle less than the margin tall on the table
+    cannot be told from the table."""
+
+    name: str
+    pixels: int
+    seen: int
+    past: int
+
+    @property
+    def in_view(self) -> bool:
+        """Enough of it in view to say where it is."""
+        return self.seen + self.past >= OBSTACLE_MIN_PIXELS
+
+    @property
+    def seen_fraction(self) -> float:
+        """Share of the decided pixels that see the box (NaN where none is decided)."""
+        n = self.seen + self.past
+        return self.seen / n if n else float("nan")
+
+    @property
+    def where_the_layout_says(self) -> bool:
+        """Out of view (nothing to say), or seen where the layout puts it."""
+        return not self.in_view or self.seen_fraction >= OBSTACLE_SEEN_FRACTION
+
+
+def obstacles_in_depth(
+    depth: np.ndarray, K: np.ndarray, T_world_camera: np.ndarray, obstacles: tuple
+) -> list[ObstacleSighting]:
+    """For each of a layout's obstacles, what a depth image (m along the optical axis, 0 or NaN
+    unknown) seen from T_world_camera through K shows where the layout puts it: each pixel's line
+    of sight cast against the box (slabs in its own frame) and the depth there compared with
+    where the ray enters it. Only the box's image (its corners projected) is cast."""
+    h, w = depth.shape
+    R, t = T_world_camera[:3, :3], T_world_camera[:3, 3]
+    fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
+    z = np.nan_to_num(np.asarray(depth, dtype=float), nan=0.0)
+    out = []
+    for ob in obstacles:
+        corners = (ob.corners() - t) @ R  # camera frame
+        rows, cols = slice(0, h), slice(0, w)
+        if np.all(corners[:, 2] <= 1e-3):
+            out.append(ObstacleSighting(ob.name, 0, 0, 0))
+            continue
+        if np.all(corners[:, 2] > 1e-3):
+            u = fx * corners[:, 0] / corners[:, 2] + cx
+            v = fy * corners[:, 1] / corners[:, 2] + cy
+            c0, c1 = max(int(np.floor(u.min())), 0), min(int(np.ceil(u.max())) + 1, w)
+            r0, r1 = max(int(np.floor(v.min())), 0), min(int(np.ceil(v.max())) + 1, h)
+            rows, cols = slice(r0, max(r0, r1)), slice(c0, max(c0, c1))
+        zs = z[rows, cols]
+        if zs.size == 0:
+            out.append(ObstacleSighting(ob.name, 0, 0, 0))
+            continue
+        us = (np.arange(cols.start, cols.stop) - cx) / fx
+        vs = (np.arange(rows.start, rows.stop) - cy) / fy
+        ray_cam = np.stack(
+            [
+                np.broadcast_to(us, zs.shape),
+                np.broadcast_to(vs[:, None], zs.shape),
+                np.ones_like(zs),
+            ],
+            axis=-1,
+        )  # direction per pixel with unit depth: a ray's parameter is its depth
+        ray = ray_cam @ R.T
+        yaw = np.radians(ob.yaw_deg)
+        c, s = np.cos(yaw), np.sin(yaw)
+        to_local = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+        o = to_local @ (t - np.asarray(ob.center_xyz))
+        d = ray @ to_local.T
+        half = np.asarray(ob.size_xyz) / 2
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ta, tb = (-half - o) / d, (half - o) / d
+        t_near = np.nanmax(np.minimum(ta, tb), axis=-1)
+        t_far = np.nanmin(np.maximum(ta, tb), axis=-1)
+        hits = (t_near <= t_far) & (t_far > 0) & (zs > 0)
+        gap = zs[hits] - np.maximum(t_near, 0.0)[hits]  # the depth past where the ray enters
+        seen = np.abs(gap) <= OBSTACLE_SEEN_MARGIN
+        past = gap > OBSTACLE_SEEN_MARGIN
+        out.append(ObstacleSighting(ob.name, int(hits.sum()), int(seen.sum()), int(past.sum())))
+    return out

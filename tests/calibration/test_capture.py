@@ -128,3 +128,24 @@ def test_a_calibration_file_gives_the_pose_or_says_what_is_wrong(tmp_path):
     )
     with pytest.raises(ConfigError, match="must be a rigid 4 × 4 transform"):
         calibration_pose_words(bad)
+
+
+def test_a_calibration_file_gives_the_distortion_it_was_solved_with(tmp_path):
+    from foldbot.calibration.capture import calibration_distortion
+
+    path = tmp_path / "calibration.json"
+    frames = {"parent_frame": "world", "child_frame": "camera_color_optical_frame"}
+    record = {"T_world_camera": np.eye(4).tolist(), **frames}
+    path.write_text(json.dumps(record))
+    assert calibration_distortion(path) is None  # a file written before 2026-11-30
+    info = {"width": 640, "height": 480, "K": np.eye(3).tolist()}
+    path.write_text(json.dumps({**record, "camera_info": info}))
+    assert calibration_distortion(path) is None
+    path.write_text(
+        json.dumps({**record, "camera_info": {**info, "distortion": [-0.25, 0.1, 0, 0, 0]}})
+    )
+    np.testing.assert_array_equal(calibration_distortion(path), [-0.25, 0.1, 0, 0, 0])
+    for bad, words in (("x", "must be a list of numbers"), ([float("nan")], "14 finite numbers")):
+        path.write_text(json.dumps({**record, "camera_info": {**info, "distortion": bad}}))
+        with pytest.raises(ConfigError, match=words):
+            calibration_distortion(path)

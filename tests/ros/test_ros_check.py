@@ -29,6 +29,13 @@ def test_a_running_cell_is_checked_for_all_a_fold_needs(tmp_path):
                 "T_world_camera": CameraConfig().T_world_camera.tolist(),
                 "parent_frame": "world",
                 "child_frame": "camera_color_optical_frame",
+                # The camera it was solved with: the cell's (ros-check compares them).
+                "camera_info": {
+                    "width": 640,
+                    "height": 480,
+                    "K": CameraConfig().K.tolist(),
+                    "distortion": [0.0] * 5,
+                },
             }
         )
     )
@@ -74,7 +81,9 @@ def test_a_running_cell_is_checked_for_all_a_fold_needs(tmp_path):
     assert calibrated.returncode == 0, calibrated.stdout + calibrated.stderr
     assert "ros-check: the cell is ready to fold" in calibrated.stdout
     record = json.loads((tmp_path / "calibrated" / "ros_check.json").read_text())
-    assert record["ok"] and len(record["checks"]) == 10
+    assert record["ok"] and len(record["checks"]) == 11
+    assert "ok   the camera as calibrated: 640 × 480 px, fx " in calibrated.stdout
+    assert "as the calibration was solved with, its distortion too" in calibrated.stdout
     # The cell's towel, as the fold's first look will see it, drawn on the picture too.
     assert "ok   the towel: found, 4 keypoints," in calibrated.stdout
     assert sorted(record["keypoints"]) == ["far_left", "far_right", "near_left", "near_right"]
@@ -91,7 +100,7 @@ def test_a_running_cell_is_checked_for_all_a_fold_needs(tmp_path):
     assert (
         "FAIL the table in depth: at 0.7500 m over the workspace centre (-20.0 mm" in wrong.stdout
     )
-    assert "2 of 10 checks failed: world → base_link, the table in depth" in wrong.stdout
+    assert "2 of 11 checks failed: world → base_link, the table in depth" in wrong.stdout
 
     lamped = runs["lamp"]
     assert lamped.returncode == 1, lamped.stdout + lamped.stderr
@@ -100,6 +109,9 @@ def test_a_running_cell_is_checked_for_all_a_fold_needs(tmp_path):
     )
     assert "behind an obstacle (30 behind one)" in lamped.stdout
     assert "ok   the layout's obstacles: 'lamp': no arm rests or stands in one" in lamped.stdout
+    # The running cell has no lamp: the camera sees the table where the file puts one.
+    assert "FAIL the obstacles in view: 'lamp' NOT there: seen on 0 % of the " in lamped.stdout
+    assert "the camera sees past 'lamp'" in lamped.stdout
 
     low_run = runs["low"]
     assert low_run.returncode == 1, low_run.stdout + low_run.stderr

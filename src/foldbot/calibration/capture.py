@@ -377,6 +377,29 @@ def calibration_camera(
     return T, (K, width, height)
 
 
+def calibration_distortion(path: str | Path) -> np.ndarray | None:
+    """The lens distortion coefficients a calibration.json was solved with (`camera_info`'s
+    `distortion`, as the camera's camera_info gave them), or None where the file records none;
+    ConfigError naming what is wrong with the file."""
+    path = Path(path)
+    record, _T = _read_calibration(path)
+    info = record.get("camera_info")
+    if not isinstance(info, dict) or info.get("distortion") is None:
+        return None
+    try:
+        dist = np.asarray(info["distortion"], dtype=float).ravel()
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(
+            f"{str(path)!r}: camera_info's distortion must be a list of numbers: {exc}"
+        ) from None
+    if not np.isfinite(dist).all() or dist.size > 14:
+        raise ConfigError(
+            f"{str(path)!r}: camera_info's distortion must be at most 14 finite numbers, got "
+            f"{info['distortion']!r}"
+        )
+    return dist
+
+
 def calibration_truth(path: str | Path) -> np.ndarray | None:
     """Where the camera truly stood when a calibration.json was solved: `truth`'s T_world_camera,
     which only `foldbot calibrate` on the simulated cell knows (None for a real cell's);

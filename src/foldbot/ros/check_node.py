@@ -1,10 +1,11 @@
 """The bring-up check node: `foldbot ros-check`'s run on a running cell. It asks the cell for
 everything `foldbot ros-fold --cell real` will need, all of it rather than the first thing
 missing, and says what it found: each arm's driver actions, /joint_states with every joint
-within its limits, the camera's colour, depth and camera_info, world → base_link and
+within its limits, the camera's colour, depth and camera_info (with a calibration's pose, its
+image size, K and distortion as the calibration was solved with), world → base_link and
 world → the camera on /tf_static (or a calibration's pose), the table where the layout puts it
-as the camera's depth sees it, and every workspace point reached by an arm and inside the image
-(foldbot.layout_check). Moves nothing. Writes ros_check.json and ros_check.png (the camera's
+as the camera's depth sees it, the layout's obstacles the camera sees where the file puts them,
+and every workspace point reached by an arm and inside the image (foldbot.layout_check). Moves nothing. Writes ros_check.json and ros_check.png (the camera's
 image, the workspace drawn where the camera's pose puts it) into the staging folder it is given.
 """
 
@@ -31,7 +32,12 @@ from tf2_msgs.msg import TFMessage
 from foldbot.control.executor import ArmExecutor
 from foldbot.errors import ConfigError, FoldbotError
 from foldbot.garments import GARMENTS
-from foldbot.layout_check import CameraPlacement, check_layout
+from foldbot.layout_check import (
+    OBSTACLE_SEEN_FRACTION,
+    CameraPlacement,
+    check_layout,
+    obstacles_in_depth,
+)
 from foldbot.loop import cut_by_image_edge
 from foldbot.perception.fallback import vision_estimator
 from foldbot.perception.overlay import draw_overlay
@@ -264,6 +270,98 @@ CLOTH_NAMES = {"towel": "the towel", "tshirt": "the T-shirt", "pants": "the pant
 """How a check line names the cloth --garment says the fold will find."""
 
 
+INTRINSICS_TOLERANCE_PX = 0.5
+"""How far the camera's fx, fy, cx, cy may lie from those a calibration was solved with (px)."""
+DISTORTION_TOLERANCE = 1e-3
+"""How far each of its distortion coefficients may lie from the calibration's."""
+
+
+@dataclass(frozen=True)
+class CalibratedCamera:
+    """The camera a calibration was solved with: K (3 × 3), image size (px) and, where the file
+    records it, the distortion coefficients."""
+
+    K: np.ndarray
+    width: int
+    height: int
+    distortion: np.ndarray | None
+
+
+def check_intrinsics(info: CameraInfo, calibrated: CalibratedCamera) -> Check:
+    """The running camera is the one the calibration was solved with: its camera_info's image
+    size, K (within INTRINSICS_TOLERANCE_PX) and distortion (within DISTORTION_TOLERANCE, the
+    shorter list padded with zeros). Another resolution, lens or driver mode since then leaves
+    the calibration's pose unproven."""
+    name = "the camera as calibrated"
+    K = np.asarray(info.K, dtype=float).reshape(3, 3)
+    now = f"{info.width} × {info.height} px, fx {K[0, 0]:.1f} px"
+    then = f"{calibrated.width} × {calibrated.height} px, fx {calibrated.K[0, 0]:.1f} px"
+    fix = (
+        ": calibrate again (`foldbot ros-calibrate`) or run the camera as it was then "
+        "(resolution, driver mode, lens)"
+    )
+    if (info.width, info.height) != (calibrated.width, calibrated.height):
+        return Check(name, False, f"its camera_info is {now}, the calibration's {then}{fix}")
+    idx = ((0, 0), (1, 1), (0, 2), (1, 2))
+    off = max(abs(K[i] - calibrated.K[i]) for i in idx)
+    if off > INTRINSICS_TOLERANCE_PX:
+        names = ("fx", "fy", "cx", "cy")
+        words = ", ".join(f"{n} {K[i]:.1f}" for n, i in zip(names, idx, strict=True))
+        cal = ", ".join(f"{n} {calibrated.K[i]:.1f}" for n, i in zip(names, idx, strict=True))
+        return Check(
+            name,
+            False,
+            f"its camera_info's K ({words} px) lies {off:.1f} px from the calibration's "
+            f"({cal} px){fix}",
+        )
+    detail = f"{now} as the calibration was solved with"
+    if calibrated.distortion is None:
+        return Check(name, True, detail + " (the calibration records no distortion)")
+    d_now = np.asarray(info.D, dtype=float).ravel()
+    d_cal = calibrated.distortion
+    n = max(d_now.size, d_cal.size)
+    diff = np.abs(np.pad(d_now, (0, n - d_now.size)) - np.pad(d_cal, (0, n - d_cal.size)))
+    if n and float(diff.max()) > DISTORTION_TOLERANCE:
+        return Check(
+            name,
+            False,
+            f"its camera_info's distortion {np.round(d_now, 4).tolist()} is not the "
+            f"calibration's {np.round(d_cal, 4).tolist()} (coefficient {int(diff.argmax())} "
+            f"{float(diff.max()):.4f} apart){fix}",
+        )
+    return Check(name, True, detail + ", its distortion too")
+
+
+def check_obstacles_seen(
+    depth: np.ndarray, K: np.ndarray, T_world_camera: np.ndarray, layout: CellLayout
+) -> Check:
+    """Each of the layout's obstacles the camera sees is where the file puts it: of the pixels
+    whose line of sight meets its box, most see it there rather than past it (a box drawn where
+    nothing stands, or a fixture moved since). Out of view, it is named as not checked."""
+    name = "the obstacles in view"
+    sightings = obstacles_in_depth(depth, K, T_world_camera, layout.obstacles)
+    wrong = [s for s in sightings if not s.where_the_layout_says]
+    words = []
+    for s in sightings:
+        if not s.in_view:
+            words.append(f"{s.name!r} out of view (not checked)")
+        else:
+            where = "where the layout puts it" if s.where_the_layout_says else "NOT there"
+            words.append(
+                f"{s.name!r} {where}: seen on {100 * s.seen_fraction:.0f} % of the "
+                f"{s.seen + s.past} pixels that look at it"
+            )
+    detail = "; ".join(words)
+    if wrong:
+        names = ", ".join(repr(s.name) for s in wrong)
+        detail += (
+            f" — the camera sees past {names} (under {100 * OBSTACLE_SEEN_FRACTION:.0f} % on "
+            "it): is the layout file this cell's, the fixture where the file says, the camera's "
+            "pose right?"
+        )
+    return Check(name, not wrong, detail)
+
+
 def check_cloth(obs: Observation, layout: CellLayout, garment: str) -> tuple[Check, ClothState]:
     """What perception makes of the camera's frame, as the fold's first look will: the cloth
     found, whole in the image (a cloth cut by the image's edge hides its corners), and every
@@ -319,9 +417,11 @@ def run_checks(
     layout: CellLayout,
     camera_pose: np.ndarray | None,
     garment: str | None = "towel",
+    calibrated: CalibratedCamera | None = None,
 ) -> tuple[list[Check], np.ndarray | None, dict[str, Any]]:
     """Every check on the cell the master serves (the cloth `garment` as perception sees it;
-    None: not looked for): the lines, the picture (None without a camera frame and pose) and
+    None: not looked for; the camera compared with the one a calibration was solved with, where
+    `calibrated` gives it): the lines, the picture (None without a camera frame and pose) and
     what the record keeps besides."""
     inbox = _Inbox()
     checks = check_drivers(arms)
@@ -357,6 +457,8 @@ def run_checks(
             )
         except FoldbotError as exc:
             checks.append(Check("camera", False, str(exc)))
+        if calibrated is not None:
+            checks.append(check_intrinsics(got["color_info"], calibrated))
     # The frames: world → each base_link, world → the camera.
     time.sleep(0.2)  # /tf_static is latched: it has come with the first messages
     with inbox.lock:
@@ -392,6 +494,8 @@ def run_checks(
     picture = None
     if depth is not None and intr is not None and T_cam is not None:
         checks.append(check_table(depth, intr.K, T_cam, layout))
+        if layout.obstacles:
+            checks.append(check_obstacles_seen(depth, intr.K, T_cam, layout))
     if intr is not None and T_cam is not None:
         placement = CameraPlacement(T_cam, intr.K, intr.width, intr.height, "the cell's camera")
         found = check_layout(layout, placement, robot=robot, arms=arms)
@@ -436,7 +540,7 @@ def run_checks(
 
 
 def main(argv: list[str] | None = None) -> int:
-    from foldbot.calibration.capture import calibration_camera
+    from foldbot.calibration.capture import calibration_camera, calibration_distortion
 
     parser = argparse.ArgumentParser(prog="foldbot_check")
     parser.add_argument("--stage", type=Path, required=True)
@@ -449,9 +553,16 @@ def main(argv: list[str] | None = None) -> int:
     rospy.init_node("foldbot_check", anonymous=True, disable_signals=True)
     try:
         layout = DEFAULT_LAYOUT if args.layout is None else load_layout(args.layout)
-        pose = None if args.camera_pose is None else calibration_camera(args.camera_pose)[0]
+        pose = calibrated = None
+        if args.camera_pose is not None:
+            pose, lens = calibration_camera(args.camera_pose)
+            if lens is not None:  # the intrinsics it was solved with: the camera should match
+                dist = calibration_distortion(args.camera_pose)
+                calibrated = CalibratedCamera(*lens, distortion=dist)
         garment = None if args.garment == "none" else args.garment
-        checks, picture, extra = run_checks(args.robot, args.arms, layout, pose, garment)
+        checks, picture, extra = run_checks(
+            args.robot, args.arms, layout, pose, garment, calibrated
+        )
         record = {
             "ok": all(c.ok for c in checks),
             "master": os.environ.get("ROS_MASTER_URI", ""),
