@@ -178,3 +178,59 @@ def test_a_replay_masks_the_fixtures_the_live_run_masked(tmp_path):
     assert m.group(1) == m.group(2) == "1"
     assert "labels equal" in out and "detections equal" in out
     assert float(m.group(3)) < 0.002
+
+
+_FIXTURES_PROBE = """
+import json, sys
+import rospy
+from foldbot.errors import ConfigError
+from foldbot.ros.node_args import FOLD_ARGS_PARAM
+from foldbot.ros.perception_node import node_fixtures
+rospy.init_node("fixtures_probe", anonymous=True, disable_signals=True)
+out = {"none": [o.name for o in node_fixtures()]}
+rospy.set_param(FOLD_ARGS_PARAM, "--out /tmp/x --layout " + sys.argv[1])
+out["fold_args"] = [o.as_dict() for o in node_fixtures()]
+rospy.set_param("~fixtures", json.dumps([{"name": "bin", "center_xyz": [1, 0, 0.8],
+                                         "size_xyz": [0.2, 0.2, 0.1]}]))
+out["json"] = [o.name for o in node_fixtures()]
+rospy.set_param("~fixtures", [])
+out["empty_list"] = [o.name for o in node_fixtures()]
+for bad in ('[{"name": "bin"}]', "{", 3):
+    rospy.set_param("~fixtures", bad)
+    try:
+        node_fixtures()
+        out.setdefault("bad", []).append("accepted")
+    except ConfigError as e:
+        out.setdefault("bad", []).append(str(e))
+print("PROBE " + json.dumps(out))
+"""
+
+
+@requires_ros
+def test_the_node_knows_the_episodes_fixtures_or_those_it_is_given():
+    import json
+
+    from ros_helpers import private_master
+
+    layout = Path(__file__).resolve().parents[2] / "layouts" / "cloth_tray.toml"
+    with private_master() as env:
+        run = subprocess.run(
+            [sys.executable, "-c", _FIXTURES_PROBE, str(layout)],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+    lines = [ln for ln in run.stdout.splitlines() if ln.startswith("PROBE ")]
+    assert lines, run.stdout[-2000:] + run.stderr[-3000:]
+    out = json.loads(lines[0][len("PROBE ") :])
+    assert out["none"] == []  # no episode, no parameter: no fixtures
+    assert out["fold_args"] == [
+        {"name": "cloth_tray", "center_xyz": [0.45, 0.37, 0.77], "size_xyz": [0.6, 0.08, 0.04]}
+    ]
+    assert out["json"] == ["bin"]  # the parameter wins over the episode's layout
+    assert out["empty_list"] == []  # a replay of a run that masked none
+    missing, not_json, not_list = out["bad"]
+    assert "~fixtures[0]" in missing and "center_xyz" in missing
+    assert not_json.startswith("~fixtures is not JSON")
+    assert not_list == "~fixtures must be a list of obstacle tables, got 3"

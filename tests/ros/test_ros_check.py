@@ -39,6 +39,13 @@ def test_a_running_cell_is_checked_for_all_a_fold_needs(tmp_path):
             }
         )
     )
+    # The same pose solved through a camera at twice the resolution: not the cell's camera now.
+    other = json.loads(calibration.read_text())
+    other["camera_info"].update(
+        width=1280, height=960, K=(CameraConfig().K * [[2.0], [2.0], [1.0]]).tolist()
+    )
+    other_camera = tmp_path / "other_camera.json"
+    other_camera.write_text(json.dumps(other))
     high = tmp_path / "high.toml"  # the table and the arm 2 cm higher than the cell's
     high.write_text("table_height = 0.77\nrobot_base_xyz = [0.0, 0.0, 0.77]\n")
     lamp = tmp_path / "lamp.toml"  # a lamp between the camera and the table's far middle
@@ -65,6 +72,12 @@ def test_a_running_cell_is_checked_for_all_a_fold_needs(tmp_path):
             runs[name] = foldbot(
                 "ros-check", "--out", str(tmp_path / name), "--port", str(port), *extra
             )
+        # ros-fold on the cell refuses to perceive through intrinsics the pose was not solved
+        # with, before it launches anything.
+        runs["fold_other"] = foldbot(
+            "ros-fold", "--cell", "real", "--camera-pose", str(other_camera), "--resolution",
+            "5", "--out", str(tmp_path / "fold_other"), "--port", str(port),
+        )  # fmt: skip
     finally:
         log = stop_cell(cell)
     no_pose, calibrated, wrong = runs["no_pose"], runs["calibrated"], runs["high"]
@@ -112,6 +125,15 @@ def test_a_running_cell_is_checked_for_all_a_fold_needs(tmp_path):
     # The running cell has no lamp: the camera sees the table where the file puts one.
     assert "FAIL the obstacles in view: 'lamp' NOT there: seen on 0 % of the " in lamped.stdout
     assert "the camera sees past 'lamp'" in lamped.stdout
+
+    refused = runs["fold_other"]
+    assert refused.returncode == 2, refused.stdout + refused.stderr
+    assert (
+        f"--camera-pose {other_camera}: the camera as calibrated: its camera_info is 640 × 480"
+        in (refused.stderr)
+    )
+    assert "the calibration's 1280 × 960 px, fx 1760.0 px: calibrate again" in refused.stderr
+    assert not (tmp_path / "fold_other").exists()
 
     low_run = runs["low"]
     assert low_run.returncode == 1, low_run.stdout + low_run.stderr

@@ -446,6 +446,27 @@ def run_node(
     return proc.returncode
 
 
+def check_calibrated_camera(calibration: Path, env: dict[str, str]) -> None:
+    """A real cell's camera is the one `calibration` was solved with (image size, K, distortion:
+    ros-check's "the camera as calibrated"); FoldbotError naming how it differs, before anything
+    is launched. A calibration that records no intrinsics is not compared."""
+    cmd = [sys.executable, "-m", "foldbot.ros.check_node", "--camera-only"]
+    cmd += ["--camera-pose", str(calibration)]
+    proc = subprocess.run(cmd, env=env, capture_output=True, text=True, check=False)
+    if proc.returncode == 0:
+        if proc.stdout.strip():
+            print(proc.stdout.strip().removeprefix("ok").strip())
+        return
+    fail = [ln for ln in proc.stdout.splitlines() if ln.startswith("FAIL ")]
+    if proc.returncode == 1 and fail:
+        raise FoldbotError(f"--camera-pose {calibration}: {fail[0].removeprefix('FAIL ')}")
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    raise FoldbotError(
+        "checking the camera against the calibration failed: "
+        + (lines[-1] if lines else f"exit {proc.returncode}")
+    )
+
+
 def fold_args_text(args: argparse.Namespace) -> str:
     """The episode's `foldbot fold` options as one shell-quoted string (the nodes parse it): every
     option that shapes the episode, so the nodes' EpisodeConfig is the command's. With --suite,
@@ -659,6 +680,8 @@ def run(args: argparse.Namespace) -> int:
             "that is already running (its drivers, camera and roscore; or `foldbot ros-cell`); "
             "set ROS_MASTER_URI or --port to its master"
         )
+    if real and args.camera_pose is not None:  # perceived through the intrinsics it was solved with
+        check_calibrated_camera(Path(args.camera_pose), env)
     # A real cell's master is running: roslaunch waits for it rather than starting one.
     where = ["--wait"] if real else ["-p", env["ROS_MASTER_URI"].rsplit(":", 1)[1]]
     cmd = [

@@ -362,6 +362,21 @@ def check_obstacles_seen(
     return Check(name, not wrong, detail)
 
 
+def camera_as_calibrated(calibrated: CalibratedCamera | None) -> Check | None:
+    """check_intrinsics on the camera_info the running camera publishes within WAIT_S (a failed
+    check where none comes); None where the calibration records no intrinsics to compare."""
+    if calibrated is None:
+        return None
+    got = _Inbox().wait(("color_info",), WAIT_S)
+    if "color_info" not in got:
+        return Check(
+            "the camera as calibrated",
+            False,
+            f"nothing on {rospy.resolve_name(TOPICS['color_info'])} within {WAIT_S:g} s",
+        )
+    return check_intrinsics(got["color_info"], calibrated)
+
+
 def check_cloth(obs: Observation, layout: CellLayout, garment: str) -> tuple[Check, ClothState]:
     """What perception makes of the camera's frame, as the fold's first look will: the cloth
     found, whole in the image (a cloth cut by the image's edge hides its corners), and every
@@ -543,13 +558,23 @@ def main(argv: list[str] | None = None) -> int:
     from foldbot.calibration.capture import calibration_camera, calibration_distortion
 
     parser = argparse.ArgumentParser(prog="foldbot_check")
-    parser.add_argument("--stage", type=Path, required=True)
+    parser.add_argument("--stage", type=Path, default=None)
+    parser.add_argument(
+        "--camera-only",
+        action="store_true",
+        help="only whether the camera is the one --camera-pose's calibration was solved with "
+        "(ros-fold --cell real asks it before it launches); prints the check, writes nothing",
+    )
     parser.add_argument("--robot", default="ur5")
     parser.add_argument("--arms", type=int, default=1)
     parser.add_argument("--layout", type=Path, default=None)
     parser.add_argument("--camera-pose", type=Path, default=None)
     parser.add_argument("--garment", choices=(*GARMENTS, "none"), default="towel")
     args = parser.parse_args(rospy.myargv(argv if argv is not None else sys.argv)[1:])
+    if args.camera_only and args.camera_pose is None:
+        parser.error("--camera-only needs --camera-pose")
+    if not args.camera_only and args.stage is None:
+        parser.error("--stage is required")
     rospy.init_node("foldbot_check", anonymous=True, disable_signals=True)
     try:
         layout = DEFAULT_LAYOUT if args.layout is None else load_layout(args.layout)
@@ -559,6 +584,11 @@ def main(argv: list[str] | None = None) -> int:
             if lens is not None:  # the intrinsics it was solved with: the camera should match
                 dist = calibration_distortion(args.camera_pose)
                 calibrated = CalibratedCamera(*lens, distortion=dist)
+        if args.camera_only:
+            check = camera_as_calibrated(calibrated)
+            if check is not None:
+                print(f"{'ok  ' if check.ok else 'FAIL'} {check.name}: {check.detail}", flush=True)
+            return 0 if check is None or check.ok else 1
         garment = None if args.garment == "none" else args.garment
         checks, picture, extra = run_checks(
             args.robot, args.arms, layout, pose, garment, calibrated
