@@ -6,6 +6,7 @@ import json
 import subprocess
 import sys
 
+import imageio.v3 as iio
 import numpy as np
 from ros_helpers import free_port, requires_ros, start_cell, stop_cell, wait_for_master
 
@@ -125,6 +126,9 @@ def test_a_running_cell_is_checked_for_all_a_fold_needs(tmp_path):
     # The running cell has no lamp: the camera sees the table where the file puts one.
     assert "FAIL the obstacles in view: 'lamp' NOT there: seen on 0 % of the " in lamped.stdout
     assert "the camera sees past 'lamp'" in lamped.stdout
+    # The picture draws it where the file puts it, red: the camera sees past it.
+    picture = iio.imread(tmp_path / "lamp" / "ros_check.png")
+    assert (picture[..., :3] == (230, 25, 75)).all(axis=-1).sum() > 200
 
     refused = runs["fold_other"]
     assert refused.returncode == 2, refused.stdout + refused.stderr

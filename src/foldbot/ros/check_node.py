@@ -17,6 +17,7 @@ import os
 import sys
 import threading
 import time
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -35,6 +36,7 @@ from foldbot.garments import GARMENTS
 from foldbot.layout_check import (
     OBSTACLE_SEEN_FRACTION,
     CameraPlacement,
+    ObstacleSighting,
     check_layout,
     obstacles_in_depth,
 )
@@ -332,14 +334,12 @@ def check_intrinsics(info: CameraInfo, calibrated: CalibratedCamera) -> Check:
     return Check(name, True, detail + ", its distortion too")
 
 
-def check_obstacles_seen(
-    depth: np.ndarray, K: np.ndarray, T_world_camera: np.ndarray, layout: CellLayout
-) -> Check:
-    """Each of the layout's obstacles the camera sees is where the file puts it: of the pixels
-    whose line of sight meets its box, most see it there rather than past it (a box drawn where
-    nothing stands, or a fixture moved since). Out of view, it is named as not checked."""
+def check_obstacles_seen(sightings: Sequence[ObstacleSighting]) -> Check:
+    """Each of the layout's obstacles the camera sees is where the file puts it
+    (layout_check.obstacles_in_depth's `sightings`): of the pixels whose line of sight meets its
+    box, most see it there rather than past it (a box drawn where nothing stands, or a fixture
+    moved since). Out of view, it is named as not checked."""
     name = "the obstacles in view"
-    sightings = obstacles_in_depth(depth, K, T_world_camera, layout.obstacles)
     wrong = [s for s in sightings if not s.where_the_layout_says]
     words = []
     for s in sightings:
@@ -405,12 +405,35 @@ def check_cloth(obs: Observation, layout: CellLayout, garment: str) -> tuple[Che
     return Check(name, True, seen + ", every one over the workspace"), state
 
 
+BOX_EDGES = tuple((a, b) for a in range(8) for b in range(a + 1, 8) if bin(a ^ b).count("1") == 1)
+"""The 12 edges of a box by its corners' indices (sim.layout.Obstacle.corners: bit 2 along its
+x, bit 1 along y, bit 0 along z)."""
+
+
 def check_picture(
-    rgb: np.ndarray, camera: CameraPlacement, layout: CellLayout, seen: np.ndarray, xs, ys
+    rgb: np.ndarray,
+    camera: CameraPlacement,
+    layout: CellLayout,
+    seen: np.ndarray,
+    xs,
+    ys,
+    sightings: Sequence[ObstacleSighting] = (),
 ) -> np.ndarray:
     """The camera's image with the workspace's outline (white) and its grid points (green:
-    inside the image) drawn where the camera's pose puts them on the table."""
+    inside the image) drawn where the camera's pose puts them on the table, and each obstacle in
+    view as a box (blue: seen where the layout puts it, red: the camera sees past it)."""
     img = np.ascontiguousarray(rgb[..., :3].copy())
+    verdict = {s.name: s.where_the_layout_says for s in sightings if s.in_view}
+    for obstacle in layout.obstacles:
+        if obstacle.name not in verdict:
+            continue
+        uv, depth = camera.project(obstacle.corners())
+        if not (depth > 0).all():
+            continue
+        colour = (0, 130, 200) if verdict[obstacle.name] else (230, 25, 75)
+        for a, b in BOX_EDGES:
+            pa, pb = np.round(uv[a]).astype(int), np.round(uv[b]).astype(int)
+            cv2.line(img, tuple(pa), tuple(pb), colour, 2, cv2.LINE_AA)
     x0, x1, y0, y1 = layout.workspace_bounds
     z = layout.table_height
     edge = np.array([(x0, y0, z), (x1, y0, z), (x1, y1, z), (x0, y1, z)])
@@ -507,10 +530,12 @@ def run_checks(
                 )
             )
     picture = None
+    sightings: list[ObstacleSighting] = []
     if depth is not None and intr is not None and T_cam is not None:
         checks.append(check_table(depth, intr.K, T_cam, layout))
         if layout.obstacles:
-            checks.append(check_obstacles_seen(depth, intr.K, T_cam, layout))
+            sightings = obstacles_in_depth(depth, intr.K, T_cam, layout.obstacles)
+            checks.append(check_obstacles_seen(sightings))
     if intr is not None and T_cam is not None:
         placement = CameraPlacement(T_cam, intr.K, intr.width, intr.height, "the cell's camera")
         found = check_layout(layout, placement, robot=robot, arms=arms)
@@ -550,7 +575,9 @@ def run_checks(
                     label: np.asarray(xyz, dtype=float).tolist()
                     for label, (xyz, _conf) in state.keypoints.items()
                 }
-            picture = check_picture(base, placement, layout, found.in_view, found.xs, found.ys)
+            picture = check_picture(
+                base, placement, layout, found.in_view, found.xs, found.ys, sightings
+            )
     return checks, picture, extra
 
 
