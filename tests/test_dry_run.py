@@ -212,7 +212,7 @@ def test_pants_are_planned_one_arm_at_a_time_on_one_arm(tmp_path):
 @pytest.mark.parametrize(
     ("extra", "needle"),
     [
-        (["--start", "crumpled"], "a crumpled start is flattened first"),
+        (["--start", "crumpled", "--arms", "2"], "two arms spread it, each spread tried at"),
         (["--fault-slip", "0.3"], "--fault-slip act on a motion, and a dry run moves nothing"),
     ],
 )
@@ -221,6 +221,32 @@ def test_what_a_dry_run_cannot_show_is_refused(tmp_path, capsys, extra, needle):
     assert main(["fold", "--dry-run", *extra, *SMALL[:2], "--out", str(out)]) == 2
     assert needle in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_crumpled_towels_dry_run_plans_its_first_pull_and_moves_nothing(tmp_path, capsys):
+    # The towel crumpled as the episode crumples it (seed 0), seen once: the first pull the
+    # flattening makes from that heap (`foldbot fold --start crumpled` pulls corner_d first).
+    out = tmp_path / "plan"
+    assert main(["fold", "--dry-run", "--start", "crumpled", *SMALL, "--out", str(out)]) == 0
+    said = capsys.readouterr().out
+    plan = json.loads((out / "plan.json").read_text())
+    assert sorted(p.name for p in out.iterdir()) == ["overlay_plan1.png", "plan.json"]
+    assert plan["start"] == "crumpled" and plan["feasible"] and plan["stages"] == []
+    flatten = plan["flatten"]
+    assert flatten["pull_needed"] and flatten["target_coverage"] == 0.9
+    assert 0.1 < flatten["perceived_coverage"] < 0.6  # a heap, not a flat towel
+    first = plan["actions"][-1]
+    assert first["feasible"] and first["kind"] == "flatten_pull" and first["stage"] == 0
+    assert first["label"] == "pull corner_d" and first["shortfall_m"] > 0.05
+    names = [s["name"] for s in first["steps"]]
+    assert names[0] == "approach" and names[-1] == "retreat"
+    assert plan["motion_seconds"] == pytest.approx(sum(s["seconds"] for s in first["steps"]))
+    assert plan["arm_moved_rad"] == 0.0  # ground truth: the simulated arm stood still
+    assert "dry run: the crumpled towel seen at coverage" in said
+    assert "the first pull, pull corner_d, feasible:" in said
+    assert "each later pull and the fold are planned from what the one before leaves" in said
+    # The picture: the heap, the outline the pulls aim at, the pull's grasp and place.
+    assert expected_pixels(out / "overlay_plan1.png") > 100
 
 
 def test_a_dry_run_does_not_write_beside_an_episode(tmp_path, capsys):

@@ -5,7 +5,12 @@ them) and carried as the fold carries it (two arms together, a towel's folded st
 edge's middle), every pick-and-place's motion planned from where the arm stands,
 each waypoint's IK and table clearance checked (a pair's arms also kept clear of each other),
 each step timed at the cell's speed scale: the plan, its pictures and its motion time, to look
-at before a first run on a real arm (`foldbot fold --dry-run`, `foldbot ros-fold --dry-run`)."""
+at before a first run on a real arm (`foldbot fold --dry-run`, `foldbot ros-fold --dry-run`).
+
+A crumpled start's dry run (one arm) plans the first flattening pull from the heap as seen, as
+the flattening would make it (the first pull whose motion is feasible, those out of reach
+before it named); every later pull and the fold are planned from what the one before leaves,
+so they are not (dry_run_flatten)."""
 
 from __future__ import annotations
 
@@ -31,6 +36,7 @@ from foldbot.errors import (
     UnreachableTargetError,
     failed_segment,
 )
+from foldbot.flatten import stops_at
 from foldbot.garment_loop import aimed_actions, garment_keypoints, together
 from foldbot.grasp_points import stack_grasp_point
 from foldbot.io.staging import prepare_output
@@ -43,8 +49,16 @@ from foldbot.loop import (
     require_in_view,
     stage_carries,
 )
+from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState
 from foldbot.planning.actions import FoldAction
+from foldbot.planning.flatten import (
+    FlattenConfig,
+    cloth_surface,
+    expected_outline_world,
+    perceived_coverage,
+    plan_pulls,
+)
 from foldbot.planning.garment_recipes import PLANNED_FROM, fold_outline
 from foldbot.planning.recipes import CORNER_NAMES
 from foldbot.types import Observation
@@ -63,6 +77,8 @@ class DryRun:
     def summary(self) -> str:
         """One line on it."""
         r = self.record
+        if "flatten" in r:
+            return flatten_summary(r)
         actions = r["actions"]
         bad = [f"stage {a['stage']} {a['label']}" for a in actions if not a["feasible"]]
         pairs = sum(1 for a in actions if a.get("together")) // 2
@@ -329,6 +345,98 @@ def dry_run(
     return DryRun(record, overlays)
 
 
+def dry_run_flatten(
+    cfg: FlattenConfig,
+    cell: FoldCell,
+    expected_size: tuple[float, float],
+    speed_scale: float,
+    log: Callable[[str], None] = print,
+) -> DryRun:
+    """A crumpled towel's dry run with one arm: the heap observed once (the arm where it stands),
+    its perceived coverage of the towel's `expected_size` (m), and the first pull the flattening
+    (flatten.run_flatten) would make, planned: the pulls in its order, each planned from where
+    the arm stands until one is feasible (an unreachable one is skipped there too, and named
+    here). Nothing moves. None where the coverage already stops the flattening."""
+    width, height = (float(v) for v in expected_size)
+    state, obs = cell.observe()
+    if not state.detected:
+        raise FoldbotError(f"no cloth found to flatten: {state.reason}")
+    coverage = perceived_coverage(state, width * height)
+    done = stops_at(cfg, coverage)
+    log(
+        f"dry run: the crumpled towel's perceived coverage {coverage:.2f} "
+        f"(target {cfg.target_coverage:.2f})" + (": no pull needed" if done else "")
+    )
+    actions: list[dict[str, Any]] = []
+    expected = None
+    if not done:
+        fit, pulls = plan_pulls(state, width, height, cfg, cloth_surface(obs, state, cfg), None)
+        expected = expected_outline_world(fit, state.table_plane)
+        for pull in pulls:
+            entry = plan_single(cell, 0, pull.action, log)
+            actions.append(
+                entry
+                | {"kind": "flatten_pull", "shortfall_m": pull.shortfall, "target": pull.target}
+            )
+            if entry["feasible"]:
+                break
+    first = next((a for a in actions if a["feasible"]), None)
+    overlay = draw_overlay(
+        obs,
+        state,
+        grasp_points=[np.asarray(a["grasp"]) for a in actions[-1:]],
+        place_points=[np.asarray(a["place"]) for a in actions[-1:]],
+        expected_outline=expected,
+    )
+    record = {
+        "dry_run": True,
+        "start": "crumpled",
+        "arms": cell.arms,
+        "speed_scale": speed_scale,
+        "flatten": {
+            "perceived_coverage": coverage,
+            "target_coverage": cfg.target_coverage,
+            "pull_needed": not done,
+            "pulls_planned": len(actions),
+        },
+        "stages": [],
+        "actions": actions,
+        "feasible": done or first is not None,
+        "motion_seconds": 0.0 if first is None else first["motion_seconds"],
+        "perceived_keypoints": {
+            label: np.asarray(xyz, dtype=float).tolist()
+            for label, (xyz, _conf) in state.keypoints.items()
+        },
+    }
+    return DryRun(record, [overlay])
+
+
+def flatten_summary(r: dict[str, Any]) -> str:
+    """dry_run_flatten's one line."""
+    f = r["flatten"]
+    head = (
+        f"dry run: the crumpled towel seen at coverage {f['perceived_coverage']:.2f} (target "
+        f"{f['target_coverage']:.2f}), nothing moved; "
+    )
+    tail = "; each later pull and the fold are planned from what the one before leaves"
+    if not f["pull_needed"]:
+        return head + "no pull needed: the fold is planned from the flat towel" + tail
+    first = next((a for a in r["actions"] if a["feasible"]), None)
+    if first is None:
+        return head + (
+            f"NOT feasible: every flattening pull ({f['pulls_planned']}) is out of the arm's "
+            f"reach ({PLAN_FILE} says why)"
+        )
+    skipped = f["pulls_planned"] - 1
+    return (
+        head
+        + f"the first pull, {first['label']}, feasible: {first['motion_seconds']:.1f} s of arm "
+        f"motion at speed scale {r['speed_scale']:g}"
+        + (f" ({skipped} out of reach before it, skipped)" if skipped else "")
+        + tail
+    )
+
+
 def check_dry_run_output(out: Path, overwrite: bool) -> None:
     """Refuse an --out a dry run must not write into: a file, a folder holding anything but
     an earlier dry run, or an earlier dry run without --overwrite (a plan beside an episode's
@@ -368,14 +476,16 @@ def write_dry_run(run: DryRun, out: Path, overwrite: bool) -> Path:
     return out
 
 
-def check_dry_run_config(garment: str, start: str, faults: list[str]) -> None:
-    """ConfigError where a dry run cannot show the fold: a crumpled start (each pull is planned
-    from what the last one left), or an injected fault (it acts on a motion, and nothing
-    moves). `garment`: the cloth's, named in the refusal."""
-    if start != "flat":
+def check_dry_run_config(garment: str, start: str, faults: list[str], arms: int = 1) -> None:
+    """ConfigError where a dry run cannot show the fold: a crumpled start with two arms (each
+    spread is tried at hang margins and tool tilts as it goes; one arm's first pull is planned,
+    dry_run_flatten), or an injected fault (it acts on a motion, and nothing moves). `garment`:
+    the cloth's, named in the refusal."""
+    if start != "flat" and arms != 1:
         raise ConfigError(
-            f"--dry-run plans the fold of a {garment} lying flat; a crumpled start is flattened "
-            "first, each pull planned from what the one before left: got --start crumpled"
+            f"--dry-run plans a crumpled {garment}'s first flattening pull with one arm; two arms "
+            "spread it, each spread tried at its hang margins and tool tilts as it goes: got "
+            "--start crumpled --arms 2"
         )
     if faults:
         raise ConfigError(

@@ -241,6 +241,12 @@ class _Stop:
             self.log("  the finishing pull lost the target: no more finishing pulls")
 
 
+def stops_at(cfg: FlattenConfig, coverage: float) -> bool:
+    """Whether flattening would make no pull at all from a perceived `coverage` (its first
+    stop test, finishing pulls included)."""
+    return _Stop(cfg, lambda _line: None).reached(coverage)
+
+
 def flatten_pictured(
     cfg: FlattenConfig,
     cell: FoldCell,

@@ -36,6 +36,7 @@ from foldbot.dry_run import (
     check_dry_run_config,
     check_dry_run_output,
     dry_run,
+    dry_run_flatten,
     write_dry_run,
 )
 from foldbot.errors import UnreachableTargetError, add_facts, require
@@ -822,18 +823,29 @@ def dry_run_episode(
     """The episode's fold planned and not run (foldbot.dry_run): the cloth laid and settled,
     seen once with the arm where it starts, every stage and motion planned, nothing moved;
     plan.json and overlay_planK.png written into `out_dir`. The arm's joints are checked not
-    to have moved (`arm_moved_rad` in plan.json)."""
-    check_dry_run_config(cfg.garment, cfg.start, injected_faults(cfg))
+    to have moved (`arm_moved_rad` in plan.json). A crumpled start (one arm) is crumpled as
+    the episode would be and its first flattening pull planned (dry_run.dry_run_flatten)."""
+    check_dry_run_config(cfg.garment, cfg.start, injected_faults(cfg), cfg.arms)
     check_dry_run_output(out_dir, overwrite)
     with SimWorld(cfg.sim) as world, contextlib.ExitStack() as stack:
         parts = build_sim_cell(cfg, world)
         stack.callback(parts.model_world.close)
         log(f"settling the cloth ({parts.mesh.vertices.shape[0]} vertices)…")
         settle(world, parts.cloth)
+        if cfg.start == "crumpled":
+            log("crumpling the towel…")
+            crumple_start(cfg, parts.world, parts.cloth)
         executors = [parts.executor, *parts.more_executors]
         cell = episode_cell(cfg, parts)
         q0 = [ex.robot.joint_positions() for ex in executors]
-        run = dry_run(loop_config(cfg, parts.cloth.thickness), cell, cfg.motion.speed_scale, log)
+        if cfg.start == "crumpled":
+            pulls, _spreads = flatten_configs(cfg.flatten_options, cfg.sim.layout)
+            size = (parts.spec.width, parts.spec.height)
+            run = dry_run_flatten(pulls, cell, size, cfg.motion.speed_scale, log)
+        else:
+            run = dry_run(
+                loop_config(cfg, parts.cloth.thickness), cell, cfg.motion.speed_scale, log
+            )
         moved = max(
             float(np.abs(ex.robot.joint_positions() - q).max())
             for ex, q in zip(executors, q0, strict=True)

@@ -129,8 +129,8 @@ from foldbot.ros.node_args import parse_fold_args
             "speed_scale must be in [0.05, 1]",
         ),
         (
-            ["ros-fold", "--out", "{tmp}/e", "--dry-run", "--start", "crumpled"],
-            "--dry-run plans the fold of a towel lying flat; a crumpled start is flattened first",
+            ["ros-fold", "--out", "{tmp}/e", "--dry-run", "--start", "crumpled", "--arms", "2"],
+            "--dry-run plans a crumpled towel's first flattening pull with one arm; two arms",
         ),
         (
             ["ros-fold", "--out", "{tmp}/e", "--dry-run", "--fault-slip", "0.3"],

@@ -66,6 +66,27 @@ def test_a_dry_run_over_ros_plans_what_the_in_process_one_plans(tmp_path):
     same_plan(plan, json.loads((here / "plan.json").read_text()))
 
 
+def test_a_crumpled_towels_first_pull_over_ros_is_the_in_process_one(tmp_path):
+    # The sim node crumples the towel as `foldbot fold` does; the task node plans the first
+    # flattening pull from the heap it sees, through the planner node.
+    crumpled = ["--dry-run", "--start", "crumpled", *SMALL]
+    here = tmp_path / "in_process"
+    assert foldbot("fold", *crumpled, "--out", str(here)).returncode == 0
+    over = tmp_path / "over_ros"
+    proc = foldbot("ros-fold", *crumpled, "--out", str(over), "--port", str(free_port()))
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert "dry run over ROS: the crumpled towel seen at coverage" in proc.stdout
+    assert "the first pull, pull corner_d, feasible" in proc.stdout
+    plan = json.loads((over / "plan.json").read_text())
+    assert plan["cell"] == "sim" and plan["feasible"] and plan["start"] == "crumpled"
+    assert sorted(p.name for p in over.iterdir()) == ["overlay_plan1.png", "plan.json"]
+    local = json.loads((here / "plan.json").read_text())
+    assert plan["flatten"]["perceived_coverage"] == pytest.approx(
+        local["flatten"]["perceived_coverage"], abs=1e-9
+    )
+    same_plan(plan, local)
+
+
 def test_a_dry_run_on_a_running_cell_leaves_its_arm_where_it_stood(tmp_path):
     cell, port = start_cell(*SMALL[:2], "--camera-rate", "2")
     out = tmp_path / "real"

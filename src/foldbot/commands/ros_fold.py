@@ -600,7 +600,7 @@ def run(args: argparse.Namespace) -> int:
     faulty = injected_faults(cfg)
     fold.check_confirm(args)
     if args.dry_run:
-        check_dry_run_config(cfg.garment, cfg.start, faulty)
+        check_dry_run_config(cfg.garment, cfg.start, faulty, cfg.arms)
     if faulty and real:
         raise ConfigError(
             f"{' and '.join(faulty)}: faults are the simulated cell's, injected on the cell "

@@ -26,6 +26,7 @@ from foldbot.dry_run import (
     check_dry_run_config,
     check_dry_run_output,
     dry_run,
+    dry_run_flatten,
     write_dry_run,
 )
 from foldbot.flatten import flatten_and_score, flatten_pictured
@@ -235,7 +236,7 @@ def run_dry_task(
     motion planned by the planner node, nothing moved (on a real cell the grippers are not even
     opened); plan.json and overlay_planK.png written to the fold's --out."""
     args, cfg = parse_fold_args(fold_args)
-    check_dry_run_config(cfg.garment, cfg.start, injected_faults(cfg))
+    check_dry_run_config(cfg.garment, cfg.start, injected_faults(cfg), cfg.arms)
     check_dry_run_output(Path(args.out), args.overwrite)
     cell = RosCell(
         cfg.sim.layout,
@@ -253,7 +254,12 @@ def run_dry_task(
         thickness = float(
             cell.mesh.take(lambda m: True, "cloth mesh from the sim node")["thickness"]
         )
-    run = dry_run(loop_config(cfg, thickness), cell, cfg.motion.speed_scale, log)
+    if cfg.start == "crumpled":  # its first flattening pull (one arm)
+        pulls, _spreads = flatten_configs(cfg.flatten_options, cfg.sim.layout)
+        size = seeded_garment(cfg)[0]
+        run = dry_run_flatten(pulls, cell, (size.width, size.height), cfg.motion.speed_scale, log)
+    else:
+        run = dry_run(loop_config(cfg, thickness), cell, cfg.motion.speed_scale, log)
     run.record["cell"] = "real" if real else "sim"
     run.record["recipe"] = cfg.recipe
     write_dry_run(run, Path(args.out), args.overwrite)
