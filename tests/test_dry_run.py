@@ -290,3 +290,26 @@ def test_a_pair_is_planned_one_arm_at_a_time_where_the_arms_would_meet(tmp_path)
         assert [(e["feasible"], e["together"]) for e in entries] == [(False, True)] * 2
         assert entries[0]["reason"] == entries[1]["reason"] and entries[0]["segment"]
         assert "NOT feasible together" in said[-1]
+
+
+def test_a_heap_already_flat_enough_plans_no_pull():
+    # dry_run_flatten on a towel lying flat: its coverage stops the flattening before any pull.
+    from foldbot.dry_run import dry_run_flatten
+    from foldbot.planning.flatten import FlattenConfig
+
+    cfg = EpisodeConfig(seed=0, towel=TowelSpec(0.24, 0.24, 8), video_fps=0.0)
+    said: list[str] = []
+    with SimWorld(cfg.sim) as world, contextlib.ExitStack() as stack:
+        parts = build_sim_cell(cfg, world)
+        stack.callback(parts.model_world.close)
+        settle(world, parts.cloth)
+        run = dry_run_flatten(
+            FlattenConfig(), episode_cell(cfg, parts), (0.24, 0.24), 1.0, said.append
+        )
+    assert run.record["flatten"]["pull_needed"] is False and run.record["feasible"]
+    assert run.record["actions"] == [] and run.record["motion_seconds"] == 0.0
+    assert run.record["flatten"]["perceived_coverage"] > 0.9
+    assert said[0].endswith(": no pull needed")
+    assert run.summary().endswith(
+        "no pull needed: the fold is planned from what the camera then sees"
+    )

@@ -356,7 +356,8 @@ def dry_run_flatten(
     its perceived coverage of the towel's `expected_size` (m), and the first pull the flattening
     (flatten.run_flatten) would make, planned: the pulls in its order, each planned from where
     the arm stands until one is feasible (an unreachable one is skipped there too, and named
-    here). Nothing moves. None where the coverage already stops the flattening."""
+    here). Nothing moves. No pull where the flattening would make none (the coverage already
+    stops it, or no point of the outline is short enough to pull)."""
     width, height = (float(v) for v in expected_size)
     state, obs = cell.observe()
     if not state.detected:
@@ -372,6 +373,9 @@ def dry_run_flatten(
     if not done:
         fit, pulls = plan_pulls(state, width, height, cfg, cloth_surface(obs, state, cfg), None)
         expected = expected_outline_world(fit, state.table_plane)
+        if not pulls:
+            done = True
+            log("dry run: no point of the expected outline is short enough to pull")
         for pull in pulls:
             entry = plan_single(cell, 0, pull.action, log)
             actions.append(
@@ -420,7 +424,7 @@ def flatten_summary(r: dict[str, Any]) -> str:
     )
     tail = "; each later pull and the fold are planned from what the one before leaves"
     if not f["pull_needed"]:
-        return head + "no pull needed: the fold is planned from the flat towel" + tail
+        return head + "no pull needed: the fold is planned from what the camera then sees"
     first = next((a for a in r["actions"] if a["feasible"]), None)
     if first is None:
         return head + (
