@@ -278,3 +278,23 @@ def test_the_depth_shows_an_obstacle_where_the_layout_puts_it_or_sees_past_it():
     assert absent.past > 0.8 * absent.pixels  # the table under where the tray should be
     for out in obstacles_in_depth(*depth_of(mount), mount.obstacles):
         assert out.pixels == 0 and not out.in_view and out.where_the_layout_says
+
+
+def test_the_obstacles_inside_the_image_are_named():
+    """check-layout names the obstacles the camera sees (perception masks them, ros-check looks
+    for them): the cloth tray beside the workspace, not the camera mount's post and bar."""
+    from pathlib import Path
+
+    from foldbot.sim.layout import load_layout
+
+    root = Path(__file__).resolve().parents[1] / "layouts"
+    tray = load_layout(root / "cloth_tray.toml")
+    check = check_layout(tray, sim_camera(tray), grid=3)
+    assert check.obstacles_in_image == ("cloth_tray",)
+    assert (
+        "  obstacle 'cloth_tray' is in the image: perception masks it as a fixture, not cloth, "
+        "and `ros-check` looks for it there"
+    ) in check.lines()
+    assert check.record()["camera"]["obstacles_in_image"] == ["cloth_tray"]
+    mount = load_layout(root / "camera_mount.toml")
+    assert check_layout(mount, sim_camera(mount), grid=3).obstacles_in_image == ()

@@ -175,6 +175,22 @@ class LayoutCheck:
         in an obstacle."""
         return bool(self.covered.all() and self.in_view.all() and not self.blocked_postures)
 
+    @property
+    def obstacles_in_image(self) -> tuple[str, ...]:
+        """The layout's obstacles some part of which lies inside the camera's image (points
+        through each box, 5 along each side): perception masks them as the cell's fixtures
+        and `ros-check` looks for them there."""
+        t = np.linspace(-0.5, 0.5, 5)
+        unit = np.stack(np.meshgrid(t, t, t, indexing="ij"), axis=-1).reshape(-1, 3)
+        out = []
+        for ob in self.layout.obstacles:
+            c, s = np.cos(np.radians(ob.yaw_deg)), np.sin(np.radians(ob.yaw_deg))
+            rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+            points = (unit * np.asarray(ob.size_xyz)) @ rot.T + np.asarray(ob.center_xyz)
+            if self.camera.in_view(points).any():
+                out.append(ob.name)
+        return tuple(out)
+
     def unreached(self, arm: int) -> dict[tuple[int, int], str]:
         """Where arm `arm` cannot grasp or place, and why."""
         return {k: why for k, (lv, why) in self.failures[arm].items() if lv < REQUIRED_HEIGHTS}
@@ -230,6 +246,11 @@ class LayoutCheck:
             )
         for name, n in self.hidden.items():
             out.append(f"  obstacle {name!r} stands between the camera and {n} of them")
+        for name in self.obstacles_in_image:
+            out.append(
+                f"  obstacle {name!r} is in the image: perception masks it as a fixture, not "
+                "cloth, and `ros-check` looks for it there"
+            )
         out.append(
             "the layout can fold: every workspace point reached and seen"
             if self.ok
@@ -290,6 +311,7 @@ class LayoutCheck:
                 "image_size": [self.camera.width, self.camera.height],
                 "points_seen": int(self.in_view.sum()),
                 "points_hidden_by_obstacles": dict(self.hidden),
+                "obstacles_in_image": list(self.obstacles_in_image),
                 "mm_per_px": self.mm_per_px,
             },
             "points": self.points,
