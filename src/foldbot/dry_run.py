@@ -36,7 +36,7 @@ from foldbot.errors import (
     UnreachableTargetError,
     failed_segment,
 )
-from foldbot.flatten import stops_at
+from foldbot.flatten import pulls_from_view, stops_at
 from foldbot.garment_loop import aimed_actions, garment_keypoints, together
 from foldbot.grasp_points import stack_grasp_point
 from foldbot.io.staging import prepare_output
@@ -52,13 +52,7 @@ from foldbot.loop import (
 from foldbot.perception.overlay import draw_overlay
 from foldbot.perception.state import ClothState
 from foldbot.planning.actions import FoldAction
-from foldbot.planning.flatten import (
-    FlattenConfig,
-    cloth_surface,
-    expected_outline_world,
-    perceived_coverage,
-    plan_pulls,
-)
+from foldbot.planning.flatten import FlattenConfig, perceived_coverage
 from foldbot.planning.garment_recipes import PLANNED_FROM, fold_outline
 from foldbot.planning.recipes import CORNER_NAMES
 from foldbot.types import Observation
@@ -337,10 +331,7 @@ def dry_run(
         "actions": actions,
         "feasible": all(a["feasible"] for a in actions),
         "motion_seconds": carried_seconds(actions),
-        "perceived_keypoints": {
-            label: np.asarray(xyz, dtype=float).tolist()
-            for label, (xyz, _conf) in state.keypoints.items()
-        },
+        "perceived_keypoints": perceived_keypoints(state),
     }
     return DryRun(record, overlays)
 
@@ -371,8 +362,7 @@ def dry_run_flatten(
     actions: list[dict[str, Any]] = []
     expected = None
     if not done:
-        fit, pulls = plan_pulls(state, width, height, cfg, cloth_surface(obs, state, cfg), None)
-        expected = expected_outline_world(fit, state.table_plane)
+        _fit, pulls, expected = pulls_from_view(cfg, state, obs, (width, height))
         if not pulls:
             done = True
             log("dry run: no point of the expected outline is short enough to pull")
@@ -407,10 +397,7 @@ def dry_run_flatten(
         "actions": actions,
         "feasible": done or first is not None,
         "motion_seconds": 0.0 if first is None else first["motion_seconds"],
-        "perceived_keypoints": {
-            label: np.asarray(xyz, dtype=float).tolist()
-            for label, (xyz, _conf) in state.keypoints.items()
-        },
+        "perceived_keypoints": perceived_keypoints(state),
     }
     return DryRun(record, [overlay])
 
@@ -439,6 +426,14 @@ def flatten_summary(r: dict[str, Any]) -> str:
         + (f" ({skipped} out of reach before it, skipped)" if skipped else "")
         + tail
     )
+
+
+def perceived_keypoints(state: ClothState) -> dict[str, list[float]]:
+    """plan.json's `perceived_keypoints`: each keypoint's world position (m) as seen."""
+    return {
+        label: np.asarray(xyz, dtype=float).tolist()
+        for label, (xyz, _conf) in state.keypoints.items()
+    }
 
 
 def check_dry_run_output(out: Path, overwrite: bool) -> None:

@@ -37,6 +37,7 @@ from foldbot.errors import (
 from foldbot.perception.overlay import contact_sheet, draw_overlay
 from foldbot.perception.state import ClothState
 from foldbot.planning.flatten import (
+    ExpectedOutline,
     FlattenConfig,
     Pull,
     cloth_surface,
@@ -174,9 +175,7 @@ def run_flatten(
         if oracle is not None:
             expected, pulls = oracle(state, cfg)
         else:
-            surface = cloth_surface(obs, state, cfg)
-            fit, pulls = plan_pulls(state, width, height, cfg, surface, yaw)
-            expected = expected_outline_world(fit, state.table_plane)
+            fit, pulls, expected = pulls_from_view(cfg, state, obs, (width, height), yaw)
             if cfg.keep_yaw:
                 yaw = fit.yaw
         if not pulls:
@@ -239,6 +238,23 @@ class _Stop:
         if self.finishing and before >= self.cfg.target_coverage > after:
             self.finishing = False
             self.log("  the finishing pull lost the target: no more finishing pulls")
+
+
+def pulls_from_view(
+    cfg: FlattenConfig,
+    state: ClothState,
+    obs: Observation,
+    expected_size: tuple[float, float],
+    yaw: float | None = None,
+) -> tuple[ExpectedOutline, list[Pull], np.ndarray]:
+    """The pulls planned from one view of the cloth (plan_pulls on the heap's surface as the
+    depth shows it; `yaw`: the rectangle's kept from an earlier pull, None: fitted afresh): the
+    fitted rectangle, the pulls in the order they are tried, and the outline they aim at
+    (world)."""
+    width, height = expected_size
+    surface = cloth_surface(obs, state, cfg)
+    fit, pulls = plan_pulls(state, width, height, cfg, surface, yaw)
+    return fit, pulls, expected_outline_world(fit, state.table_plane)
 
 
 def stops_at(cfg: FlattenConfig, coverage: float) -> bool:
@@ -716,11 +732,10 @@ def _pull_instead(
     coverage it ends on, or None where no point of the expected outline is short enough to pull
     (logged; nothing moved)."""
     width, height = (float(v) for v in expected_size)
-    fit, pulls = plan_pulls(state, width, height, cfg, cloth_surface(obs, state, cfg))
+    _fit, pulls, expected = pulls_from_view(cfg, state, obs, (width, height))
     if not pulls:
         log("  no point of the expected outline is short enough to pull")
         return None
-    expected = expected_outline_world(fit, state.table_plane)
     area = width * height
     coverage = perceived_coverage(state, area)
     return _pull_step(cfg, cell, state, obs, pulls, expected, coverage, area, rec, log)

@@ -180,13 +180,12 @@ class LayoutCheck:
         """The layout's obstacles some part of which lies inside the camera's image (points
         through each box, 5 along each side): perception masks them as the cell's fixtures
         and `ros-check` looks for them there."""
-        t = np.linspace(-0.5, 0.5, 5)
+        t = np.linspace(0.0, 1.0, 5)
         unit = np.stack(np.meshgrid(t, t, t, indexing="ij"), axis=-1).reshape(-1, 3)
         out = []
         for ob in self.layout.obstacles:
-            c, s = np.cos(np.radians(ob.yaw_deg)), np.sin(np.radians(ob.yaw_deg))
-            rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-            points = (unit * np.asarray(ob.size_xyz)) @ rot.T + np.asarray(ob.center_xyz)
+            c = ob.corners()  # its sides from its first corner (Obstacle.corners' order)
+            points = c[0] + unit @ np.stack([c[4] - c[0], c[2] - c[0], c[1] - c[0]])
             if self.camera.in_view(points).any():
                 out.append(ob.name)
         return tuple(out)
@@ -606,12 +605,8 @@ def obstacles_in_depth(
             ],
             axis=-1,
         )  # direction per pixel with unit depth: a ray's parameter is its depth
-        ray = ray_cam @ R.T
-        yaw = np.radians(ob.yaw_deg)
-        c, s = np.cos(yaw), np.sin(yaw)
-        to_local = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
-        o = to_local @ (t - np.asarray(ob.center_xyz))
-        d = ray @ to_local.T
+        o = ob.to_local(t)  # the camera, and each ray's direction, in the box's frame
+        d = ob.to_local(t + ray_cam @ R.T) - o
         half = np.asarray(ob.size_xyz) / 2
         with np.errstate(divide="ignore", invalid="ignore"):
             ta, tb = (-half - o) / d, (half - o) / d

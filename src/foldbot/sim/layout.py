@@ -118,11 +118,13 @@ class Obstacle:
         z, hz = self.center_xyz[2], self.size_xyz[2] / 2
         return (min(xs), min(ys), z - hz), (max(xs), max(ys), z + hz)
 
-    def _local(self, point: Sequence[float]) -> tuple[float, float, float]:
-        """A world point (m) in the box's own frame (its centre, its sides' axes)."""
+    def to_local(self, points: Sequence[float] | np.ndarray) -> np.ndarray:
+        """World points (…×3, m) in the box's own frame (its centre, its sides' axes)."""
         c, s = math.cos(math.radians(self.yaw_deg)), math.sin(math.radians(self.yaw_deg))
-        dx, dy, dz = (float(a) - b for a, b in zip(point, self.center_xyz, strict=True))
-        return (c * dx + s * dy, -s * dx + c * dy, dz)
+        d = np.asarray(points, dtype=np.float64) - np.asarray(self.center_xyz)
+        return np.stack(
+            [c * d[..., 0] + s * d[..., 1], -s * d[..., 0] + c * d[..., 1], d[..., 2]], axis=-1
+        )
 
     def corners(self, margin: float = 0.0) -> np.ndarray:
         """The box's 8 corners (8×3 world m), grown by `margin` on every side."""
@@ -135,14 +137,8 @@ class Obstacle:
     def contains(self, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
         """Bool per world point (…×3, m): whether it lies inside the box grown by `margin` on
         every side (what a depth camera sees of the box, less its noise)."""
-        c, s = math.cos(math.radians(self.yaw_deg)), math.sin(math.radians(self.yaw_deg))
-        d = np.asarray(points, dtype=np.float64) - np.asarray(self.center_xyz)
-        hx, hy, hz = (v / 2 + margin for v in self.size_xyz)
-        return (
-            (np.abs(c * d[..., 0] + s * d[..., 1]) <= hx)
-            & (np.abs(-s * d[..., 0] + c * d[..., 1]) <= hy)
-            & (np.abs(d[..., 2]) <= hz)
-        )
+        half = np.asarray(self.size_xyz) / 2 + margin
+        return (np.abs(self.to_local(points)) <= half).all(axis=-1)
 
     def blocks(self, start: Sequence[float], end: Sequence[float]) -> bool:
         """Whether the straight segment from `start` to `end` (world m) passes through the box
@@ -150,7 +146,8 @@ class Obstacle:
         h = tuple(v / 2 for v in self.size_xyz)
         lo, hi = tuple(-v for v in h), h
         t0, t1 = 0.0, 1.0
-        for a, b, low, high in zip(self._local(start), self._local(end), lo, hi, strict=True):
+        a_local, b_local = self.to_local(start).tolist(), self.to_local(end).tolist()
+        for a, b, low, high in zip(a_local, b_local, lo, hi, strict=True):
             d = float(b) - float(a)
             if abs(d) < 1e-12:
                 if not low <= a <= high:
