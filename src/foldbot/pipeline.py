@@ -114,7 +114,7 @@ class EpisodeConfig:
     recipe: str = "half"
     """Fold recipe: planning.recipes.RECIPES for a towel, GARMENT_RECIPES[garment] otherwise."""
     robot: str = "ur5"
-    """Arm; allowed: ur5, panda."""
+    """Arm; allowed: ur5, ur5e, panda."""
     perception: str = "vision"
     """Where keypoints come from: vision (RGB-D) or oracle (simulator ground truth, comparison;
     from a crumpled start it also plans the flattening pulls: sim.flatten_oracle)."""

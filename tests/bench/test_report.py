@@ -83,6 +83,16 @@ def test_markdown_names_the_loop_options_a_suite_sets(tiny_suite_data):
     assert "Loop options set: relay_corners = false, pair_descent = none" in markdown(summary)
 
 
+def test_markdown_names_an_arm_other_than_the_ur5(tiny_suite_data):
+    plain = summarise(suite_from_dict(tiny_suite_data()), [])
+    assert "robot" not in plain["suite"] and "Arm:" not in markdown(plain)
+    data = tiny_suite_data()
+    data["episode"] = {**data["episode"], "robot": "ur5e"}
+    summary = summarise(suite_from_dict(data), [])
+    assert summary["suite"]["robot"] == "ur5e"
+    assert "Arm: ur5e (`[episode] robot`; the default is the ur5)." in markdown(summary)
+
+
 def test_markdown_names_the_cloth_options_a_suite_sets(tiny_suite_data):
     assert "Cloth set" not in markdown(summarise(suite_from_dict(tiny_suite_data()), []))
     data = tiny_suite_data()

@@ -151,6 +151,17 @@ def test_speed_scale_slows_the_arms_and_is_left_out_of_specs_by_default(tiny_sui
     assert EpisodeSpec.from_dict(spec.as_dict()) == spec
 
 
+def test_robot_reaches_the_cell_and_is_left_out_of_specs_by_default(tiny_suite_data):
+    data = tiny_suite_data()
+    default = load_one(data)
+    assert default.to_config().robot == "ur5"
+    assert "robot" not in default.as_dict()  # earlier runs resume unchanged
+    data["episode"]["robot"] = "ur5e"
+    spec = load_one(data)
+    assert spec.to_config().robot == "ur5e" and spec.as_dict()["robot"] == "ur5e"
+    assert EpisodeSpec.from_dict(spec.as_dict()) == spec
+
+
 def test_odd_grid_reaches_the_towel_and_is_left_out_of_specs_by_default(tiny_suite_data):
     data = tiny_suite_data()
     default = load_one(data)
@@ -527,6 +538,10 @@ def test_unknown_suite_name_lists_the_available_ones():
         (
             lambda d: d["episode"].update(speed_scale=0.01),
             ["episode.speed_scale = 0.01", "[0.05, 1]"],
+        ),
+        (
+            lambda d: d["episode"].update(robot="ur10"),
+            ["episode.robot = 'ur10'", "ur5, ur5e, panda"],
         ),
         (
             lambda d: d.update(loop_options={"top_layer_frist": False}),

@@ -120,6 +120,15 @@ def test_either_arm_of_two_holds_the_board(tmp_path):
     assert record["truth"]["translation_error_mm"] < 1.0
 
 
+def test_a_ur5e_holds_the_board_and_the_fold_suggested_is_the_ur5es(tmp_path, capsys):
+    out = tmp_path / "cal"
+    assert main(["calibrate", "--out", str(out), "--robot", "ur5e", "--views", "5"]) == 0
+    record = json.loads((out / "calibration.json").read_text())
+    assert record["truth"]["translation_error_mm"] < 1.0
+    suggested = f"foldbot fold --camera-pose {out}/calibration.json --robot ur5e --out DIR"
+    assert suggested in capsys.readouterr().out
+
+
 def test_the_operator_lets_each_move_run_or_stops_the_calibration(tmp_path, monkeypatch, capsys):
     import io
     import sys

@@ -166,7 +166,7 @@ def test_lighting_validation_and_change(plate_world) -> None:
     assert cam.observe().rgb.astype(int).mean() < bright - 10
 
 
-@pytest.mark.parametrize("name", ["ur5", "panda"])
+@pytest.mark.parametrize("name", ["ur5", "ur5e", "panda"])
 def test_the_out_of_view_park_hides_nothing_from_the_default_camera(name):
     """At home the gripper hangs over the workspace and hides a large cloth's near edge; parked,
     no pixel of the arm is in the default camera's image, and the TCP is where the park says."""

@@ -146,6 +146,8 @@ def markdown(summary: dict) -> str:
         f"Episodes: {done} of {planned} ({state}). Randomised per seed: {s['randomised']['text']}.",
         "",
     ]
+    if s.get("robot"):
+        lines += [f"Arm: {s['robot']} (`[episode] robot`; the default is the ur5).", ""]
     options = s.get("loop_options")
     if options:
         shown = ", ".join(f"{k} = {shown_value(v)}" for k, v in options.items())

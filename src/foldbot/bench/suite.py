@@ -44,6 +44,7 @@ time_step = 0.0027778                   # s, physics step (optional; default Sim
 arms = 1                                # 2: two arms side by side carry a stage's corners together
 jaw_catch = "vertices"                  # "surface": closed jaws also hold cloth between mesh points
 speed_scale = 1.0                       # fraction of full arm speed (0.05–1; the same paths, slower)
+robot = "ur5"                           # the arm: ur5, ur5e or panda
 
 [loop_options]                          # the closed loop's switches (foldbot.loop_options), e.g.
 top_layer_first = false                 # true/false, integers, metres; "none" where allowed
@@ -113,6 +114,7 @@ from foldbot.sim.layout import (
     layout_from_table,
     obstacle_from_table,
 )
+from foldbot.sim.robots import ROBOT_NAMES
 from foldbot.sim.world import MAX_TIME_STEP, MIN_TIME_STEP, SimConfig
 
 ALL_RECIPES = RECIPES + tuple(r for rs in GARMENT_RECIPES.values() for r in rs)
@@ -148,6 +150,7 @@ _SCHEMA: dict[str, set[str]] = {
         "arms",
         "jaw_catch",
         "speed_scale",
+        "robot",
     },
     "loop_options": set(LOOP_OPTIONS),
     "cloth": set(CLOTH_OPTIONS),
@@ -242,6 +245,8 @@ class EpisodeSpec:
     """What the closed jaws hold (EpisodeConfig.jaw_catch): vertices, or surface."""
     speed_scale: float = 1.0
     """Fraction of full speed the arms move at (MotionConfig.speed_scale)."""
+    robot: str = "ur5"
+    """The arm (EpisodeConfig.robot): ur5, ur5e or panda."""
     loop_options: tuple[tuple[str, LoopOptionValue], ...] = ()
     """The closed loop's switches set by name (EpisodeConfig.loop_options), as (name, value)."""
     cloth_options: tuple[tuple[str, float], ...] = ()
@@ -302,6 +307,7 @@ class EpisodeSpec:
             arms=self.arms,
             jaw_catch=self.jaw_catch,
             motion=MotionConfig(speed_scale=self.speed_scale),
+            robot=self.robot,
             loop_options=dict(self.loop_options),
             cloth=apply_cloth_options(ClothConfig(), dict(self.cloth_options)),
             flatten_options=dict(self.flatten_options),
@@ -328,6 +334,8 @@ class EpisodeSpec:
             del d["jaw_catch"]  # likewise
         if d["speed_scale"] == 1.0:
             del d["speed_scale"]  # likewise
+        if d["robot"] == "ur5":
+            del d["robot"]  # likewise
         if d["garment_yaw_deg"] == 90.0:
             del d["garment_yaw_deg"]  # likewise
         if d["loop_options"]:
@@ -459,6 +467,11 @@ class Suite:
     def loop_options(self) -> dict[str, LoopOptionValue]:
         """The loop options its episodes set (one [loop_options] table for the whole suite)."""
         return dict(self.episodes[0].loop_options) if self.episodes else {}
+
+    @property
+    def robot(self) -> str:
+        """The arm its episodes fold with (one [episode] robot for the whole suite)."""
+        return self.episodes[0].robot if self.episodes else "ur5"
 
     @property
     def cloth_options(self) -> dict[str, float]:
@@ -704,6 +717,11 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
     speed_scale = _range(
         ep.get("speed_scale", 1.0), "episode.speed_scale", MIN_SPEED_SCALE, 1.0, where
     )
+    robot = _get(data, "episode", "robot", str, "ur5", where)
+    if robot not in ROBOT_NAMES:
+        raise ConfigError(
+            f"{where}: episode.robot = {robot!r} is unknown; allowed: {', '.join(ROBOT_NAMES)}"
+        )
     time_step = ep.get("time_step")
     if time_step is not None:
         time_step = _range(time_step, "episode.time_step", MIN_TIME_STEP, MAX_TIME_STEP, where)
@@ -748,6 +766,7 @@ def suite_from_dict(data: dict[str, Any], source: str = "") -> Suite:
             arms=arms,
             jaw_catch=jaw_catch,
             speed_scale=speed_scale,
+            robot=robot,
             loop_options=loop_options,
             cloth_options=cloth_options,
             flatten_options=flatten_options,

@@ -620,6 +620,7 @@ def summarise(suite: Suite, records: list[dict]) -> dict[str, Any]:
         "suite": {
             **{k: v for k, v in suite.as_dict().items() if k != "episodes"},
             **({"loop_options": suite.loop_options} if suite.loop_options else {}),
+            **({"robot": suite.robot} if suite.robot != "ur5" else {}),
             **({"cloth_options": suite.cloth_options} if suite.cloth_options else {}),
             **({"flatten_options": suite.flatten_options} if suite.flatten_options else {}),
         },

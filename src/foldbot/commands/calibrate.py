@@ -25,6 +25,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import shlex
 import shutil
 import time
 from dataclasses import dataclass
@@ -482,6 +483,19 @@ def run(args: argparse.Namespace) -> int:
     print(f"calibrate: wrote {args.out}/calibration.json, camera_pose.launch, views.png")
     print(
         f"calibrate: fold through it (this camera, perception given the pose found): "
-        f"foldbot fold --camera-pose {args.out}/calibration.json --out DIR"
+        f"foldbot fold {shlex.join(fold_words(args))} --out DIR"
     )
     return 0
+
+
+def fold_words(args: argparse.Namespace) -> list[str]:
+    """The `foldbot fold` options that fold in the cell a calibration was made in, through it:
+    the calibration, and the arm, the arms and the layout where they are not the default's."""
+    words = ["--camera-pose", f"{args.out}/calibration.json"]
+    if args.robot != "ur5":
+        words += ["--robot", args.robot]
+    if args.arms != 1:
+        words += ["--arms", str(args.arms)]
+    if args.layout is not None:
+        words += ["--layout", str(args.layout)]
+    return words

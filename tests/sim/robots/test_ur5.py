@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import importlib.util
 import math
+import sys
 from collections.abc import Iterator
+from types import ModuleType
 
 import numpy as np
 import pybullet as p
@@ -59,7 +62,7 @@ def test_make_robot_rejects_unknown_name(client: int) -> None:
     assert "'kuka'" in msg
     for name in ROBOT_NAMES:
         assert name in msg
-    assert ROBOT_NAMES == ("ur5", "panda")
+    assert ROBOT_NAMES == ("ur5", "ur5e", "panda")
 
 
 def test_indices_and_mounting(robot: UR5) -> None:
@@ -248,15 +251,24 @@ def test_gripper_opens_and_closes_under_position_control(robot: UR5) -> None:
             robot.set_gripper_opening(bad)
 
 
-def test_shipped_urdf_matches_its_generator() -> None:
-    import importlib.util
-
-    script = URDF_PATH.with_name("make_ur5_urdf.py")
-    spec = importlib.util.spec_from_file_location("make_ur5_urdf", script)
+def load_urdf_generator() -> ModuleType:
+    """urdf/make_ur_urdf.py, the script that writes the shipped UR URDFs, as a module."""
+    name = "foldbot_make_ur_urdf"
+    spec = importlib.util.spec_from_file_location(name, URDF_PATH.with_name("make_ur_urdf.py"))
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module  # dataclasses look their module up while the class is made
     spec.loader.exec_module(module)
-    assert URDF_PATH.read_text() == module.build(), "rerun urdf/make_ur5_urdf.py"
+    return module
+
+
+def test_shipped_urdfs_match_their_generator() -> None:
+    module = load_urdf_generator()
+    assert [m.name for m in module.MODELS] == ["ur5", "ur5e"]
+    for model in module.MODELS:
+        path = module.urdf_path(model)
+        assert path.read_text() == module.build(model), "rerun urdf/make_ur_urdf.py"
+    assert module.urdf_path(module.UR5) == URDF_PATH
 
 
 def test_nearest_within_finds_a_body_by_the_tcp_and_only_when_close(robot: UR5) -> None:

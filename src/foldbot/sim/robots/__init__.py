@@ -12,11 +12,12 @@ from foldbot.sim.layout import CellLayout
 from foldbot.sim.robots.base import HOME_HEIGHT_ABOVE_TABLE, Robot, gripper_down_quaternion
 from foldbot.sim.robots.panda import Panda
 from foldbot.sim.robots.ur5 import UR5
+from foldbot.sim.robots.ur5e import UR5e
 
-ROBOT_NAMES: tuple[str, ...] = ("ur5", "panda")
+ROBOT_NAMES: tuple[str, ...] = ("ur5", "ur5e", "panda")
 """Names accepted by make_robot."""
 
-_REGISTRY: dict[str, type[Robot]] = {"ur5": UR5, "panda": Panda}
+_REGISTRY: dict[str, type[Robot]] = {"ur5": UR5, "ur5e": UR5e, "panda": Panda}
 
 
 def robot_class(name: str) -> type[Robot]:
@@ -86,6 +87,7 @@ __all__ = [
     "UR5",
     "Panda",
     "Robot",
+    "UR5e",
     "check_workspace_reach",
     "gripper_down_quaternion",
     "make_robot",

@@ -79,7 +79,7 @@ class Robot(abc.ABC):
     """
 
     name: ClassVar[str]
-    """Registry name ("ur5", "panda")."""
+    """Registry name ("ur5", "ur5e", "panda")."""
     ARM_JOINT_NAMES: ClassVar[tuple[str, ...]]
     FINGER_JOINT_NAMES: ClassVar[tuple[str, str]]
     """(left, right); each finger joint is prismatic, 0 = closed, positive = opening."""

@@ -1,4 +1,5 @@
-"""UR5 forward kinematics from the published standard Denavit–Hartenberg parameters (pure numpy).
+"""UR5 and UR5e forward kinematics from the published standard Denavit–Hartenberg parameters
+(pure numpy).
 
 Frames follow UR's own convention: ``ur5_fk`` is expressed in the DH base frame (the controller's
 "base", ur_description's `base`); frame i is reached from frame i-1 by
@@ -20,6 +21,12 @@ UR5_A = np.array([0.0, -0.425, -0.39225, 0.0, 0.0, 0.0])
 """DH lengths a_i along the new x axis (m)."""
 UR5_ALPHA = np.array([np.pi / 2, 0.0, 0.0, np.pi / 2, -np.pi / 2, 0.0])
 """DH twists α_i about the new x axis (rad)."""
+UR5E_D = np.array([0.1625, 0.0, 0.0, 0.1333, 0.0997, 0.0996])
+"""The UR5e's DH offsets d_i (m); its twists are the UR5's."""
+UR5E_A = np.array([0.0, -0.425, -0.3922, 0.0, 0.0, 0.0])
+"""The UR5e's DH lengths a_i (m)."""
+UR_DH = {"ur5": (UR5_D, UR5_A), "ur5e": (UR5E_D, UR5E_A)}
+"""Each Universal Robots model's (d, a) by registry name."""
 
 
 DH_BASE_IN_BASE_LINK = np.diag([-1.0, -1.0, 1.0, 1.0])
@@ -40,25 +47,27 @@ def dh_transform(theta: float, d: float, a: float, alpha: float) -> np.ndarray:
     )
 
 
-def ur5_link_transforms(q: np.ndarray) -> list[np.ndarray]:
-    """Poses of DH frames 1..6 in the DH base frame for joint angles `q` (6,), as 4×4 matrices."""
+def ur5_link_transforms(q: np.ndarray, model: str = "ur5") -> list[np.ndarray]:
+    """Poses of DH frames 1..6 in the DH base frame for joint angles `q` (6,), as 4×4 matrices,
+    of the UR `model` ("ur5", "ur5e")."""
     q = np.asarray(q, dtype=float).reshape(6)
+    d, a = UR_DH[model]
     frames = []
     t = np.eye(4)
     for i in range(6):
-        t = t @ dh_transform(q[i], UR5_D[i], UR5_A[i], UR5_ALPHA[i])
+        t = t @ dh_transform(q[i], d[i], a[i], UR5_ALPHA[i])
         frames.append(t)
     return frames
 
 
-def ur5_fk(q: np.ndarray) -> np.ndarray:
-    """4×4 pose of the UR5 tool flange (DH frame 6, `tool0`) in the DH base frame."""
-    return ur5_link_transforms(q)[-1]
+def ur5_fk(q: np.ndarray, model: str = "ur5") -> np.ndarray:
+    """4×4 pose of the UR tool flange (DH frame 6, `tool0`) in the DH base frame."""
+    return ur5_link_transforms(q, model)[-1]
 
 
-def ur5_fk_base_link(q: np.ndarray) -> np.ndarray:
-    """4×4 pose of the UR5 tool flange in `base_link` (the URDF root, the mounting frame)."""
-    return DH_BASE_IN_BASE_LINK @ ur5_fk(q)
+def ur5_fk_base_link(q: np.ndarray, model: str = "ur5") -> np.ndarray:
+    """4×4 pose of the UR tool flange in `base_link` (the URDF root, the mounting frame)."""
+    return DH_BASE_IN_BASE_LINK @ ur5_fk(q, model)
 
 
 def rotation_to_quaternion(r: np.ndarray) -> np.ndarray:

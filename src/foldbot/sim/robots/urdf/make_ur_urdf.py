@@ -1,6 +1,7 @@
-"""Generate ur5_gripper.urdf: a UR5 (CB3) on its standard DH frames, plus a parallel-jaw gripper.
+"""Generate ur5_gripper.urdf and ur5e_gripper.urdf: a Universal Robots arm on its standard DH
+frames (the UR5, CB3, and the UR5e, e-Series), plus foldbot's parallel-jaw gripper.
 
-Run from the repository root:  python src/foldbot/sim/robots/urdf/make_ur5_urdf.py
+Run from the repository root:  python src/foldbot/sim/robots/urdf/make_ur_urdf.py
 
 Frames
 - Root link `base_link` is ur_description's `base_link`: at q = 0 the arm stretches along its +x.
@@ -19,21 +20,23 @@ Frames
 - `tcp` is fixed at z = 0.105 on the flange (centred between the fingers, 5 mm above the tips),
   with the flange's axes: z = approach, y = finger closing axis.
 
-Dynamics: link masses and centres of mass from Universal Robots' published UR5 DH/dynamics
-parameters (as in ur_description), inertias as solid cylinders like ur_description's
-cylinder_inertial; limits: ±2π (elbow ±π, ur_description's limited variant), 3.15 rad/s,
-150/150/150/28/28/28 N·m.
+Dynamics: link masses and centres of mass from Universal Robots' published DH/dynamics
+parameters of each model (as in ur_description; UR publishes the UR5's centres of mass for the
+UR5e too), inertias as solid cylinders like ur_description's cylinder_inertial; limits: ±2π
+(elbow ±π, ur_description's limited variant), 3.15 rad/s (UR5) or π rad/s (UR5e),
+150/150/150/28/28/28 N·m. The links' collision cylinders follow each model's offsets (the
+upper arm's shoulder offset, the forearm's, the wrists' d4–d6); they are what the planner keeps
+off the table and the obstacles, not the housings' exact shapes.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-D = [0.089159, 0.0, 0.0, 0.10915, 0.09465, 0.0823]
-A = [0.0, -0.425, -0.39225, 0.0, 0.0, 0.0]
 ALPHA = [math.pi / 2, 0.0, 0.0, math.pi / 2, -math.pi / 2, 0.0]
 
 JOINT_NAMES = [
@@ -54,11 +57,9 @@ LINK_NAMES = [
 ]
 LOWER = [-2 * math.pi, -2 * math.pi, -math.pi, -2 * math.pi, -2 * math.pi, -2 * math.pi]
 UPPER = [2 * math.pi, 2 * math.pi, math.pi, 2 * math.pi, 2 * math.pi, 2 * math.pi]
-VELOCITY = [3.15] * 6
 EFFORT = [150.0, 150.0, 150.0, 28.0, 28.0, 28.0]
-
-# Masses (kg) and centres of mass in DH frame i (m): Universal Robots, UR5 dynamics parameters.
-MASS = [3.7, 8.393, 2.275, 1.219, 1.219, 0.1879]
+# Centres of mass in DH frame i (m): Universal Robots' UR5 dynamics parameters, which UR's DH
+# page gives for the UR5e as well.
 COM = [
     (0.0, -0.02561, 0.00193),
     (0.2125, 0.0, 0.11336),
@@ -76,15 +77,74 @@ INERTIA_CYL = [
     (0.06, 0.12, "z"),
     (0.0375, 0.0345, "z"),
 ]
-# Collision/visual cylinders per link in DH frame i: (radius, length, axis, centre).
-SHAPES = [
-    [(0.06, 0.10, "y", (0.0, -0.02, 0.0)), (0.06, 0.14, "z", (0.0, 0.0, 0.07))],
-    [(0.045, 0.425, "x", (0.2125, 0.0, 0.136)), (0.05, 0.14, "z", (0.0, 0.0, 0.08))],
-    [(0.038, 0.39225, "x", (0.196, 0.0, 0.016)), (0.045, 0.12, "z", (0.0, 0.0, 0.06))],
-    [(0.045, 0.11, "z", (0.0, 0.0, 0.04))],
-    [(0.045, 0.10, "z", (0.0, 0.0, 0.02))],
-    [(0.0375, 0.024, "z", (0.0, 0.0, -0.012))],
-]
+
+Shape = tuple[float, float, str, tuple[float, float, float]]
+"""A link's collision/visual cylinder in DH frame i: (radius, length, axis, centre)."""
+
+
+@dataclass(frozen=True)
+class URModel:
+    """One Universal Robots model: its standard DH lengths, link masses, joint speeds and the
+    cylinders its links are drawn and collide as."""
+
+    name: str
+    """The robot's registry name; the URDF is written to `<name>_gripper.urdf`."""
+    title: str
+    d: tuple[float, ...]
+    """DH offsets d_i (m)."""
+    a: tuple[float, ...]
+    """DH lengths a_i (m)."""
+    mass: tuple[float, ...]
+    """Link masses (kg), shoulder to wrist 3."""
+    velocity: float
+    """Every joint's top speed (rad/s)."""
+    base_height: float
+    """Height of the base's drawn cylinder (m), up to the shoulder's housing."""
+    shapes: tuple[tuple[Shape, ...], ...]
+
+
+UR5 = URModel(
+    name="ur5",
+    title="UR5 (CB3)",
+    d=(0.089159, 0.0, 0.0, 0.10915, 0.09465, 0.0823),
+    a=(0.0, -0.425, -0.39225, 0.0, 0.0, 0.0),
+    mass=(3.7, 8.393, 2.275, 1.219, 1.219, 0.1879),
+    velocity=3.15,
+    base_height=0.086,
+    shapes=(
+        ((0.06, 0.10, "y", (0.0, -0.02, 0.0)), (0.06, 0.14, "z", (0.0, 0.0, 0.07))),
+        ((0.045, 0.425, "x", (0.2125, 0.0, 0.136)), (0.05, 0.14, "z", (0.0, 0.0, 0.08))),
+        ((0.038, 0.39225, "x", (0.196, 0.0, 0.016)), (0.045, 0.12, "z", (0.0, 0.0, 0.06))),
+        ((0.045, 0.11, "z", (0.0, 0.0, 0.04)),),
+        ((0.045, 0.10, "z", (0.0, 0.0, 0.02)),),
+        ((0.0375, 0.024, "z", (0.0, 0.0, -0.012)),),
+    ),
+)
+"""The UR5 (CB3): ur_description's ur5 (shoulder offset 0.136 m, forearm 0.016 m off the DH
+line)."""
+
+UR5E = URModel(
+    name="ur5e",
+    title="UR5e",
+    d=(0.1625, 0.0, 0.0, 0.1333, 0.0997, 0.0996),
+    a=(0.0, -0.425, -0.3922, 0.0, 0.0, 0.0),
+    mass=(3.761, 8.058, 2.846, 1.37, 1.3, 0.365),
+    velocity=math.pi,
+    base_height=0.1,
+    shapes=(
+        ((0.06, 0.10, "y", (0.0, -0.02, 0.0)), (0.06, 0.14, "z", (0.0, 0.0, 0.07))),
+        ((0.045, 0.425, "x", (0.2125, 0.0, 0.138)), (0.05, 0.15, "z", (0.0, 0.0, 0.075))),
+        ((0.038, 0.3922, "x", (0.1961, 0.0, 0.007)), (0.045, 0.145, "z", (0.0, 0.0, 0.0705))),
+        ((0.045, 0.115, "z", (0.0, 0.0, 0.0425)),),
+        ((0.045, 0.11, "z", (0.0, 0.0, 0.025)),),
+        ((0.0375, 0.024, "z", (0.0, 0.0, -0.012)),),
+    ),
+)
+"""The UR5e: ur_description's ur5e (shoulder offset 0.138 m, elbow offset 0.131 m, so the
+forearm runs 7 mm off the DH line; wrists d4 = 0.1333, d5 = 0.0997, d6 = 0.0996 m)."""
+
+MODELS = (UR5, UR5E)
+"""Every model this script writes a URDF for."""
 
 BASE_MASS = 4.0
 PALM_Z = 0.06
@@ -163,13 +223,14 @@ def cylinder_pair(radius, length, axis, centre, to_link_r, to_link_t, material) 
     return shape("visual", geom, xyz, r, material) + shape("collision", geom, xyz, r)
 
 
-def build() -> str:
+def build(model: URModel = UR5) -> str:
+    """The URDF text of `model` with foldbot's gripper."""
     out = [
         '<?xml version="1.0"?>',
-        "<!-- Generated by make_ur5_urdf.py; edit that script, not this file. -->",
-        "<!-- UR5 (CB3) on its standard DH frames + parallel-jaw gripper. "
+        "<!-- Generated by make_ur_urdf.py; edit that script, not this file. -->",
+        f"<!-- {model.title} on its standard DH frames + parallel-jaw gripper. "
         "Root = ur_description base_link = DH base turned by pi about z. -->",
-        '<robot name="ur5_gripper">',
+        f'<robot name="{model.name}_gripper">',
         '  <material name="ur_blue"><color rgba="0.35 0.55 0.75 1"/></material>',
         '  <material name="ur_grey"><color rgba="0.7 0.7 0.7 1"/></material>',
         '  <material name="dark"><color rgba="0.15 0.15 0.15 1"/></material>',
@@ -177,7 +238,8 @@ def build() -> str:
     eye = np.eye(3)
     base = '  <link name="base_link">\n'
     base += inertial(BASE_MASS, (0, 0, 0), eye, cylinder_inertia(BASE_MASS, 0.06, 0.05, "z"))
-    base += cylinder_pair(0.075, 0.086, "z", (0, 0, 0.043), eye, np.zeros(3), "ur_grey")
+    h = model.base_height
+    base += cylinder_pair(0.075, h, "z", (0, 0, h / 2), eye, np.zeros(3), "ur_grey")
     base += "  </link>"
     out.append(base)
     parent = "base_link"
@@ -189,19 +251,18 @@ def build() -> str:
             f"    {origin(parent_xyz, parent_r)}\n"
             '    <axis xyz="0 0 1"/>\n'
             f'    <limit lower="{LOWER[i]:.17g}" upper="{UPPER[i]:.17g}" '
-            f'effort="{EFFORT[i]:g}" velocity="{VELOCITY[i]:g}"/>\n'
+            f'effort="{EFFORT[i]:g}" velocity="{model.velocity:g}"/>\n'
             '    <dynamics damping="0.0" friction="0.0"/>\n'
             "  </joint>"
         )
         # DH frame i expressed in link i: Tz(d)·Tx(a)·Rx(α).
-        t = np.array([A[i], 0.0, D[i]])
+        t = np.array([model.a[i], 0.0, model.d[i]])
         r = rot_x(ALPHA[i])
         link = f'  <link name="{LINK_NAMES[i]}">\n'
         rad, length, axis = INERTIA_CYL[i]
-        link += inertial(
-            MASS[i], r @ np.asarray(COM[i]) + t, r, cylinder_inertia(MASS[i], rad, length, axis)
-        )
-        for k, (sr, sl, sa, sc) in enumerate(SHAPES[i]):
+        m = model.mass[i]
+        link += inertial(m, r @ np.asarray(COM[i]) + t, r, cylinder_inertia(m, rad, length, axis))
+        for k, (sr, sl, sa, sc) in enumerate(model.shapes[i]):
             link += cylinder_pair(sr, sl, sa, sc, r, t, "ur_blue" if k == 0 else "ur_grey")
         link += "  </link>"
         out.append(link)
@@ -265,10 +326,16 @@ def build() -> str:
     return "\n".join(out)
 
 
+def urdf_path(model: URModel) -> Path:
+    """Where the URDF of `model` is shipped, beside this script."""
+    return Path(__file__).with_name(f"{model.name}_gripper.urdf")
+
+
 def main() -> None:
-    path = Path(__file__).with_name("ur5_gripper.urdf")
-    path.write_text(build())
-    print(f"wrote {path}")
+    for model in MODELS:
+        path = urdf_path(model)
+        path.write_text(build(model))
+        print(f"wrote {path}")
 
 
 if __name__ == "__main__":
