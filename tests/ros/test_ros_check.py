@@ -69,6 +69,7 @@ def test_a_running_cell_is_checked_for_all_a_fold_needs(tmp_path):
             ("high", ["--camera-pose", str(calibration), "--layout", str(high)]),
             ("lamp", ["--camera-pose", str(calibration), "--layout", str(lamp)]),
             ("low", ["--camera-pose", str(calibration), "--layout", str(low)]),
+            ("ur5e", ["--camera-pose", str(calibration), "--robot", "ur5e"]),
         ):
             runs[name] = foldbot(
                 "ros-check", "--out", str(tmp_path / name), "--port", str(port), *extra
@@ -86,16 +87,20 @@ def test_a_running_cell_is_checked_for_all_a_fold_needs(tmp_path):
     assert "ok   action /scaled_pos_joint_traj_controller/follow_joint_trajectory" in no_pose.stdout
     assert "ok   action /gripper_controller/gripper_cmd" in no_pose.stdout
     assert "ok   joints on /joint_states: all 6 arm joints of the ur5" in no_pose.stdout
+    # The flange where the cell's controller puts it (base → tool0_controller on /tf).
+    assert "ok   the arm as modelled: the ur5's kinematics put the flange 0.0 mm and 0.00° " in (
+        no_pose.stdout
+    )
     assert "ok   camera: colour rgb8 and depth 32FC1, 640 × 480 px" in no_pose.stdout
     assert "ok   world → base_link: at (0.000, 0.000, 0.750) m" in no_pose.stdout
     assert "FAIL world → camera_color_optical_frame: not on /tf_static" in no_pose.stdout
-    assert "1 of 6 checks failed" in no_pose.stdout
+    assert "1 of 7 checks failed" in no_pose.stdout
     assert not (tmp_path / "no_pose" / "ros_check.png").exists()  # no pose: nothing to draw
 
     assert calibrated.returncode == 0, calibrated.stdout + calibrated.stderr
     assert "ros-check: the cell is ready to fold" in calibrated.stdout
     record = json.loads((tmp_path / "calibrated" / "ros_check.json").read_text())
-    assert record["ok"] and len(record["checks"]) == 11
+    assert record["ok"] and len(record["checks"]) == 12
     assert "ok   the camera as calibrated: 640 × 480 px, fx " in calibrated.stdout
     assert "as the calibration was solved with, its distortion too" in calibrated.stdout
     # The cell's towel, as the fold's first look will see it, drawn on the picture too.
@@ -114,7 +119,13 @@ def test_a_running_cell_is_checked_for_all_a_fold_needs(tmp_path):
     assert (
         "FAIL the table in depth: at 0.7500 m over the workspace centre (-20.0 mm" in wrong.stdout
     )
-    assert "2 of 11 checks failed: world → base_link, the table in depth" in wrong.stdout
+    assert "2 of 12 checks failed: world → base_link, the table in depth" in wrong.stdout
+
+    # Told the arm is a UR5e, the check finds the UR5's lengths in what its controller reports.
+    e = runs["ur5e"]
+    assert e.returncode == 1, e.stdout + e.stderr
+    assert "FAIL the arm as modelled: the ur5e's kinematics put the flange " in e.stdout
+    assert "off: the arm is a ur5 (--robot ur5)" in e.stdout
 
     lamped = runs["lamp"]
     assert lamped.returncode == 1, lamped.stdout + lamped.stderr

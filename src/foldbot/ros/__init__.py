@@ -12,6 +12,13 @@ BASE_FRAME = "base_link"
 """The arm's base frame; in a two-arm cell each arm's carries its prefix (ARM_PREFIXES)."""
 CAMERA_FRAME = "camera_color_optical_frame"
 """The camera's optical frame (REP 103: x right, y down, z forward)."""
+UR_BASE_FRAME = "base"
+"""A UR arm's controller base (ur_description's `base`: base_link turned by π about z), prefixed
+as BASE_FRAME is."""
+UR_TOOL_FRAME = "tool0_controller"
+"""The tool flange where a UR arm's own controller puts it, from its joints and its factory
+calibration: ur_robot_driver publishes base → tool0_controller on /tf (and so does the sim
+node), which ros-check holds foldbot's model of the arm against."""
 
 TOPICS = {
     "color": "camera/color/image_raw",
@@ -21,6 +28,7 @@ TOPICS = {
     "joint_states": "/joint_states",
     "clock": "/clock",
     "tf_static": "/tf_static",
+    "tf": "/tf",
     "trajectory": "arm/joint_trajectory",
     "gripper": "gripper/command",  # "open" / "close", or "open 1" / "close 1" for arm 1
     "grasp": "gripper/grasp",

@@ -3,7 +3,9 @@ everything `foldbot ros-fold --cell real` will need, all of it rather than the f
 missing, and says what it found: each arm's driver actions, /joint_states with every joint
 within its limits, the camera's colour, depth and camera_info (with a calibration's pose, its
 image size, K and distortion as the calibration was solved with), world → base_link and
-world → the camera on /tf_static (or a calibration's pose), the table where the layout puts it
+world → the camera on /tf_static (or a calibration's pose), a UR arm's own controller's flange
+where foldbot's model of the arm puts it (base → tool0_controller on /tf), the table where the
+layout puts it
 as the camera's depth sees it, the layout's obstacles the camera sees where the file puts them,
 and every workspace point reached by an arm and inside the image (foldbot.layout_check). Moves nothing. Writes ros_check.json and ros_check.png (the camera's
 image, the workspace drawn where the camera's pose puts it) into the staging folder it is given.
@@ -47,15 +49,19 @@ from foldbot.perception.state import ClothState
 from foldbot.ros import (
     BASE_FRAME,
     TOPICS,
+    UR_BASE_FRAME,
+    UR_TOOL_FRAME,
     WORLD_FRAME,
     arm_joint_names,
     arm_prefixes,
+    convert,
     driver_actions,
 )
 from foldbot.ros.control_msgs import msg as control_msgs
 from foldbot.ros.frames import StaticFrames
 from foldbot.sim.layout import DEFAULT_LAYOUT, CellLayout, load_layout
-from foldbot.sim.robots import make_robot, robot_class
+from foldbot.sim.robots import ROBOT_NAMES, make_robot, robot_class
+from foldbot.sim.robots.kinematics import UR_DH, pose_offset, ur5_fk
 from foldbot.sim.world import SimConfig, SimWorld
 from foldbot.types import Observation
 
@@ -68,6 +74,15 @@ TABLE_TOLERANCE_M = 0.01
 """How far the table the depth shows may lie from the layout's table_height (m)."""
 TILT_TOLERANCE_DEG = 2.0
 """How far from level the table the depth shows may be tilted (a camera pose turned wrong)."""
+MODEL_TOLERANCE_M = 0.01
+"""How far foldbot's model of a UR arm may put its flange from where the arm's controller says
+it is (base → tool0_controller), at the joints the arm reports (m): a factory-calibrated arm
+lies a few mm from its nominal lengths; another model (a UR5e's lengths for a UR5's) centimetres."""
+MODEL_TOLERANCE_DEG = 1.0
+"""The same, for the flange's orientation (degrees)."""
+TOOL_WAIT_S = 3.0
+"""How long (wall s) the check waits for base → tool0_controller on /tf after the joints came:
+ur_robot_driver streams it at the controller's rate."""
 
 
 @dataclass(frozen=True)
@@ -102,6 +117,9 @@ class _Inbox:
                 buff_size=2**24 if kind is Image else 65536,
             )
         rospy.Subscriber(TOPICS["tf_static"], TFMessage, self._on_tf, queue_size=10)
+        self.tools: dict[str, tuple[str, np.ndarray]] = {}
+        """The newest transform /tf gave each UR_TOOL_FRAME (prefixed): its parent and pose."""
+        rospy.Subscriber(TOPICS["tf"], TFMessage, self._on_moving_tf, queue_size=50)
 
     def _keep(self, key: str):
         def keep(msg) -> None:
@@ -113,6 +131,25 @@ class _Inbox:
     def _on_tf(self, msg: TFMessage) -> None:
         with self.lock:
             self.frames.add(msg)
+
+    def _on_moving_tf(self, msg: TFMessage) -> None:
+        for t in msg.transforms:
+            child = t.child_frame_id.lstrip("/")
+            if child.endswith(UR_TOOL_FRAME):
+                with self.lock:
+                    self.tools[child] = (t.header.frame_id.lstrip("/"), convert.matrix_of(t))
+
+    def wait_tools(self, children: Sequence[str], timeout_s: float) -> dict[str, tuple]:
+        """The newest transform of each of `children` (UR_TOOL_FRAME, prefixed) within
+        `timeout_s`, those that came."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline and not rospy.is_shutdown():
+            with self.lock:
+                if all(c in self.tools for c in children):
+                    break
+            time.sleep(0.02)
+        with self.lock:
+            return {c: self.tools[c] for c in children if c in self.tools}
 
     def wait(self, keys: tuple[str, ...], timeout_s: float) -> dict[str, Any]:
         """The newest of each of `keys` that came within `timeout_s` (those that did not: absent)."""
@@ -175,6 +212,81 @@ def check_joints(inbox: _Inbox, robot: str, arms: int) -> Check:
     return Check(
         f"joints on {topic}", True, f"all {count} arm joints of the {robot}, within limits"
     )
+
+
+def arm_model_offsets(
+    q: np.ndarray, T_base_tool: np.ndarray, robot: str
+) -> dict[str, tuple[float, float]]:
+    """For `robot` and every other UR model: how far its kinematics at joints `q` put the flange
+    from `T_base_tool` (the arm's controller's), as (m, rad), `robot` first."""
+    models = [robot, *(m for m in ROBOT_NAMES if m in UR_DH and m != robot)]
+    return {m: pose_offset(ur5_fk(q, m), T_base_tool) for m in models}
+
+
+def model_words(robot: str, offsets: dict[str, tuple[float, float]]) -> tuple[bool, str]:
+    """Whether `robot`'s offset is within MODEL_TOLERANCE_M/DEG, and the words that say so
+    (naming the UR model that would be, where `robot` is not)."""
+    dist, angle = offsets[robot]
+    ok = dist <= MODEL_TOLERANCE_M and np.degrees(angle) <= MODEL_TOLERANCE_DEG
+    words = (
+        f"the {robot}'s kinematics put the flange {dist * 1000:.1f} mm and "
+        f"{np.degrees(angle):.2f}° from where the arm's controller says it is"
+    )
+    if ok:
+        return True, words
+    words += f" (at most {MODEL_TOLERANCE_M * 1000:g} mm and {MODEL_TOLERANCE_DEG:g}°)"
+    better = [
+        m
+        for m, (d, a) in offsets.items()
+        if m != robot and d <= MODEL_TOLERANCE_M and np.degrees(a) <= MODEL_TOLERANCE_DEG
+    ]
+    if better:
+        d, a = offsets[better[0]]
+        words += (
+            f"; the {better[0]}'s put it {d * 1000:.1f} mm and {np.degrees(a):.2f}° off: "
+            f"the arm is a {better[0]} (--robot {better[0]})"
+        )
+    else:
+        words += ": is --robot the arm's model? (or its calibration far from its nominal lengths)"
+    return False, words
+
+
+def check_arm_model(inbox: _Inbox, robot: str, arms: int) -> Check | None:
+    """A UR arm's flange where its own controller puts it (base → tool0_controller on /tf,
+    ur_robot_driver's) against where foldbot's model of the arm puts it at the joints the arm
+    reports, every arm: planned on another arm's lengths (a UR5's for a UR5e), every waypoint
+    would be centimetres off. None for an arm that is not a UR (nothing to compare with)."""
+    if robot not in UR_DH:
+        return None
+    cls = robot_class(robot)
+    prefixes = arm_prefixes(arms)
+    tools = inbox.wait_tools([p + UR_TOOL_FRAME for p in prefixes], TOOL_WAIT_S)
+    msg = inbox.wait(("joint_states",), WAIT_S).get("joint_states")  # the newest, with /tf's
+    position = {} if msg is None else dict(zip(msg.name, msg.position, strict=False))
+    arm_names = ("arm",) if arms == 1 else ("left arm", "right arm")
+    lines, ok = [], True
+    for name, prefix, joints in zip(
+        arm_names, prefixes, arm_joint_names(cls.ARM_JOINT_NAMES, arms), strict=True
+    ):
+        tool = prefix + UR_TOOL_FRAME
+        if tool not in tools:
+            ok = False
+            lines.append(
+                f"{name}: no {prefix}{UR_BASE_FRAME} → {tool} on /tf within {TOOL_WAIT_S:g} s "
+                "(ur_robot_driver publishes the arm's own forward kinematics there; without it "
+                "the arm is not checked against foldbot's model of it)"
+            )
+            continue
+        if not all(j in position for j in joints):
+            ok = False
+            lines.append(f"{name}: its joints are not on /joint_states")
+            continue
+        _parent, T = tools[tool]
+        q = np.array([position[j] for j in joints])
+        fits, words = model_words(robot, arm_model_offsets(q, T, robot))
+        ok = ok and fits
+        lines.append(words if arms == 1 else f"{name}: {words}")
+    return Check("the arm as modelled", ok, "; ".join(lines))
 
 
 def check_obstacles(inbox: _Inbox, layout: CellLayout, robot: str, arms: int) -> Check:
@@ -464,6 +576,9 @@ def run_checks(
     inbox = _Inbox()
     checks = check_drivers(arms)
     checks.append(check_joints(inbox, robot, arms))
+    model = check_arm_model(inbox, robot, arms)
+    if model is not None:
+        checks.append(model)
     if layout.obstacles:
         checks.append(check_obstacles(inbox, layout, robot, arms))
     got = inbox.wait(("color", "color_info", "depth"), WAIT_S)

@@ -2,8 +2,9 @@
 
 Publishes the RGB-D camera (camera/color/image_raw rgb8, camera/depth/image_raw 32FC1 metres,
 their camera_info), /joint_states, /clock (simulated time), /tf_static (world → base_link and
-→ camera_color_optical_frame), the grasp outcome (gripper/grasp) and, for scoring only, the
-cloth's ground truth (ground_truth/cloth). Executes trajectory_msgs/JointTrajectory on
+→ camera_color_optical_frame; a UR's base_link → base), /tf (a UR's base → tool0_controller, the
+flange where its controller puts it, as ur_robot_driver streams it), the grasp outcome
+(gripper/grasp) and, for scoring only, the cloth's ground truth (ground_truth/cloth). Executes trajectory_msgs/JointTrajectory on
 arm/joint_trajectory, "open"/"close" on gripper/command and sim/wait (s), one at a time; after
 each it publishes a camera frame of the resting cell and a JSON report on sim/result.
 
@@ -25,6 +26,7 @@ from typing import Any
 import numpy as np
 import rospy
 from rosgraph_msgs.msg import Clock
+from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import CameraInfo, Image, JointState, PointCloud2
 from std_msgs.msg import Empty, Float64, String
 from tf2_msgs.msg import TFMessage
@@ -37,6 +39,8 @@ from foldbot.ros import (
     BASE_FRAME,
     CAMERA_FRAME,
     TOPICS,
+    UR_BASE_FRAME,
+    UR_TOOL_FRAME,
     WORLD_FRAME,
     arm_joint_names,
     arm_prefixes,
@@ -57,6 +61,8 @@ from foldbot.ros.publish import wait_for_listed_subscribers
 from foldbot.sim.cloth import settle
 from foldbot.sim.grasp import SlipFault
 from foldbot.sim.rest import RestWatch
+from foldbot.sim.robots import UR5
+from foldbot.sim.robots.kinematics import DH_BASE_IN_BASE_LINK
 from foldbot.sim.world import SimWorld
 
 SUBSCRIBER_WAIT_S = 60.0
@@ -95,6 +101,18 @@ def gripper_command(text: str, arms: int) -> tuple[str, int]:
             f"arm in 0–{arms - 1}"
         )
     return words[0], int(words[1]) if len(words) == 2 else 0
+
+
+def ur_tool_in_base(robot: UR5) -> np.ndarray:
+    """4 × 4 pose of the simulated UR's flange in its controller's base frame (UR_BASE_FRAME):
+    what ur_robot_driver publishes as base → tool0_controller."""
+    pos, quat = robot.flange_pose()
+    T_world_flange = np.eye(4)
+    T_world_flange[:3, :3] = Rotation.from_quat(quat).as_matrix()
+    T_world_flange[:3, 3] = pos
+    T_world_base = np.eye(4)  # arms are mounted unrotated (sim.robots.base)
+    T_world_base[:3, 3] = robot.layout.robot_base_xyz
+    return np.linalg.inv(T_world_base @ DH_BASE_IN_BASE_LINK) @ T_world_flange
 
 
 class SimNode:
@@ -182,6 +200,7 @@ class SimNode:
             "clock": rospy.Publisher(TOPICS["clock"], Clock, queue_size=10),
             "joints": rospy.Publisher(TOPICS["joint_states"], JointState, queue_size=10),
             "tf": rospy.Publisher(TOPICS["tf_static"], TFMessage, **latch),
+            "tool_tf": rospy.Publisher(TOPICS["tf"], TFMessage, queue_size=10),
             "color": rospy.Publisher(TOPICS["color"], Image, **frames),
             "color_info": rospy.Publisher(TOPICS["color_info"], CameraInfo, **frames),
             "depth": rospy.Publisher(TOPICS["depth"], Image, **frames),
@@ -259,6 +278,16 @@ class SimNode:
                 names, np.concatenate(q), np.concatenate(v), self.world.sim_time
             )
         )
+        t = self.world.sim_time
+        tools = [
+            convert.transform_msg(
+                ur_tool_in_base(ex.robot), prefix + UR_BASE_FRAME, prefix + UR_TOOL_FRAME, t
+            )
+            for ex, prefix in zip(self.executors, self.prefixes, strict=True)
+            if isinstance(ex.robot, UR5)
+        ]
+        if tools:  # where the arm's controller says its flange is, as ur_robot_driver's
+            self.pub["tool_tf"].publish(TFMessage(transforms=tools))
 
     def publish_frame(self) -> float:
         """Render and publish one RGB-D frame; returns its stamp (simulated s)."""
@@ -277,6 +306,12 @@ class SimNode:
             base = np.eye(4)  # arms are mounted unrotated (sim.robots.base)
             base[:3, 3] = ex.robot.layout.robot_base_xyz
             tfs.append(convert.transform_msg(base, WORLD_FRAME, prefix + BASE_FRAME, 0.0))
+            if isinstance(ex.robot, UR5):  # base_link → the controller's base, as its URDF has
+                tfs.append(
+                    convert.transform_msg(
+                        DH_BASE_IN_BASE_LINK, prefix + BASE_FRAME, prefix + UR_BASE_FRAME, 0.0
+                    )
+                )
         if self.publish_camera_pose:
             tfs.append(
                 convert.transform_msg(

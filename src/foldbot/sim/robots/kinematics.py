@@ -70,6 +70,16 @@ def ur5_fk_base_link(q: np.ndarray, model: str = "ur5") -> np.ndarray:
     return DH_BASE_IN_BASE_LINK @ ur5_fk(q, model)
 
 
+def pose_offset(T_a: np.ndarray, T_b: np.ndarray) -> tuple[float, float]:
+    """How far apart two 4×4 poses are: the distance between their origins (m) and the angle
+    of the rotation between them (rad)."""
+    T_a, T_b = np.asarray(T_a, dtype=float), np.asarray(T_b, dtype=float)
+    return (
+        float(np.linalg.norm(T_a[:3, 3] - T_b[:3, 3])),
+        rotation_angle_between(T_a[:3, :3], T_b[:3, :3]),
+    )
+
+
 def rotation_to_quaternion(r: np.ndarray) -> np.ndarray:
     """Rotation matrix (3×3) to a unit quaternion in (x, y, z, w) order, w ≥ 0."""
     r = np.asarray(r, dtype=float)
